@@ -1,0 +1,92 @@
+// `pathtracer info`: what a scene holds (primitives, materials by type, lights), how its BVH came
+// out, and which renderer features it needs.
+#include <iomanip>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "scene/compiled_scene.h"
+#include "scene/loader.h"
+
+namespace app {
+namespace {
+
+struct InfoOptions {
+  std::string scene;
+  bool json = false;
+};
+
+int run_info(const InfoOptions& o) {
+  tracer::Scene scene;
+  try {
+    scene = o.scene.empty() ? tracer::builtin_default_scene() : tracer::load_scene(o.scene);
+  } catch (const tracer::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  for (const auto& w : scene.diagnostics.warnings) std::cerr << "warning: " << w << "\n";
+  const tracer::CompiledScene cs(scene, scene.settings.width, scene.settings.height);
+  const tracer::SceneView& v = cs.view();
+  int by_type[tracer::kMaterialTypeCount] = {};
+  int emissive = 0;
+  for (const auto& m : scene.materials) {
+    by_type[int(m.material.type)]++;
+    if (m.material.is_emissive()) ++emissive;
+  }
+  const auto& st = cs.bvh_stats();
+  nlohmann::json j;
+  j["scene"] = scene.source;
+  j["objects"] = scene.objects.size();
+  j["primitives"] = v.tri_count + v.sphere_count;
+  j["triangles"] = v.tri_count;
+  j["spheres"] = v.sphere_count;
+  j["materials"] = {{"total", scene.materials.size()},
+                    {"diffuse", by_type[int(tracer::MaterialType::kDiffuse)]},
+                    {"mirror", by_type[int(tracer::MaterialType::kMirror)]},
+                    {"dielectric", by_type[int(tracer::MaterialType::kDielectric)]},
+                    {"emissive", emissive}};
+  j["lights"] = v.light_count;
+  j["bvh"] = {{"nodes", st.node_count},
+              {"leaves", st.leaf_count},
+              {"depth", st.max_depth},
+              {"sah_cost", st.sah_cost},
+              {"build_ms", st.build_ms},
+              {"bytes", st.node_count * sizeof(tracer::BvhNode)}};
+  j["features"] = tracer::describe_features(cs.features());
+  j["render"] = {{"width", scene.settings.width},
+                 {"height", scene.settings.height},
+                 {"spp", scene.settings.spp},
+                 {"max_depth", scene.settings.max_depth}};
+  if (o.json) {
+    std::cout << j.dump(2) << "\n";
+    return 0;
+  }
+  std::cout << "scene       " << scene.source << "\n"
+            << "objects     " << scene.objects.size() << "\n"
+            << "primitives  " << v.tri_count + v.sphere_count << " (" << v.tri_count
+            << " triangles, " << v.sphere_count << " spheres)\n"
+            << "materials   " << scene.materials.size() << " ("
+            << by_type[0] << " diffuse, " << by_type[1] << " mirror, " << by_type[2]
+            << " dielectric; " << emissive << " emissive)\n"
+            << "lights      " << v.light_count << " emissive primitives\n"
+            << "bvh         " << st.node_count << " nodes (" << st.leaf_count << " leaves, "
+            << st.node_count * sizeof(tracer::BvhNode) / 1024.0 << " KiB), depth " << st.max_depth
+            << ", SAH cost " << std::fixed << std::setprecision(2) << st.sah_cost
+            << ", built in " << std::setprecision(2) << st.build_ms << " ms\n"
+            << "features    " << tracer::describe_features(cs.features()) << "\n"
+            << "render      " << scene.settings.width << "x" << scene.settings.height << ", "
+            << scene.settings.spp << " spp, max depth " << scene.settings.max_depth << "\n";
+  return 0;
+}
+
+}  // namespace
+
+Runner add_info_command(CLI::App& cmd) {
+  auto o = std::make_shared<InfoOptions>();
+  cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in")
+      ->check(CLI::ExistingFile);
+  cmd.add_flag("--json", o->json, "Print JSON instead of text");
+  return [o] { return run_info(*o); };
+}
+
+}  // namespace app

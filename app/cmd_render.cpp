@@ -1,0 +1,208 @@
+// `pathtracer render`: load a scene (or the built-in Cornell box), render it to a sample count or
+// a time budget with progress on stderr, write the image atomically and a JSON sidecar that
+// records everything needed to reproduce it.
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "image/image.h"
+#include "integrator/renderer.h"
+#include "scene/compiled_scene.h"
+#include "scene/loader.h"
+
+namespace app {
+namespace {
+
+struct RenderOptions {
+  std::string scene;
+  std::string out = "out/render.png";
+  std::string backend = "auto";
+  int spp = 0, width = 0, height = 0, max_depth = 0, threads = 0, rr_start = 0;
+  double time = 0.0;
+  long long seed = -1;
+  std::string nee, mis, rr;  // "on"/"off" or empty: keep the scene's setting
+  float exposure = 0.0f;
+  std::string tonemap = "none";
+  bool quiet = false;
+};
+
+std::string fmt_seconds(double s) {
+  char buf[32];
+  if (s < 60) snprintf(buf, sizeof buf, "%.1f s", s);
+  else snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
+  return buf;
+}
+
+void apply_switch(const std::string& v, bool& target) {
+  if (v == "on") target = true;
+  if (v == "off") target = false;
+}
+
+int run_render(const RenderOptions& o) {
+  using clock = std::chrono::steady_clock;
+  const auto t_start = clock::now();
+  tracer::Scene scene;
+  try {
+    scene = o.scene.empty() ? tracer::builtin_default_scene() : tracer::load_scene(o.scene);
+  } catch (const tracer::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  for (const auto& w : scene.diagnostics.warnings) std::cerr << "warning: " << w << "\n";
+
+  tracer::RenderSettings rs = scene.settings;
+  if (o.width > 0) rs.width = o.width;
+  if (o.height > 0) rs.height = o.height;
+  if (o.spp > 0) rs.spp = o.spp;
+  if (o.time > 0) rs.time_limit_s = o.time;
+  if (o.max_depth > 0) rs.max_depth = o.max_depth;
+  if (o.rr_start > 0) rs.rr_start_depth = o.rr_start;
+  if (o.seed >= 0) rs.seed = uint32_t(o.seed);
+  apply_switch(o.nee, rs.nee);
+  apply_switch(o.mis, rs.mis);
+  apply_switch(o.rr, rs.russian_roulette);
+  scene.settings = rs;
+  try {
+    tracer::validate_scene(scene);  // the command line may have made the image too large
+  } catch (const tracer::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  tracer::ToneMap op;
+  if (!tracer::parse_tone_map(o.tonemap, &op)) {
+    std::cerr << "error: --tonemap " << o.tonemap << ": expected none, reinhard or aces\n";
+    return kExitUsage;
+  }
+
+  const tracer::BackendChoice choice = o.backend == "cpu"    ? tracer::BackendChoice::kCpu
+                                       : o.backend == "cuda" ? tracer::BackendChoice::kCuda
+                                                             : tracer::BackendChoice::kAuto;
+  std::unique_ptr<tracer::Renderer> renderer;
+  std::string note;
+  try {
+    renderer = tracer::make_renderer(choice, o.threads, &note);
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  if (!note.empty() && !o.quiet) std::cerr << "note: " << note << "\n";
+
+  const tracer::CompiledScene compiled(scene, rs.width, rs.height);
+  const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(rs);
+  renderer->set_scene(compiled, cfg);
+  const double setup_s = std::chrono::duration<double>(clock::now() - t_start).count();
+
+  // Passes sized so that progress updates about twice a second.
+  const bool timed = rs.time_limit_s > 0.0;
+  const uint32_t target = timed ? 0u : uint32_t(rs.spp);
+  const bool tty = isatty(STDERR_FILENO);
+  const auto r_start = clock::now();
+  auto last_print = r_start;
+  uint32_t pass = 1;
+  tracer::RayCounts rays;
+  double render_s = 0.0;
+  for (;;) {
+    const uint32_t done = renderer->samples_done();
+    if (!timed && done >= target) break;
+    if (timed && render_s >= rs.time_limit_s) break;
+    uint32_t n = timed ? pass : std::min(pass, target - done);
+    const tracer::FrameStats fs = renderer->render(n);
+    rays.camera += fs.rays.camera;
+    rays.extension += fs.rays.extension;
+    rays.shadow += fs.rays.shadow;
+    render_s = std::chrono::duration<double>(clock::now() - r_start).count();
+    const double per_spp = fs.ms / 1000.0 / n;
+    double budget = 0.5;
+    if (timed) budget = std::min(budget, rs.time_limit_s - render_s);
+    pass = uint32_t(std::clamp(budget / std::max(per_spp, 1e-6), 1.0, 4096.0));
+    const auto now = clock::now();
+    if (!o.quiet && std::chrono::duration<double>(now - last_print).count() > (tty ? 0.25 : 5.0)) {
+      last_print = now;
+      const uint32_t d = renderer->samples_done();
+      const double sps = double(d) * rs.width * rs.height / render_s;
+      const double eta = timed ? rs.time_limit_s - render_s : (target - d) * render_s / d;
+      std::cerr << (tty ? "\r" : "") << "render: " << d << (timed ? "" : "/" + std::to_string(target))
+                << " spp, " << std::fixed << std::setprecision(2) << sps / 1e6 << " Msamples/s, ETA "
+                << fmt_seconds(std::max(0.0, eta)) << (tty ? "   " : "\n") << std::flush;
+    }
+  }
+  if (!o.quiet && tty) std::cerr << "\n";
+  const uint32_t spp_done = renderer->samples_done();
+  const uint64_t nonfinite = renderer->nonfinite_total();
+  const tracer::ImageRGB img = renderer->image();
+  try {
+    tracer::write_image(o.out, img, o.exposure, op);
+    nlohmann::json j;
+    j["scene"] = o.scene.empty() ? "<built-in>" : o.scene;
+    j["output"] = o.out;
+    j["version"] = TRACER_VERSION;
+    j["backend"] = renderer->backend_name();
+    j["device"] = renderer->device_name();
+    j["settings"] = {{"width", rs.width},         {"height", rs.height},
+                     {"spp", rs.spp},             {"time_limit_s", rs.time_limit_s},
+                     {"max_depth", rs.max_depth}, {"nee", rs.nee},
+                     {"mis", rs.mis},             {"russian_roulette", rs.russian_roulette},
+                     {"rr_start_depth", rs.rr_start_depth}, {"seed", rs.seed},
+                     {"exposure", o.exposure},    {"tonemap", tracer::tone_map_name(op)}};
+    j["spp"] = spp_done;
+    j["wall_time_s"] = render_s;
+    j["setup_time_s"] = setup_s;
+    j["rays"] = {{"camera", rays.camera}, {"extension", rays.extension}, {"shadow", rays.shadow}};
+    j["mrays_per_s"] = double(rays.camera + rays.extension + rays.shadow) / render_s / 1e6;
+    j["nonfinite_samples"] = nonfinite;
+    j["features"] = tracer::describe_features(compiled.features());
+    j["warnings"] = scene.diagnostics.warnings;
+    const std::string cmd_seed = std::to_string(rs.seed);
+    tracer::write_text_atomic(o.out + ".json", j.dump(2) + "\n");
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  if (!o.quiet) {
+    std::cerr << "wrote " << o.out << " (" << rs.width << "x" << rs.height << ", " << spp_done
+              << " spp, " << fmt_seconds(render_s) << ", " << renderer->backend_name() << ")";
+    if (nonfinite) std::cerr << "; " << nonfinite << " NaN/Inf samples rejected";
+    std::cerr << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+Runner add_render_command(CLI::App& cmd) {
+  auto o = std::make_shared<RenderOptions>();
+  cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in Cornell box")
+      ->check(CLI::ExistingFile);
+  auto* spp = cmd.add_option("--spp", o->spp, "Samples per pixel")->check(CLI::Range(1, 1 << 24));
+  auto* time = cmd.add_option("--time", o->time, "Render for this many seconds instead of --spp")
+                   ->check(CLI::Range(1e-3, 1e7));
+  spp->excludes(time);
+  cmd.add_option("--width", o->width, "Image width in pixels")->check(CLI::Range(1, 16384));
+  cmd.add_option("--height", o->height, "Image height in pixels")->check(CLI::Range(1, 16384));
+  cmd.add_option("--max-depth", o->max_depth, "Maximum path segments (camera ray included)")
+      ->check(CLI::Range(1, 1024));
+  cmd.add_option("--backend", o->backend, "auto, cpu or cuda")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+  cmd.add_option("--seed", o->seed, "Random seed")->check(CLI::Range(0LL, 4294967295LL));
+  cmd.add_option("--out", o->out, "Output file: .png (tone-mapped sRGB) or .exr (linear float)")
+      ->capture_default_str();
+  cmd.add_option("--threads", o->threads, "CPU threads (0: all cores)")->check(CLI::Range(0, 1024));
+  cmd.add_option("--nee", o->nee, "Next-event estimation: on or off")->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option("--mis", o->mis, "Multiple importance sampling: on or off")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option("--rr", o->rr, "Russian roulette: on or off")->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option("--rr-start", o->rr_start, "Path depth at which Russian roulette starts")
+      ->check(CLI::Range(1, 1024));
+  cmd.add_option("--exposure", o->exposure, "Exposure in stops for the PNG")
+      ->check(CLI::Range(-20.0, 20.0));
+  cmd.add_option("--tonemap", o->tonemap, "PNG tone mapping: none, reinhard or aces")
+      ->check(CLI::IsMember({"none", "reinhard", "aces"}));
+  cmd.add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
+  return [o] { return run_render(*o); };
+}
+
+}  // namespace app

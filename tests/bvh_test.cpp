@@ -1,0 +1,143 @@
+// The BVH must find exactly what brute force finds: the nearest hit for closest-hit queries and
+// any hit for occlusion, on random soups of triangles and spheres and on real meshes.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <random>
+
+#include "scene/loader.h"
+#include "scene_builders.h"
+#include "test_util.h"
+
+namespace {
+using namespace test;
+
+Hit brute_force(const SceneView& s, const Ray& ray) {
+  Hit best;
+  const RayTriSetup setup(ray.d);
+  float tmax = ray.tmax;
+  for (uint32_t p = 0; p < s.tri_count + s.sphere_count; ++p) {
+    float t, b1 = 0, b2 = 0;
+    bool h;
+    if (p < s.tri_count) {
+      const auto& tv = s.tri_verts[p];
+      h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
+    } else {
+      const auto& sp = s.spheres[p - s.tri_count];
+      h = intersect_sphere(ray, sp.center, sp.radius, tmax, t);
+    }
+    if (h) {
+      tmax = t;
+      best.t = t;
+      best.prim = p;
+    }
+  }
+  return best;
+}
+
+Ray random_ray(std::mt19937& rng, vec3 lo, vec3 hi) {
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const vec3 ext = hi - lo;
+  Ray r;
+  r.o = lo - 0.25f * ext + 1.5f * ext * vec3(u(rng), u(rng), u(rng));
+  const vec3 target = lo + ext * vec3(u(rng), u(rng), u(rng));
+  r.d = glm::normalize(target - r.o);
+  r.tmax = kInfinity;
+  r.pad = 0;
+  return r;
+}
+
+void check_against_brute_force(const Scene& scene, int rays, const std::string& what) {
+  const CompiledScene cs(scene, 16, 16);
+  const SceneView& v = cs.view();
+  Aabb box;
+  for (const auto& tv : cs.tri_verts()) {
+    box.grow(tv.v0);
+    box.grow(tv.v1);
+    box.grow(tv.v2);
+  }
+  for (const auto& s : cs.spheres()) {
+    box.grow(s.center - vec3(s.radius));
+    box.grow(s.center + vec3(s.radius));
+  }
+  std::mt19937 rng(1234);
+  int hits = 0, mismatches = 0;
+  for (int i = 0; i < rays; ++i) {
+    Ray r = random_ray(rng, box.lo, box.hi);
+    const Hit a = intersect_closest(v, r);
+    const Hit b = brute_force(v, r);
+    if (a.valid()) ++hits;
+    if (a.prim != b.prim || a.t != b.t) {
+      if (mismatches++ < 5)
+        ADD_FAILURE() << what << ": ray " << i << " bvh prim " << a.prim << " t " << a.t
+                      << " vs brute force prim " << b.prim << " t " << b.t;
+    }
+    // Occlusion must agree too, with the ray cut short just before the nearest hit and beyond.
+    Ray s = r;
+    s.tmax = b.valid() ? b.t * 2.0f : 1e30f;
+    EXPECT_EQ(intersect_any(v, s, kInvalid), b.valid()) << what << ": ray " << i;
+    if (b.valid()) {
+      s.tmax = b.t * 0.5f;
+      const Hit c = brute_force(v, s);
+      EXPECT_EQ(intersect_any(v, s, kInvalid), c.valid()) << what << ": short ray " << i;
+    }
+  }
+  EXPECT_EQ(mismatches, 0) << what;
+  EXPECT_GT(hits, rays / 10) << what << ": the rays should hit something often";
+}
+
+TEST(Bvh, NodesAre32Bytes) { EXPECT_EQ(sizeof(BvhNode), 32u); }
+
+TEST(Bvh, RandomTrianglesAndSpheresMatchBruteForce) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-10.0f, 10.0f), small(-1.0f, 1.0f), rad(0.05f, 1.0f);
+  Scene s;
+  s.materials.push_back({"m", diffuse(vec3(0.5f))});
+  for (int i = 0; i < 3000; ++i) {
+    const vec3 c(u(rng), u(rng), u(rng));
+    add_triangle(s.mesh, c + vec3(small(rng), small(rng), small(rng)),
+                 c + vec3(small(rng), small(rng), small(rng)),
+                 c + vec3(small(rng), small(rng), small(rng)), 0);
+  }
+  for (int i = 0; i < 200; ++i) s.spheres.push_back({vec3(u(rng), u(rng), u(rng)), rad(rng), 0});
+  check_against_brute_force(s, 4000, "random soup");
+}
+
+TEST(Bvh, DegenerateInputs) {
+  // Many primitives with the same centroid must still build a valid, shallow-enough tree.
+  Scene s;
+  s.materials.push_back({"m", diffuse(vec3(0.5f))});
+  for (int i = 0; i < 500; ++i) s.spheres.push_back({vec3(0.0f), 0.5f + 0.001f * i, 0});
+  check_against_brute_force(s, 500, "concentric spheres");
+  const CompiledScene cs(s, 4, 4);
+  EXPECT_LT(cs.bvh_stats().max_depth, uint32_t(kBvhStackSize));
+}
+
+TEST(Bvh, EmptyScene) {
+  Scene s;
+  s.materials.push_back({"m", diffuse(vec3(0.5f))});
+  const CompiledScene cs(s, 4, 4);
+  Ray r{vec3(0.0f), kInfinity, vec3(0, 0, 1), 0.0f};
+  EXPECT_FALSE(intersect_closest(cs.view(), r).valid());
+  EXPECT_FALSE(intersect_any(cs.view(), r, kInvalid));
+}
+
+void check_mesh_file(const std::string& path, int rays) {
+  std::ifstream f(path);
+  if (!f) GTEST_SKIP() << path << " is not installed (scripts/setup.sh installs it)";
+  Scene s;
+  s.materials.push_back({"m", diffuse(vec3(0.5f))});
+  append_mesh_file(s, path, glm::mat4(1.0f), 0, SourceLoc{"bvh_test", 0});
+  ASSERT_GT(s.mesh.indices.size(), 0u);
+  check_against_brute_force(s, rays, path);
+}
+
+TEST(Bvh, StanfordBunnyMatchesBruteForce) {
+  check_mesh_file("/usr/share/glmark2/models/bunny.obj", 1500);
+}
+
+TEST(Bvh, CornellBoxObjMatchesBruteForce) {
+  check_mesh_file("/usr/share/doc/python3-tinyobjloader/examples/cornell_box.obj", 3000);
+}
+
+}  // namespace

@@ -1,0 +1,116 @@
+// End-to-end tests of the `pathtracer` executable: renders write an image and a reproducible JSON
+// sidecar, bad input and bad flags exit non-zero with a message, info and compare report figures.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "image/image.h"
+#include "test_util.h"
+
+namespace {
+
+std::string tmpdir() {
+  static std::string dir = [] {
+    char tmpl[] = "/tmp/pathtracer_cli_XXXXXX";
+    return std::string(mkdtemp(tmpl));
+  }();
+  return dir;
+}
+
+std::string exe() { return test::pathtracer_exe(); }
+
+TEST(Cli, RenderWritesPngAndReproducibleSidecar) {
+  const std::string out = tmpdir() + "/a.png";
+  std::string log;
+  ASSERT_EQ(test::run_command(exe() + " render --spp 4 --width 24 --height 16 --seed 3 --backend cpu --out " + out, &log), 0) << log;
+  const tracer::ImageRGB img = tracer::read_image(out);
+  EXPECT_EQ(img.width, 24);
+  EXPECT_EQ(img.height, 16);
+  std::ifstream f(out + ".json");
+  ASSERT_TRUE(f.good());
+  const auto j = nlohmann::json::parse(f);
+  EXPECT_EQ(j["spp"], 4);
+  EXPECT_EQ(j["settings"]["width"], 24);
+  EXPECT_EQ(j["settings"]["seed"], 3);
+  EXPECT_EQ(j["backend"], "cpu");
+  EXPECT_TRUE(j.contains("device"));
+  EXPECT_TRUE(j.contains("version"));
+  EXPECT_TRUE(j.contains("wall_time_s"));
+  EXPECT_EQ(j["scene"], "<built-in>");
+  EXPECT_NE(log.find("wrote"), std::string::npos);
+}
+
+TEST(Cli, ExrIsLinearAndMatchesPng) {
+  const std::string exr = tmpdir() + "/b.exr", png = tmpdir() + "/b.png";
+  ASSERT_EQ(test::run_command(exe() + " render -q --spp 2 --width 8 --height 8 --out " + exr), 0);
+  ASSERT_EQ(test::run_command(exe() + " render -q --spp 2 --width 8 --height 8 --out " + png), 0);
+  const tracer::ImageRGB a = tracer::read_image(exr), b = tracer::read_image(png);
+  ASSERT_EQ(a.pixels.size(), b.pixels.size());
+  for (size_t i = 0; i < a.pixels.size(); ++i)
+    EXPECT_NEAR(std::min(a.pixels[i], 1.0f), b.pixels[i], 0.01f + 0.02f * b.pixels[i]);
+}
+
+TEST(Cli, TimeBudgetRenders) {
+  const std::string out = tmpdir() + "/t.png";
+  ASSERT_EQ(test::run_command(exe() + " render -q --time 0.5 --width 16 --height 16 --out " + out), 0);
+  std::ifstream f(out + ".json");
+  const auto j = nlohmann::json::parse(f);
+  EXPECT_GE(j["spp"].get<int>(), 1);
+  EXPECT_LT(j["wall_time_s"].get<double>(), 3.0);
+}
+
+TEST(Cli, BadFlagsAndInputsFail) {
+  std::string log;
+  EXPECT_NE(test::run_command(exe() + " render --spp 0", &log), 0);
+  EXPECT_NE(test::run_command(exe() + " render --width -5", &log), 0);
+  EXPECT_NE(test::run_command(exe() + " render --backend metal", &log), 0);
+  EXPECT_NE(test::run_command(exe() + " render --spp 4 --time 2", &log), 0);
+  EXPECT_NE(test::run_command(exe() + " render --bogus", &log), 0);
+  EXPECT_NE(test::run_command(exe() + " render /nonexistent/scene.json", &log), 0);
+  EXPECT_NE(test::run_command(exe() + " render -q --spp 1 --width 8 --height 8 --out " + tmpdir() +
+                                  "/x.bmp", &log), 0);
+  EXPECT_NE(log.find("x.bmp"), std::string::npos) << log;
+  EXPECT_NE(test::run_command(exe() + " info " + test::data_dir() + "/bad/unknown_key.json", &log),
+            0);
+  EXPECT_NE(log.find("did you mean"), std::string::npos) << log;
+}
+
+TEST(Cli, HelpOnEverySubcommand) {
+  for (const char* sub : {"", "render", "info", "compare"}) {
+    std::string log;
+    EXPECT_EQ(test::run_command(exe() + " " + sub + " --help", &log), 0) << sub;
+    EXPECT_NE(log.find("--help"), std::string::npos) << sub;
+  }
+}
+
+TEST(Cli, InfoReportsCountsBvhAndFeatures) {
+  std::string log;
+  ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
+                                  "/assets/scenes/cornell_spheres.json", &log), 0) << log;
+  const auto j = nlohmann::json::parse(log.substr(log.find('{')));
+  EXPECT_GT(j["triangles"].get<int>(), 10);
+  EXPECT_EQ(j["spheres"].get<int>(), 2);
+  EXPECT_GE(j["lights"].get<int>(), 1);
+  EXPECT_GT(j["bvh"]["nodes"].get<int>(), 1);
+  EXPECT_NE(j["features"].get<std::string>().find("dielectrics"), std::string::npos);
+}
+
+TEST(Cli, CompareReportsMetricsAndDiff) {
+  const std::string a = tmpdir() + "/c1.exr", b = tmpdir() + "/c2.exr", d = tmpdir() + "/d.png";
+  ASSERT_EQ(test::run_command(exe() + " render -q --spp 2 --width 8 --height 8 --seed 1 --out " + a), 0);
+  ASSERT_EQ(test::run_command(exe() + " render -q --spp 2 --width 8 --height 8 --seed 2 --out " + b), 0);
+  std::string log;
+  ASSERT_EQ(test::run_command(exe() + " compare --json " + a + " " + a, &log), 0) << log;
+  auto j = nlohmann::json::parse(log.substr(log.find('{')));
+  EXPECT_EQ(j["relmse"].get<double>(), 0.0);
+  ASSERT_EQ(test::run_command(exe() + " compare --json --diff " + d + " " + a + " " + b, &log), 0);
+  j = nlohmann::json::parse(log.substr(log.find('{')));
+  EXPECT_GT(j["relmse"].get<double>(), 0.0);
+  struct stat st;
+  EXPECT_EQ(stat(d.c_str(), &st), 0);
+  EXPECT_NE(test::run_command(exe() + " compare " + a + " /nonexistent.exr", &log), 0);
+}
+
+}  // namespace

@@ -1,0 +1,141 @@
+// Statistical image tests on the built-in Cornell box: a render agrees with an independent
+// high-spp reference (per-pixel z-test, chi-square of the z-scores and a relMSE bound) while a
+// deliberately wrong scene fails the same checks; NEE/MIS/roulette never move the mean; the CPU
+// backend is deterministic for any thread count.
+#include <gtest/gtest.h>
+
+#include "cpu/cpu_backend.h"
+#include "image/image.h"
+#include "scene/loader.h"
+#include "scene_builders.h"
+
+namespace {
+using namespace test;
+
+struct Agreement {
+  double chi2_per_dof;  // mean of z^2: 1 for agreement
+  double chi2_limit;    // 1 + 5 standard deviations of that mean under agreement
+  int outliers;         // pixels beyond the Sidak-corrected |z|
+  double relmse, relmse_expected;
+};
+
+// Compares two independent renders through their per-pixel variances.
+Agreement agreement(const PixelStats& a, const PixelStats& b) {
+  Agreement g{};
+  const size_t n = a.mean.size() * 3;
+  const double zmax = sidak_z(1e-3, n);
+  double z2 = 0.0, rel = 0.0, rel_exp = 0.0;
+  for (size_t i = 0; i < a.mean.size(); ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const double va = a.var[i][c] / a.spp, vb = b.var[i][c] / b.spp;
+      const double d = double(a.mean[i][c]) - b.mean[i][c];
+      const double se2 = std::max(va + vb, 1e-12);
+      z2 += d * d / se2;
+      if (std::abs(d) / std::sqrt(se2) > zmax) g.outliers++;
+      const double w = 1.0 / ((b.mean[i][c] + 0.01) * (b.mean[i][c] + 0.01));
+      rel += d * d * w;
+      rel_exp += (va + vb) * w;
+    }
+  }
+  g.chi2_per_dof = z2 / n;
+  g.chi2_limit = 1.0 + 5.0 * std::sqrt(2.0 / n);
+  g.relmse = rel / n;
+  g.relmse_expected = rel_exp / n;
+  return g;
+}
+
+RenderSettings small(const Scene& s) {
+  RenderSettings rs = s.settings;
+  rs.width = 32;
+  rs.height = 32;
+  return rs;
+}
+
+const PixelStats& reference() {
+  static const PixelStats ref = [] {
+    const Scene s = builtin_default_scene();
+    return render_pixel_stats(s, small(s), 2048, 1u << 20);  // samples disjoint from the tests
+  }();
+  return ref;
+}
+
+TEST(Render, BuiltinSceneAgreesWithHighSppReference) {
+  const Scene s = builtin_default_scene();
+  const PixelStats test = render_pixel_stats(s, small(s), 256);
+  EXPECT_EQ(test.nonfinite, 0u);
+  const Agreement g = agreement(test, reference());
+  EXPECT_LT(g.chi2_per_dof, g.chi2_limit);
+  EXPECT_GT(g.chi2_per_dof, 2.0 - g.chi2_limit);
+  EXPECT_LE(g.outliers, 1);
+  EXPECT_LT(g.relmse, 1.5 * g.relmse_expected);
+  // The image is not black: the box is lit.
+  EXPECT_GT(test.image_mean().x, 0.05f);
+}
+
+TEST(Render, WrongSceneFailsTheSameChecks) {
+  // A light 10% too dim and a red wall 10% too dark must both be caught.
+  for (int variant = 0; variant < 2; ++variant) {
+    Scene s = builtin_default_scene();
+    bool changed = false;
+    for (auto& m : s.materials) {
+      if (variant == 0 && m.material.is_emissive()) {
+        m.material.emission *= 0.9f;
+        changed = true;
+      }
+      if (variant == 1 && m.material.albedo.x > 0.5f && m.material.albedo.y < 0.2f) {
+        m.material.albedo *= 0.9f;
+        changed = true;
+      }
+    }
+    ASSERT_TRUE(changed) << "variant " << variant;
+    const PixelStats test = render_pixel_stats(s, small(s), 256);
+    const Agreement g = agreement(test, reference());
+    EXPECT_GT(g.chi2_per_dof, g.chi2_limit) << "variant " << variant << " was not detected";
+  }
+}
+
+TEST(Render, EstimatorsShareOneMean) {
+  // Naive path tracing, NEE, NEE + MIS and no roulette are unbiased: same expected image.
+  const Scene s = builtin_default_scene();
+  struct V {
+    bool nee, mis, rr;
+  };
+  for (V v : {V{false, false, true}, V{true, false, true}, V{true, true, false}}) {
+    RenderSettings rs = small(s);
+    rs.nee = v.nee;
+    rs.mis = v.mis;
+    rs.russian_roulette = v.rr;
+    const PixelStats test = render_pixel_stats(s, rs, v.nee ? 256 : 1024, 7u << 20);
+    const Agreement g = agreement(test, reference());
+    EXPECT_LT(g.chi2_per_dof, g.chi2_limit) << "nee " << v.nee << " mis " << v.mis << " rr " << v.rr;
+    EXPECT_LE(g.outliers, 1);
+  }
+}
+
+TEST(Render, CpuBackendMatchesSharedPathCodeAndIsDeterministic) {
+  const Scene s = builtin_default_scene();
+  const RenderSettings rs = small(s);
+  const CompiledScene cs(s, rs.width, rs.height);
+  ImageRGB images[2];
+  for (int threads : {1, 2}) {
+    CpuRenderer r(threads);
+    r.set_scene(cs, make_integrator_settings(rs));
+    r.render(8);
+    r.render(8);  // progressive: two passes equal one of 16
+    EXPECT_EQ(r.samples_done(), 16u);
+    images[threads - 1] = r.image();
+  }
+  EXPECT_EQ(images[0].pixels, images[1].pixels) << "thread count changed the image";
+  const PixelStats ps = render_pixel_stats(s, rs, 16);
+  for (size_t i = 0; i < ps.mean.size(); ++i)
+    ASSERT_NEAR(images[0].pixels[3 * i], ps.mean[i].x, 1e-4f * (1.0f + ps.mean[i].x));
+  // A different seed gives a different (but statistically equal) image.
+  CpuRenderer r(2);
+  RenderSettings rs2 = rs;
+  rs2.seed = 99;
+  r.set_scene(cs, make_integrator_settings(rs2));
+  r.render(16);
+  EXPECT_NE(r.image().pixels, images[0].pixels);
+}
+
+}  // namespace

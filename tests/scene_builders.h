@@ -1,0 +1,159 @@
+// Scenes built in code for the analytic and geometric tests: furnaces, closed meshes, quads,
+// and a per-pixel mean/variance renderer for statistical image comparisons.
+#pragma once
+
+#include <atomic>
+#include <cmath>
+#include <thread>
+#include <vector>
+
+#include "integrator/path.h"
+#include "scene/compiled_scene.h"
+#include "scene/scene.h"
+
+namespace test {
+using namespace tracer;
+
+inline void add_triangle(TriangleMesh& m, vec3 a, vec3 b, vec3 c, uint32_t material) {
+  const uint32_t base = uint32_t(m.positions.size());
+  m.positions.insert(m.positions.end(), {a, b, c});
+  m.indices.push_back(uvec3(base, base + 1, base + 2));
+  m.materials.push_back(material);
+}
+
+// A quad with shared vertices, front face along cross(e1, e2).
+inline void add_quad(TriangleMesh& m, vec3 corner, vec3 e1, vec3 e2, uint32_t material) {
+  const uint32_t b = uint32_t(m.positions.size());
+  m.positions.insert(m.positions.end(), {corner, corner + e1, corner + e1 + e2, corner + e2});
+  m.indices.push_back(uvec3(b, b + 1, b + 2));
+  m.indices.push_back(uvec3(b, b + 2, b + 3));
+  m.materials.insert(m.materials.end(), {material, material});
+}
+
+// A closed axis-aligned box with shared vertices and outward-facing triangles.
+inline void add_box(TriangleMesh& m, vec3 lo, vec3 hi, uint32_t material) {
+  const uint32_t b = uint32_t(m.positions.size());
+  for (int i = 0; i < 8; ++i)
+    m.positions.push_back(vec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z));
+  const int faces[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4},
+                           {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+  for (const auto& f : faces) {
+    m.indices.push_back(uvec3(b + f[0], b + f[1], b + f[2]));
+    m.indices.push_back(uvec3(b + f[0], b + f[2], b + f[3]));
+    m.materials.insert(m.materials.end(), {material, material});
+  }
+}
+
+// A closed icosphere (shared vertices, outward winding), `levels` subdivisions.
+inline void add_icosphere(TriangleMesh& m, vec3 center, float radius, int levels,
+                          uint32_t material) {
+  const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
+  std::vector<vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0},
+                         {0, -1, t}, {0, 1, t}, {0, -1, -t}, {0, 1, -t},
+                         {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  std::vector<uvec3> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                          {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                          {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                          {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (auto& p : v) p = glm::normalize(p);
+  for (int l = 0; l < levels; ++l) {
+    std::vector<uvec3> nf;
+    std::vector<std::pair<uint64_t, uint32_t>> cache;
+    auto mid = [&](uint32_t a, uint32_t b) {
+      const uint64_t key = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+      for (auto& c : cache)
+        if (c.first == key) return c.second;
+      v.push_back(glm::normalize(v[a] + v[b]));
+      cache.push_back({key, uint32_t(v.size() - 1)});
+      return uint32_t(v.size() - 1);
+    };
+    for (const auto& tri : f) {
+      const uint32_t a = mid(tri.x, tri.y), b = mid(tri.y, tri.z), c = mid(tri.z, tri.x);
+      nf.insert(nf.end(), {{tri.x, a, c}, {tri.y, b, a}, {tri.z, c, b}, {a, b, c}});
+    }
+    f = nf;
+  }
+  const uint32_t base = uint32_t(m.positions.size());
+  for (const auto& p : v) m.positions.push_back(center + radius * p);
+  for (const auto& tri : f) {
+    m.indices.push_back(tri + uvec3(base));
+    m.materials.push_back(material);
+  }
+}
+
+inline Material diffuse(vec3 albedo, vec3 emission = vec3(0.0f), bool two_sided = false) {
+  Material m;
+  m.type = MaterialType::kDiffuse;
+  m.albedo = albedo;
+  m.emission = emission;
+  m.flags = two_sided ? kMaterialTwoSidedEmission : 0u;
+  return m;
+}
+
+struct PixelStats {
+  int width = 0, height = 0;
+  uint32_t spp = 0;
+  std::vector<vec3> mean, var;  // per pixel: sample mean and unbiased sample variance
+  uint64_t nonfinite = 0;
+  vec3 image_mean() const {
+    vec3 s(0.0f);
+    for (const auto& m : mean) s += m;
+    return s / float(mean.size());
+  }
+};
+
+// Renders with the shared trace_path and keeps per-pixel sample variance, for z-tests.
+inline PixelStats render_pixel_stats(const Scene& scene, const RenderSettings& rs, uint32_t spp,
+                                     uint32_t first_sample = 0) {
+  const CompiledScene cs(scene, rs.width, rs.height);
+  const IntegratorSettings cfg = make_integrator_settings(rs);
+  PixelStats ps;
+  ps.width = rs.width;
+  ps.height = rs.height;
+  ps.spp = spp;
+  const size_t n = size_t(rs.width) * rs.height;
+  ps.mean.assign(n, vec3(0.0f));
+  ps.var.assign(n, vec3(0.0f));
+  std::atomic<uint32_t> next{0};
+  std::atomic<uint64_t> bad{0};
+  auto work = [&] {
+    for (uint32_t p; (p = next.fetch_add(1)) < n;) {
+      glm::dvec3 s(0.0), s2(0.0);
+      uint32_t good = 0;
+      for (uint32_t k = 0; k < spp; ++k) {
+        const vec3 L = trace_path(cs.view(), cfg, p, first_sample + k);
+        if (!is_finite(L)) {
+          bad++;
+          continue;
+        }
+        s += glm::dvec3(L);
+        s2 += glm::dvec3(L) * glm::dvec3(L);
+        ++good;
+      }
+      const glm::dvec3 m = s / double(good);
+      ps.mean[p] = vec3(m);
+      ps.var[p] = vec3(glm::max((s2 - double(good) * m * m) / double(good - 1), glm::dvec3(0.0)));
+    }
+  };
+  std::vector<std::thread> pool;
+  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (auto& th : pool) th.join();
+  ps.nonfinite = bad;
+  return ps;
+}
+
+// The |z| above which one of n independent normal tests fails with overall probability alpha
+// (Sidak correction), by bisection on the normal tail.
+inline double sidak_z(double alpha, size_t n) {
+  const double per_test = 1.0 - std::pow(1.0 - alpha, 1.0 / double(n));
+  double lo = 0.0, hi = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    if (std::erfc(mid / std::sqrt(2.0)) > per_test) lo = mid; else hi = mid;
+  }
+  return hi;
+}
+
+}  // namespace test

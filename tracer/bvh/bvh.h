@@ -1,0 +1,86 @@
+// The BVH layout shared by both backends: 32-byte nodes in one flat array (tinybvh's layout) and a
+// primitive index array that leaves point into. Traversal lives in scene/scene_view.h because it
+// needs the primitives; the host-side binned-SAH builder is declared here.
+#pragma once
+
+#include <vector>
+
+#include "core/math.h"
+
+namespace tracer {
+
+struct Aabb {
+  vec3 lo = vec3(kInfinity);
+  vec3 hi = vec3(-kInfinity);
+  TRACER_HD void grow(vec3 p) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  TRACER_HD void grow(const Aabb& b) {
+    lo = glm::min(lo, b.lo);
+    hi = glm::max(hi, b.hi);
+  }
+  TRACER_HD vec3 centroid() const { return 0.5f * (lo + hi); }
+  TRACER_HD bool empty() const { return lo.x > hi.x; }
+  TRACER_HD float area() const {
+    if (empty()) return 0.0f;
+    const vec3 e = hi - lo;
+    return 2.0f * (e.x * e.y + e.y * e.z + e.z * e.x);
+  }
+};
+
+// 32 bytes. count == 0: interior node whose children are nodes left_first and left_first + 1.
+// count > 0: leaf holding prim_indices[left_first, left_first + count).
+struct BvhNode {
+  vec3 lo;
+  uint32_t left_first;
+  vec3 hi;
+  uint32_t count;
+  TRACER_HD bool is_leaf() const { return count > 0; }
+};
+static_assert(sizeof(BvhNode) == 32, "BvhNode must stay 32 bytes");
+
+// Slab test against [0, tmax], returning the entry distance or kInfinity on a miss. inv_d is
+// 1/d with IEEE infinities for zero components. Each slab's near and far planes are picked by
+// the sign of inv_d (Williams et al., "An Efficient and Robust Ray-Box Intersection Algorithm",
+// JGT 2005), and the comparisons are ordered so that the NaN of 0 * inf (a ray lying in a slab's
+// plane) is ignored, treating the box as closed. t_far is widened by 1 + 2*gamma(3) so rounding
+// cannot make a ray miss a box that holds a surface it hits (Ize, "Robust BVH Ray Traversal",
+// JCGT 2013).
+TRACER_HD TRACER_INLINE float intersect_aabb(vec3 lo, vec3 hi, vec3 o, vec3 inv_d, float tmax) {
+  float t_near = 0.0f, t_far = tmax;
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (int a = 0; a < 3; ++a) {
+    const bool pos = inv_d[a] >= 0.0f;
+    const float tn = ((pos ? lo[a] : hi[a]) - o[a]) * inv_d[a];
+    const float tf = ((pos ? hi[a] : lo[a]) - o[a]) * inv_d[a];
+    t_near = tn > t_near ? tn : t_near;
+    t_far = tf < t_far ? tf : t_far;
+  }
+  t_far *= 1.0f + 2.0f * gamma_bound(3);
+  return t_near <= t_far ? t_near : kInfinity;
+}
+
+constexpr int kBvhStackSize = 64;
+
+struct BvhBuildStats {
+  uint32_t node_count = 0;
+  uint32_t leaf_count = 0;
+  uint32_t max_depth = 0;
+  float sah_cost = 0.0f;  // expected cost, traversal 1, primitive 1, relative to the root's area
+  double build_ms = 0.0;
+};
+
+struct Bvh {
+  std::vector<BvhNode> nodes;
+  std::vector<uint32_t> prim_indices;
+  BvhBuildStats stats;
+};
+
+// Binned SAH build (Wald, "On fast Construction of SAH-based Bounding Volume Hierarchies", 2007)
+// over primitives given by their bounds and centroids. Depth is capped below kBvhStackSize.
+Bvh build_bvh(const std::vector<Aabb>& prim_bounds, int max_leaf_size = 4);
+
+}  // namespace tracer

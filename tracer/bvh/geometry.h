@@ -1,0 +1,116 @@
+// Rays, primitives and their intersection routines, shared by CPU and CUDA.
+// Triangles use the watertight test of Woop, Benthin & Wald (JCGT 2(1), 2013); spheres the
+// cancellation-free quadratic of Haines et al., Ray Tracing Gems (2019), ch. 7.
+#pragma once
+
+#include "core/math.h"
+
+namespace tracer {
+
+struct Ray {
+  vec3 o;
+  float tmax;
+  vec3 d;  // unit length
+  float pad;
+};
+
+struct Hit {
+  float t = kInfinity;
+  uint32_t prim = kInvalid;  // unified primitive id: triangles first, then spheres
+  float u = 0.0f, v = 0.0f;  // barycentrics of v1 and v2 for triangles
+  TRACER_HD bool valid() const { return prim != kInvalid; }
+};
+
+struct TriangleVerts {
+  vec3 v0, v1, v2;
+};
+
+struct Sphere {
+  vec3 center;
+  float radius;
+  uint32_t material;
+  uint32_t light;  // index into the light list, kInvalid when not emissive
+};
+
+// Per-ray constants of the watertight test: the axis permutation and shear that map the ray
+// direction to +z.
+struct RayTriSetup {
+  int kx, ky, kz;
+  float sx, sy, sz;
+  TRACER_HD explicit RayTriSetup(vec3 d) {
+    const vec3 a = glm::abs(d);
+    kz = (a.x > a.y) ? (a.x > a.z ? 0 : 2) : (a.y > a.z ? 1 : 2);
+    kx = (kz + 1) % 3;
+    ky = (kx + 1) % 3;
+    if (d[kz] < 0.0f) {  // keep the winding so that U, V, W signs stay meaningful
+      const int tmp = kx;
+      kx = ky;
+      ky = tmp;
+    }
+    sx = d[kx] / d[kz];
+    sy = d[ky] / d[kz];
+    sz = 1.0f / d[kz];
+  }
+};
+
+// Returns true and fills t, b1, b2 when the ray hits the triangle at 0 < t < tmax.
+// Edges shared by two triangles are hit by exactly one or both of them, never neither.
+TRACER_HD inline bool intersect_triangle(const Ray& ray, const RayTriSetup& s, vec3 p0, vec3 p1,
+                                         vec3 p2, float tmax, float& t_out, float& b1_out,
+                                         float& b2_out) {
+  const vec3 A = p0 - ray.o, B = p1 - ray.o, C = p2 - ray.o;
+  const float ax = A[s.kx] - s.sx * A[s.kz], ay = A[s.ky] - s.sy * A[s.kz];
+  const float bx = B[s.kx] - s.sx * B[s.kz], by = B[s.ky] - s.sy * B[s.kz];
+  const float cx = C[s.kx] - s.sx * C[s.kz], cy = C[s.ky] - s.sy * C[s.kz];
+  float U = cx * by - cy * bx;
+  float V = ax * cy - ay * cx;
+  float W = bx * ay - by * ax;
+  // On an edge the float products can round to exactly zero; redo them in double (sec. 3.3).
+  if (U == 0.0f || V == 0.0f || W == 0.0f) {
+    U = float(double(cx) * double(by) - double(cy) * double(bx));
+    V = float(double(ax) * double(cy) - double(ay) * double(cx));
+    W = float(double(bx) * double(ay) - double(by) * double(ax));
+  }
+  if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
+  const float det = U + V + W;
+  if (det == 0.0f) return false;
+  const float az = s.sz * A[s.kz], bz = s.sz * B[s.kz], cz = s.sz * C[s.kz];
+  const float T = U * az + V * bz + W * cz;
+  if (det < 0.0f ? (T >= 0.0f || T < tmax * det) : (T <= 0.0f || T > tmax * det)) return false;
+  const float inv_det = 1.0f / det;
+  t_out = T * inv_det;
+  b1_out = V * inv_det;
+  b2_out = W * inv_det;
+  return t_out > 0.0f && t_out < tmax;
+}
+
+// Nearest root of |o + t d - c| = r in (0, tmax).
+TRACER_HD inline bool intersect_sphere(const Ray& ray, vec3 center, float radius, float tmax,
+                                       float& t_out) {
+  const vec3 f = ray.o - center;
+  const float b = -glm::dot(f, ray.d);
+  const vec3 l = f + b * ray.d;  // f minus its projection on d, computed without cancellation
+  const float r2 = radius * radius;
+  const float disc = r2 - glm::dot(l, l);
+  if (disc < 0.0f) return false;
+  const float c = glm::dot(f, f) - r2;
+  const float q = b + (b >= 0.0f ? glm::sqrt(disc) : -glm::sqrt(disc));  // never cancels
+  if (q == 0.0f) return false;
+  float t0 = c / q, t1 = q;
+  if (t0 > t1) {
+    const float tmp = t0;
+    t0 = t1;
+    t1 = tmp;
+  }
+  if (t0 > 0.0f && t0 < tmax) {
+    t_out = t0;
+    return true;
+  }
+  if (t1 > 0.0f && t1 < tmax) {
+    t_out = t1;
+    return true;
+  }
+  return false;
+}
+
+}  // namespace tracer

@@ -1,0 +1,97 @@
+// CPU backend: rows of pixels handed to worker threads through an atomic counter.
+#include "cpu/cpu_backend.h"
+
+#include <atomic>
+#include <chrono>
+#include <stdexcept>
+#include <thread>
+
+namespace tracer {
+
+CpuRenderer::CpuRenderer(int threads) {
+  threads_ = threads > 0 ? threads : int(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+std::string CpuRenderer::device_name() const {
+  return "CPU, " + std::to_string(threads_) + (threads_ == 1 ? " thread" : " threads");
+}
+
+void CpuRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) {
+  scene_ = &scene;
+  set_settings(cfg);
+}
+
+void CpuRenderer::set_settings(const IntegratorSettings& cfg) {
+  cfg_ = cfg;
+  sum_.assign(size_t(cfg.width) * cfg.height * 3, 0.0);
+  samples_ = 0;
+  nonfinite_ = 0;
+}
+
+void CpuRenderer::reset() {
+  std::fill(sum_.begin(), sum_.end(), 0.0);
+  samples_ = 0;
+  nonfinite_ = 0;
+}
+
+FrameStats CpuRenderer::render(uint32_t spp) {
+  if (!scene_) throw std::logic_error("CpuRenderer::render: no scene set");
+  const auto start = std::chrono::steady_clock::now();
+  const SceneView& view = scene_->view();
+  const uint32_t w = cfg_.width, h = cfg_.height;
+  const uint32_t first_sample = samples_;
+  std::atomic<uint32_t> next_row{0};
+  std::vector<RayCounts> counts(threads_);
+  std::vector<uint64_t> bad(threads_, 0);
+  auto worker = [&](int t) {
+    RayCounts rc;
+    uint64_t nonfinite = 0;
+    for (uint32_t y; (y = next_row.fetch_add(1)) < h;) {
+      for (uint32_t x = 0; x < w; ++x) {
+        const uint32_t pixel = y * w + x;
+        double* acc = &sum_[size_t(pixel) * 3];
+        for (uint32_t s = 0; s < spp; ++s) {
+          const vec3 L = trace_path(view, cfg_, pixel, first_sample + s, &rc);
+          if (!is_finite(L)) {
+            ++nonfinite;  // counted and reported, never added
+            continue;
+          }
+          acc[0] += L.x;
+          acc[1] += L.y;
+          acc[2] += L.z;
+        }
+      }
+    }
+    counts[t] = rc;
+    bad[t] = nonfinite;
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads_; ++t) pool.emplace_back(worker, t);
+  worker(0);
+  for (auto& th : pool) th.join();
+
+  FrameStats st;
+  st.spp_added = spp;
+  for (int t = 0; t < threads_; ++t) {
+    st.rays.camera += counts[t].camera;
+    st.rays.extension += counts[t].extension;
+    st.rays.shadow += counts[t].shadow;
+    st.nonfinite += bad[t];
+  }
+  samples_ += spp;
+  nonfinite_ += st.nonfinite;
+  st.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return st;
+}
+
+ImageRGB CpuRenderer::image() const {
+  ImageRGB img;
+  img.width = int(cfg_.width);
+  img.height = int(cfg_.height);
+  img.pixels.resize(sum_.size());
+  const double inv = samples_ > 0 ? 1.0 / samples_ : 0.0;
+  for (size_t i = 0; i < sum_.size(); ++i) img.pixels[i] = float(sum_[i] * inv);
+  return img;
+}
+
+}  // namespace tracer

@@ -1,0 +1,138 @@
+// Sampling emissive geometry for next-event estimation, and the matching pdf for multiple
+// importance sampling when a BSDF-sampled ray hits an emitter. Lights are chosen in proportion to
+// their power; triangles are sampled by area, spheres by the cone of directions they subtend.
+#pragma once
+
+#include "core/sampling.h"
+#include "materials/bsdf.h"
+#include "scene/scene_view.h"
+
+namespace tracer {
+
+struct LightSample {
+  vec3 p;       // point on the light
+  vec3 n;       // its geometric normal
+  vec3 le;      // radiance emitted towards the reference point
+  float pdf;    // solid-angle pdf at the reference point, including the choice of light
+  uint32_t prim;
+  bool valid;
+};
+
+// Index of the light whose CDF interval holds u (binary search over light_count + 1 entries).
+TRACER_HD TRACER_INLINE uint32_t pick_light(const SceneView& s, float u) {
+  uint32_t lo = 0, hi = s.light_count;  // invariant: cdf[lo] <= u < cdf[hi]
+  while (hi - lo > 1) {
+    const uint32_t mid = (lo + hi) / 2;
+    if (s.light_cdf[mid] <= u) lo = mid; else hi = mid;
+  }
+  return lo;
+}
+
+TRACER_HD TRACER_INLINE float light_select_pdf(const SceneView& s, uint32_t light) {
+  return s.light_cdf[light + 1] - s.light_cdf[light];
+}
+
+// Half-angle cosine of the cone a sphere subtends from ref; returns false when ref is inside.
+TRACER_HD TRACER_INLINE bool sphere_cone(const Sphere& sph, vec3 ref, float& cos_max,
+                                         float& sin2_max) {
+  const float dc2 = glm::dot(ref - sph.center, ref - sph.center);
+  const float r2 = sph.radius * sph.radius;
+  if (dc2 <= r2) return false;
+  sin2_max = r2 / dc2;
+  cos_max = safe_sqrt(1.0f - sin2_max);
+  return true;
+}
+
+// ref_n: the geometric normal at ref (either orientation), used to decide robustly whether ref
+// is inside a sphere light even when ref lies on that sphere's own surface.
+TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref_n, float u_pick,
+                                          vec2 u) {
+  LightSample ls;
+  ls.valid = false;
+  if (s.light_count == 0) return ls;
+  const uint32_t li = pick_light(s, u_pick);
+  const Light& light = s.lights[li];
+  const float select = light_select_pdf(s, li);
+  if (select <= 0.0f) return ls;
+  ls.prim = light.prim;
+  uint32_t material;
+  if (light.prim < s.tri_count) {
+    const TriangleVerts& tv = s.tri_verts[light.prim];
+    const vec2 b = sample_uniform_triangle(u);
+    ls.p = b.x * tv.v0 + b.y * tv.v1 + (1.0f - b.x - b.y) * tv.v2;
+    ls.n = glm::normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
+    material = s.tri_shading[light.prim].material;
+    const vec3 to_ref = ref - ls.p;
+    const float d2 = glm::dot(to_ref, to_ref);
+    const float cos_l = glm::abs(glm::dot(ls.n, to_ref)) / glm::sqrt(d2);
+    if (cos_l <= 0.0f || d2 <= 0.0f) return ls;
+    ls.pdf = select * d2 / (cos_l * light.area);
+    ls.le = material_emission(s.materials[material], glm::dot(ls.n, to_ref) > 0.0f);
+  } else {
+    const Sphere& sph = s.spheres[light.prim - s.tri_count];
+    material = sph.material;
+    float cos_max, sin2_max;
+    // Decide inside/outside from ref offset towards the centre, as a ray leaving ref towards the
+    // sphere would start (pbrt-v4's SphereSample): a point on the sphere's own inner surface is
+    // then inside, and one on its outer surface sees none of it.
+    const vec3 to_c = sph.center - ref;
+    const vec3 ref_o = offset_ray_origin(ref, glm::dot(ref_n, to_c) > 0.0f ? ref_n : -ref_n);
+    if (sphere_cone(sph, ref_o, cos_max, sin2_max)) {
+      // Sample the subtended cone and find the point it sees (pbrt-v4 sec. 6.2.4).
+      const vec3 wc = glm::normalize(sph.center - ref);
+      float cos_t = (cos_max - 1.0f) * u.x + 1.0f;
+      float sin2_t = 1.0f - cos_t * cos_t;
+      float one_minus_cos_max = 1.0f - cos_max;
+      if (sin2_max < 0.00068523f) {  // about 1.5 degrees: use the Taylor expansion
+        sin2_t = sin2_max * u.x;
+        cos_t = glm::sqrt(1.0f - sin2_t);
+        one_minus_cos_max = 0.5f * sin2_max;
+      }
+      const float sin_max = glm::sqrt(sin2_max);
+      const float cos_alpha =
+          sin2_t / sin_max + cos_t * safe_sqrt(1.0f - sin2_t / (sin_max * sin_max));
+      const float sin_alpha = safe_sqrt(1.0f - cos_alpha * cos_alpha);
+      const float phi = 2.0f * kPi * u.y;
+      const Frame f = Frame::from_normal(-wc);
+      ls.n = f.to_world(vec3(sin_alpha * glm::cos(phi), sin_alpha * glm::sin(phi), cos_alpha));
+      ls.p = sph.center + sph.radius * ls.n;
+      ls.pdf = select / (2.0f * kPi * one_minus_cos_max);
+      ls.le = material_emission(s.materials[material], true);
+    } else {
+      // Inside the sphere: sample its area uniformly; only its back face is visible.
+      ls.n = sample_uniform_sphere(u);
+      ls.p = sph.center + sph.radius * ls.n;
+      const vec3 to_ref = ref - ls.p;
+      const float d2 = glm::dot(to_ref, to_ref);
+      const float cos_l = glm::abs(glm::dot(ls.n, to_ref)) / glm::sqrt(d2);
+      if (cos_l <= 0.0f || d2 <= 0.0f) return ls;
+      ls.pdf = select * d2 / (cos_l * light.area);
+      ls.le = material_emission(s.materials[material], false);
+    }
+  }
+  ls.valid = ls.pdf > 0.0f && is_finite(ls.pdf);
+  return ls;
+}
+
+// The solid-angle pdf with which sample_light would have produced point p (normal ng) on
+// primitive `light_index` as seen from ref, the (already offset) origin of the ray that hit p.
+TRACER_HD inline float light_pdf(const SceneView& s, uint32_t light_index, vec3 ref, vec3 p,
+                                 vec3 ng) {
+  const Light& light = s.lights[light_index];
+  const float select = light_select_pdf(s, light_index);
+  if (light.prim >= s.tri_count) {
+    const Sphere& sph = s.spheres[light.prim - s.tri_count];
+    float cos_max, sin2_max;
+    if (sphere_cone(sph, ref, cos_max, sin2_max)) {
+      const float one_minus_cos_max = sin2_max < 0.00068523f ? 0.5f * sin2_max : 1.0f - cos_max;
+      return select / (2.0f * kPi * one_minus_cos_max);
+    }
+  }
+  const vec3 to_ref = ref - p;
+  const float d2 = glm::dot(to_ref, to_ref);
+  const float cos_l = glm::abs(glm::dot(ng, to_ref)) / glm::sqrt(d2);
+  if (cos_l <= 0.0f) return 0.0f;
+  return select * d2 / (cos_l * light.area);
+}
+
+}  // namespace tracer

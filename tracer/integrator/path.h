@@ -1,0 +1,194 @@
+// The per-path stages shared by both backends: generate a camera ray, shade a hit (emission with
+// MIS, next-event estimation, BSDF sampling, Russian roulette), and a whole-path loop built from
+// them. The CUDA wavefront runs the same stages one kernel per stage; the CPU and the megakernel
+// run trace_path. Unidirectional path tracing as in Veach (1997) ch. 9 / pbrt-v4 sec. 13.4.
+#pragma once
+
+#include "core/rng.h"
+#include "integrator/lights.h"
+
+namespace tracer {
+
+struct IntegratorSettings {
+  uint32_t width = 1, height = 1;
+  uint32_t max_depth = 8;  // maximum number of path segments; the camera ray is the first
+  uint32_t rr_start_depth = 3;
+  uint32_t seed = 0;
+  uint32_t nee = 1, mis = 1, russian_roulette = 1;
+};
+
+enum PathFlags : uint32_t {
+  kPathPrevSpecular = 1u << 0,  // the last bounce was a delta lobe: no MIS on the next emitter
+};
+
+struct PathState {
+  Ray ray;
+  vec3 throughput;
+  uint32_t pixel;
+  vec3 radiance;
+  uint32_t sample;
+  float prev_pdf;  // solid-angle pdf of the BSDF sample that produced `ray`
+  uint32_t depth;  // segments traced so far, counting `ray`
+  uint32_t flags;
+  uint32_t pad;
+};
+
+// A shadow ray for next-event estimation: if nothing blocks it, `contribution` is added.
+struct ShadowRequest {
+  Ray ray;
+  vec3 contribution;
+  uint32_t target_prim;  // the light primitive aimed at, ignored by the occlusion test
+  bool valid;
+};
+
+TRACER_HD inline void generate_path(const SceneView& s, const IntegratorSettings& cfg,
+                                    uint32_t pixel, uint32_t sample, PathState& st) {
+  Pcg32 rng = make_path_rng(pixel, sample, 0, cfg.seed);
+  const vec2 jitter = rng.next_2d();
+  const vec2 lens = rng.next_2d();
+  st.ray = s.camera.generate_ray(pixel % cfg.width, pixel / cfg.width, jitter, lens);
+  st.throughput = vec3(1.0f);
+  st.radiance = vec3(0.0f);
+  st.pixel = pixel;
+  st.sample = sample;
+  st.prev_pdf = 0.0f;
+  st.depth = 1;
+  st.flags = kPathPrevSpecular;  // emitters seen directly count in full
+  st.pad = 0;
+}
+
+// A ray leaving surface point p (geometric normal ng) in unit direction d, its origin offset to
+// the side d goes to so that it cannot re-hit the surface.
+TRACER_HD TRACER_INLINE Ray spawn_ray(vec3 p, vec3 ng, vec3 d) {
+  Ray r;
+  r.o = offset_ray_origin(p, glm::dot(d, ng) > 0.0f ? ng : -ng);
+  r.d = d;
+  r.tmax = kInfinity;
+  r.pad = 0.0f;
+  return r;
+}
+
+// A shadow ray from p (normal n_p, already facing the target) to point q on a light (normal
+// n_q). Both ends are offset off their surfaces, so tmax ends before the light; the occlusion
+// test also skips the light primitive itself. No fixed epsilon is involved.
+TRACER_HD TRACER_INLINE Ray spawn_ray_to(vec3 p, vec3 n_p, vec3 q, vec3 n_q) {
+  const vec3 from = offset_ray_origin(p, n_p);
+  const vec3 to = offset_ray_origin(q, glm::dot(n_q, p - q) > 0.0f ? n_q : -n_q);
+  const vec3 d = to - from;
+  const float len = glm::length(d);
+  Ray r;
+  r.o = from;
+  r.d = len > 0.0f ? d / len : vec3(0.0f, 0.0f, 1.0f);
+  r.tmax = len;
+  r.pad = 0.0f;
+  return r;
+}
+
+TRACER_HD TRACER_INLINE bool is_black(vec3 c) { return c.x <= 0.0f && c.y <= 0.0f && c.z <= 0.0f; }
+
+// Shades the hit of st.ray. Adds emission to st.radiance, may fill `shadow`, and returns whether
+// the path continues, in which case st.ray is the next segment.
+TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& cfg, PathState& st,
+                                 const Hit& hit, ShadowRequest& shadow) {
+  shadow.valid = false;
+  if (!hit.valid()) return false;  // escaped: the scene has no environment light
+  const SurfaceHit sh = make_surface_hit(s, st.ray, hit);
+  const Material& m = s.materials[sh.material];
+
+  // Beer-Lambert attenuation along the segment that just ran inside a dielectric.
+  if (m.type == MaterialType::kDielectric && !sh.front && !is_black(m.absorption)) {
+    st.throughput *= glm::exp(-m.absorption * hit.t);
+  }
+
+  if (m.is_emissive()) {
+    const vec3 le = material_emission(m, sh.front);
+    if (!is_black(le)) {
+      float w = 1.0f;
+      if (cfg.nee && !(st.flags & kPathPrevSpecular)) {
+        // This emitter could also have been reached by light sampling at the previous vertex.
+        w = cfg.mis ? power_heuristic(st.prev_pdf, light_pdf(s, sh.light, st.ray.o, sh.p, sh.ng))
+                    : 0.0f;
+      }
+      st.radiance += st.throughput * le * w;
+    }
+  }
+  if (st.depth >= cfg.max_depth) return false;
+
+  Pcg32 rng = make_path_rng(st.pixel, st.sample, st.depth, cfg.seed);
+  const float u_pick = rng.next_float();
+  const vec2 u_light = rng.next_2d();
+  const vec2 u_bsdf = rng.next_2d();
+  const float u_lobe = rng.next_float();
+  const float u_rr = rng.next_float();
+
+  const vec3 wo_world = -st.ray.d;
+  const bool dielectric = m.type == MaterialType::kDielectric;
+  // Reflectors are two-sided: their frame faces the viewer. A dielectric keeps +z outside.
+  const Frame frame = Frame::from_normal(dielectric || sh.front ? sh.ns : -sh.ns);
+  const vec3 wo = frame.to_local(wo_world);
+  const vec3 ng_viewer = sh.front ? sh.ng : -sh.ng;
+
+  if (cfg.nee && !m.is_specular() && s.light_count > 0) {
+    const LightSample ls = sample_light(s, sh.p, sh.ng, u_pick, u_light);
+    if (ls.valid && !is_black(ls.le)) {
+      const vec3 to = ls.p - sh.p;
+      const vec3 wi_world = glm::normalize(to);
+      if (glm::dot(wi_world, ng_viewer) > 0.0f) {
+        const vec3 wi = frame.to_local(wi_world);
+        const vec3 f = bsdf_eval(m, wo, wi);
+        if (!is_black(f)) {
+          const float w = cfg.mis ? power_heuristic(ls.pdf, bsdf_pdf(m, wo, wi)) : 1.0f;
+          shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * (w / ls.pdf);
+          shadow.ray = spawn_ray_to(sh.p, ng_viewer, ls.p, ls.n);
+          shadow.target_prim = ls.prim;
+          shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);
+        }
+      }
+    }
+  }
+
+  const BsdfSample bs = bsdf_sample(m, wo, u_bsdf, u_lobe);
+  if (!bs.valid) return false;
+  const vec3 wi_world = glm::normalize(frame.to_world(bs.wi));
+  const float side = glm::dot(wi_world, sh.ng);
+  // A reflector whose shading normal sends the ray under the true surface would leak light.
+  if (!dielectric && side * glm::dot(wo_world, sh.ng) <= 0.0f) return false;
+  st.throughput *= bs.weight;
+  st.prev_pdf = bs.pdf;
+  st.flags = bs.specular ? (st.flags | kPathPrevSpecular) : (st.flags & ~kPathPrevSpecular);
+  st.ray = spawn_ray(sh.p, sh.ng, wi_world);
+
+  if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
+    const float q = glm::min(1.0f, max_component(st.throughput));
+    if (u_rr >= q) return false;
+    st.throughput /= q;
+  }
+  st.depth += 1;
+  return !is_black(st.throughput);
+}
+
+// Rays traced by one path, counted by kind for Mrays/s figures.
+struct RayCounts {
+  uint64_t camera = 0, extension = 0, shadow = 0;
+};
+
+// One whole path, all bounces, in one call: the CPU backend and the CUDA megakernel.
+TRACER_HD inline vec3 trace_path(const SceneView& s, const IntegratorSettings& cfg, uint32_t pixel,
+                                 uint32_t sample, RayCounts* counts = nullptr) {
+  PathState st;
+  generate_path(s, cfg, pixel, sample, st);
+  for (;;) {
+    const Hit hit = intersect_closest(s, st.ray);
+    if (counts) (st.depth == 1 ? counts->camera : counts->extension)++;
+    ShadowRequest shadow;
+    const bool go_on = shade_path(s, cfg, st, hit, shadow);
+    if (shadow.valid) {
+      if (counts) counts->shadow++;
+      if (!intersect_any(s, shadow.ray, shadow.target_prim)) st.radiance += shadow.contribution;
+    }
+    if (!go_on) break;
+  }
+  return st.radiance;
+}
+
+}  // namespace tracer

@@ -1,0 +1,163 @@
+// Scene flattening: world-space triangles and spheres into flat arrays, the BVH over both, the
+// power-proportional light CDF and the scene's feature flags.
+#include "scene/compiled_scene.h"
+
+namespace tracer {
+
+Camera make_camera(const CameraDesc& d, int width, int height) {
+  return make_camera(d.position, d.look_at, d.up, d.vfov_deg, d.aperture_radius,
+                     d.focus_distance, uint32_t(width), uint32_t(height));
+}
+
+IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
+  IntegratorSettings cfg;
+  cfg.width = uint32_t(rs.width);
+  cfg.height = uint32_t(rs.height);
+  cfg.max_depth = uint32_t(rs.max_depth);
+  cfg.rr_start_depth = uint32_t(rs.rr_start_depth);
+  cfg.seed = rs.seed;
+  cfg.nee = rs.nee;
+  cfg.mis = rs.mis;
+  cfg.russian_roulette = rs.russian_roulette;
+  return cfg;
+}
+
+std::string describe_features(uint32_t f) {
+  static const struct {
+    uint32_t bit;
+    const char* name;
+  } kNames[] = {{kFeatureDepthOfField, "depth of field"},
+                {kFeatureDielectric, "dielectrics"},
+                {kFeatureAbsorption, "absorption"},
+                {kFeatureMirror, "mirrors"},
+                {kFeatureSubsurface, "subsurface"},
+                {kFeatureTextures, "textures"},
+                {kFeatureEmissiveMeshes, "emissive meshes"},
+                {kFeatureSpheres, "spheres"},
+                {kFeatureShadingNormals, "shading normals"}};
+  std::string out;
+  for (const auto& n : kNames) {
+    if (!(f & n.bit)) continue;
+    if (!out.empty()) out += ", ";
+    out += n.name;
+  }
+  return out.empty() ? "none (diffuse only)" : out;
+}
+
+CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
+  materials_.reserve(scene.materials.size());
+  for (const auto& nm : scene.materials) materials_.push_back(nm.material);
+
+  const TriangleMesh& mesh = scene.mesh;
+  const bool has_normals = mesh.normals.size() == mesh.positions.size() && !mesh.normals.empty();
+  const uint32_t tri_count = uint32_t(mesh.indices.size());
+  tri_verts_.resize(tri_count);
+  tri_shading_.resize(tri_count);
+  std::vector<Aabb> bounds;
+  bounds.reserve(tri_count + scene.spheres.size());
+  uint32_t features = 0;
+  for (uint32_t i = 0; i < tri_count; ++i) {
+    const uvec3 idx = mesh.indices[i];
+    TriangleVerts& tv = tri_verts_[i];
+    tv.v0 = mesh.positions[idx.x];
+    tv.v1 = mesh.positions[idx.y];
+    tv.v2 = mesh.positions[idx.z];
+    TriangleShading& ts = tri_shading_[i];
+    ts.material = mesh.materials[i];
+    ts.light = kInvalid;
+    ts.has_normals = has_normals ? 1u : 0u;
+    if (has_normals) {
+      ts.n0 = mesh.normals[idx.x];
+      ts.n1 = mesh.normals[idx.y];
+      ts.n2 = mesh.normals[idx.z];
+      features |= kFeatureShadingNormals;
+    } else {
+      ts.n0 = ts.n1 = ts.n2 = vec3(0.0f);
+    }
+    Aabb b;
+    b.grow(tv.v0);
+    b.grow(tv.v1);
+    b.grow(tv.v2);
+    bounds.push_back(b);
+  }
+  spheres_.reserve(scene.spheres.size());
+  for (const auto& sd : scene.spheres) {
+    Sphere s;
+    s.center = sd.center;
+    s.radius = sd.radius;
+    s.material = sd.material;
+    s.light = kInvalid;
+    spheres_.push_back(s);
+    Aabb b;
+    b.grow(sd.center - vec3(sd.radius));
+    b.grow(sd.center + vec3(sd.radius));
+    bounds.push_back(b);
+    features |= kFeatureSpheres;
+  }
+
+  // Lights: every primitive whose material emits, chosen in proportion to luminance x area.
+  auto add_light = [&](uint32_t prim, float area, const Material& m) {
+    Light l;
+    l.prim = prim;
+    l.area = area;
+    l.power = luminance(m.emission) * area;
+    if (m.flags & kMaterialTwoSidedEmission) l.power *= 2.0f;
+    l.pad = 0;
+    if (!(l.power > 0.0f)) l.power = max_component(m.emission) * area;
+    lights_.push_back(l);
+    return uint32_t(lights_.size() - 1);
+  };
+  for (uint32_t i = 0; i < tri_count; ++i) {
+    const Material& m = materials_[tri_shading_[i].material];
+    if (!m.is_emissive()) continue;
+    const TriangleVerts& tv = tri_verts_[i];
+    const float area = 0.5f * glm::length(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
+    if (!(area > 0.0f)) continue;
+    tri_shading_[i].light = add_light(i, area, m);
+    features |= kFeatureEmissiveMeshes;
+  }
+  for (uint32_t i = 0; i < spheres_.size(); ++i) {
+    const Material& m = materials_[spheres_[i].material];
+    if (!m.is_emissive()) continue;
+    const float area = 4.0f * kPi * spheres_[i].radius * spheres_[i].radius;
+    spheres_[i].light = add_light(tri_count + i, area, m);
+  }
+  double total = 0.0;
+  for (const Light& l : lights_) total += l.power;
+  light_cdf_.resize(lights_.size() + 1);
+  light_cdf_[0] = 0.0f;
+  double acc = 0.0;
+  for (size_t i = 0; i < lights_.size(); ++i) {
+    acc += lights_[i].power;
+    light_cdf_[i + 1] = float(acc / total);
+  }
+  if (!lights_.empty()) light_cdf_.back() = 1.0f;
+
+  for (const Material& m : materials_) {
+    if (m.type == MaterialType::kDielectric) features |= kFeatureDielectric;
+    if (m.type == MaterialType::kDielectric && max_component(m.absorption) > 0.0f)
+      features |= kFeatureAbsorption;
+    if (m.type == MaterialType::kMirror) features |= kFeatureMirror;
+  }
+  if (scene.camera.aperture_radius > 0.0f) features |= kFeatureDepthOfField;
+
+  bvh_ = build_bvh(bounds);
+
+  view_.nodes = bvh_.nodes.data();
+  view_.prim_indices = bvh_.prim_indices.data();
+  view_.tri_verts = tri_verts_.data();
+  view_.tri_shading = tri_shading_.data();
+  view_.spheres = spheres_.data();
+  view_.materials = materials_.data();
+  view_.lights = lights_.data();
+  view_.light_cdf = light_cdf_.data();
+  view_.node_count = uint32_t(bvh_.nodes.size());
+  view_.tri_count = tri_count;
+  view_.sphere_count = uint32_t(spheres_.size());
+  view_.material_count = uint32_t(materials_.size());
+  view_.light_count = uint32_t(lights_.size());
+  view_.features = features;
+  view_.camera = make_camera(scene.camera, width, height);
+}
+
+}  // namespace tracer

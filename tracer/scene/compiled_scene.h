@@ -1,0 +1,49 @@
+// Flattens a host Scene into the plain arrays both backends trace (BVH, primitives, materials,
+// lights) and keeps them alive; view() points into them.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "integrator/path.h"
+#include "scene/scene.h"
+#include "scene/scene_view.h"
+
+namespace tracer {
+
+class CompiledScene {
+ public:
+  // Builds everything for an image of width x height. The scene must be validated.
+  CompiledScene(const Scene& scene, int width, int height);
+
+  const SceneView& view() const { return view_; }
+  const BvhBuildStats& bvh_stats() const { return bvh_.stats; }
+  uint32_t features() const { return view_.features; }
+
+  const std::vector<BvhNode>& nodes() const { return bvh_.nodes; }
+  const std::vector<uint32_t>& prim_indices() const { return bvh_.prim_indices; }
+  const std::vector<TriangleVerts>& tri_verts() const { return tri_verts_; }
+  const std::vector<TriangleShading>& tri_shading() const { return tri_shading_; }
+  const std::vector<Sphere>& spheres() const { return spheres_; }
+  const std::vector<Material>& materials() const { return materials_; }
+  const std::vector<Light>& lights() const { return lights_; }
+  const std::vector<float>& light_cdf() const { return light_cdf_; }
+
+ private:
+  Bvh bvh_;
+  std::vector<TriangleVerts> tri_verts_;
+  std::vector<TriangleShading> tri_shading_;
+  std::vector<Sphere> spheres_;
+  std::vector<Material> materials_;
+  std::vector<Light> lights_;
+  std::vector<float> light_cdf_;
+  SceneView view_;
+};
+
+Camera make_camera(const CameraDesc& desc, int width, int height);
+IntegratorSettings make_integrator_settings(const RenderSettings& rs);
+
+// "depth-of-field, dielectrics, ..." for messages and `pathtracer info`.
+std::string describe_features(uint32_t features);
+
+}  // namespace tracer

@@ -1,0 +1,441 @@
+// glTF 2.0 (.gltf/.glb) meshes through tinygltf. tinygltf checks little of what it reads, so every
+// index, accessor range and node link is validated here before use: a broken file gives an
+// InputError, never an out-of-bounds read or an endless node walk.
+#include <tiny_gltf.h>
+
+#include <cmath>
+#include <cstring>
+#include <set>
+
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include "core/math.h"
+#include "scene/loader_util.h"
+
+namespace tracer {
+
+namespace {
+
+// Textures are not used by the renderer; skipping the decode saves time and avoids failures on
+// images we would throw away.
+bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                const unsigned char*, int, void*) {
+  return true;
+}
+
+class GltfReader {
+ public:
+  GltfReader(Scene& scene, const std::string& path, const SourceLoc& from)
+      : scene_(scene), path_(path), suffix_(from.path == path ? "" : " (mesh referenced at " + from.str() + ")") {}
+
+  void load() {
+    tinygltf::TinyGLTF loader;
+    loader.SetImageLoader(&skip_image, nullptr);
+    std::string err, warn;
+    const bool binary = path_extension_lower(path_) == ".glb";
+    const bool ok = binary ? loader.LoadBinaryFromFile(&model_, &err, &warn, path_)
+                           : loader.LoadASCIIFromFile(&model_, &err, &warn, path_);
+    if (!ok) fail("cannot read glTF: " + trim(err.empty() ? warn : err));
+    if (!warn.empty()) scene_.diagnostics.warn(file(), "tinygltf: " + trim(warn) + suffix_, "continued");
+    for (const std::string& ext : model_.extensionsRequired) {
+      if (ext != "KHR_materials_emissive_strength" && ext != "KHR_materials_transmission" &&
+          ext != "KHR_materials_ior")
+        approximated_.insert("required extension " + ext);
+    }
+  }
+
+  void append(const mat4& xform, uint32_t material_override, CameraDesc* camera, bool* has_camera) {
+    material_override_ = material_override;
+    check_node_graph();
+    // Per spec: the default scene, else scene 0; files without scenes get every root node.
+    std::vector<int> roots;
+    if (!model_.scenes.empty()) {
+      int s = model_.defaultScene;
+      if (s < 0 || size_t(s) >= model_.scenes.size()) s = 0;
+      roots = model_.scenes[size_t(s)].nodes;
+    } else {
+      std::vector<bool> is_child(model_.nodes.size(), false);
+      for (const tinygltf::Node& n : model_.nodes)
+        for (int c : n.children) is_child[size_t(c)] = true;
+      for (size_t i = 0; i < model_.nodes.size(); ++i)
+        if (!is_child[i]) roots.push_back(int(i));
+    }
+    struct Item {
+      int node;
+      mat4 parent;
+    };
+    std::vector<Item> stack;
+    for (auto it = roots.rbegin(); it != roots.rend(); ++it) {
+      if (*it < 0 || size_t(*it) >= model_.nodes.size())
+        fail("scene refers to node " + std::to_string(*it) + ", but the file has " +
+             std::to_string(model_.nodes.size()) + " nodes");
+      stack.push_back({*it, xform});
+    }
+    // The graph is acyclic (checked above), but a DAG that shares children can still blow up
+    // exponentially; cap the number of node instances.
+    size_t visits = 0;
+    while (!stack.empty()) {
+      const Item item = stack.back();
+      stack.pop_back();
+      if (++visits > 1000000) fail("node hierarchy expands to more than a million node instances");
+      const tinygltf::Node& node = model_.nodes[size_t(item.node)];
+      const mat4 world = item.parent * local_transform(node, item.node);
+      if (node.mesh >= 0) append_mesh(node.mesh, world);
+      if (node.camera >= 0 && camera && !*has_camera) *has_camera = read_camera(node, world, camera);
+      for (auto c = node.children.rbegin(); c != node.children.rend(); ++c)
+        stack.push_back({*c, world});
+    }
+    if (!approximated_.empty()) {
+      std::string list;
+      for (const std::string& a : approximated_) list += (list.empty() ? "" : ", ") + a;
+      scene_.diagnostics.warn(file(), "unsupported glTF features: " + list + suffix_,
+                              "approximated with diffuse, mirror or glass materials");
+    }
+    if (skipped_primitives_ > 0) {
+      scene_.diagnostics.warn(file(), std::to_string(skipped_primitives_) +
+                                          " primitive(s) are not triangle lists" + suffix_,
+                              "skipped them");
+    }
+  }
+
+ private:
+  SourceLoc file() const { return {path_, 0}; }
+  [[noreturn]] void fail(const std::string& problem) const {
+    throw InputError(file(), problem + suffix_);
+  }
+  static std::string trim(std::string s) {
+    while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+    for (char& c : s)
+      if (c == '\n') c = ' ';
+    return s;
+  }
+
+  // Iterative three-colour DFS over all nodes: bad child indices and cycles are errors.
+  void check_node_graph() const {
+    const size_t n = model_.nodes.size();
+    std::vector<uint8_t> state(n, 0);  // 0 new, 1 on the current path, 2 done
+    for (size_t root = 0; root < n; ++root) {
+      if (state[root]) continue;
+      std::vector<std::pair<size_t, size_t>> stack = {{root, 0}};  // node, next child
+      state[root] = 1;
+      while (!stack.empty()) {
+        auto& [node, next] = stack.back();
+        const std::vector<int>& kids = model_.nodes[node].children;
+        if (next == kids.size()) {
+          state[node] = 2;
+          stack.pop_back();
+          continue;
+        }
+        const int c = kids[next++];
+        if (c < 0 || size_t(c) >= n)
+          fail("node " + std::to_string(node) + " has child " + std::to_string(c) +
+               ", but the file has " + std::to_string(n) + " nodes");
+        if (state[size_t(c)] == 1)
+          fail("node hierarchy has a cycle (node " + std::to_string(node) + " -> node " +
+               std::to_string(c) + ")");
+        if (state[size_t(c)] == 0) {
+          state[size_t(c)] = 1;
+          stack.push_back({size_t(c), 0});
+        }
+      }
+    }
+  }
+
+  mat4 local_transform(const tinygltf::Node& n, int index) const {
+    const std::string where = "node " + std::to_string(index);
+    auto finite = [&](const std::vector<double>& v, size_t size, const char* what) {
+      if (!v.empty() && v.size() != size)
+        fail(where + " has a " + what + " of " + std::to_string(v.size()) + " numbers, not " +
+             std::to_string(size));
+      for (double d : v)
+        if (!std::isfinite(d)) fail(where + " has a non-finite " + what);
+      return !v.empty();
+    };
+    if (finite(n.matrix, 16, "matrix")) {
+      mat4 m;
+      for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = float(n.matrix[size_t(i)]);  // column-major
+      return m;
+    }
+    mat4 m(1.0f);
+    if (finite(n.translation, 3, "translation"))
+      m[3] = vec4(float(n.translation[0]), float(n.translation[1]), float(n.translation[2]), 1.0f);
+    if (finite(n.rotation, 4, "rotation")) {
+      // glTF stores quaternions as x, y, z, w; glm's constructor takes w first.
+      glm::quat q(float(n.rotation[3]), float(n.rotation[0]), float(n.rotation[1]),
+                  float(n.rotation[2]));
+      if (glm::length(q) == 0.0f) fail(where + " has a zero rotation quaternion");
+      m = m * glm::mat4_cast(glm::normalize(q));
+    }
+    if (finite(n.scale, 3, "scale")) {
+      m[0] *= float(n.scale[0]);
+      m[1] *= float(n.scale[1]);
+      m[2] *= float(n.scale[2]);
+    }
+    return m;
+  }
+
+  // Byte range of an accessor, checked against its buffer view and buffer. Returns nullptr for an
+  // accessor without a buffer view (all zeros per spec) and sets *stride.
+  const unsigned char* accessor_data(const tinygltf::Accessor& a, size_t elem_size,
+                                     size_t* stride, const std::string& what) const {
+    if (a.sparse.isSparse) fail(what + " uses a sparse accessor, which is not supported");
+    if (a.bufferView < 0) return nullptr;
+    if (size_t(a.bufferView) >= model_.bufferViews.size())
+      fail(what + " refers to buffer view " + std::to_string(a.bufferView) + ", which does not exist");
+    const tinygltf::BufferView& view = model_.bufferViews[size_t(a.bufferView)];
+    if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
+      fail(what + ": buffer view refers to buffer " + std::to_string(view.buffer) + ", which does not exist");
+    const std::vector<unsigned char>& data = model_.buffers[size_t(view.buffer)].data;
+    *stride = view.byteStride ? view.byteStride : elem_size;
+    if (*stride < elem_size)
+      fail(what + ": byte stride " + std::to_string(*stride) + " is smaller than an element");
+    // All in 64 bits with explicit overflow guards: count and offsets come from the file.
+    const uint64_t limit = uint64_t(1) << 40;
+    if (a.count > limit || view.byteOffset > limit || view.byteLength > limit || a.byteOffset > limit)
+      fail(what + " has absurd sizes");
+    if (view.byteOffset + view.byteLength > data.size())
+      fail(what + ": buffer view (bytes " + std::to_string(view.byteOffset) + ".." +
+           std::to_string(view.byteOffset + view.byteLength) + ") runs past the end of its " +
+           std::to_string(data.size()) + "-byte buffer");
+    const uint64_t end = uint64_t(a.byteOffset) + uint64_t(*stride) * (a.count - 1) + elem_size;
+    if (end > view.byteLength)
+      fail(what + ": accessor needs " + std::to_string(end) + " bytes but its buffer view has " +
+           std::to_string(view.byteLength));
+    return data.data() + view.byteOffset + a.byteOffset;
+  }
+
+  const tinygltf::Accessor& accessor(int index, const std::string& what) const {
+    if (index < 0 || size_t(index) >= model_.accessors.size())
+      fail(what + " refers to accessor " + std::to_string(index) + ", which does not exist");
+    return model_.accessors[size_t(index)];
+  }
+
+  std::vector<vec3> read_vec3(int index, const std::string& what) const {
+    const tinygltf::Accessor& a = accessor(index, what);
+    if (a.type != TINYGLTF_TYPE_VEC3 || a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
+      fail(what + " must be a VEC3 of floats");
+    std::vector<vec3> out(a.count, vec3(0.0f));
+    if (a.count == 0) return out;
+    size_t stride = 0;
+    const unsigned char* p = accessor_data(a, sizeof(float) * 3, &stride, what);
+    if (!p) return out;
+    for (size_t i = 0; i < a.count; ++i) std::memcpy(&out[i], p + i * stride, sizeof(float) * 3);
+    return out;
+  }
+
+  std::vector<uint32_t> read_indices(int index, const std::string& what) const {
+    const tinygltf::Accessor& a = accessor(index, what);
+    size_t size = 0;
+    switch (a.componentType) {
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: size = 1; break;
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: size = 2; break;
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: size = 4; break;
+      default: fail(what + " must be unsigned 8, 16 or 32-bit integers");
+    }
+    if (a.type != TINYGLTF_TYPE_SCALAR) fail(what + " must be SCALAR");
+    std::vector<uint32_t> out(a.count, 0);
+    if (a.count == 0) return out;
+    size_t stride = 0;
+    const unsigned char* p = accessor_data(a, size, &stride, what);
+    if (!p) return out;
+    for (size_t i = 0; i < a.count; ++i) {
+      const unsigned char* e = p + i * stride;
+      if (size == 1) {
+        out[i] = *e;
+      } else if (size == 2) {
+        uint16_t v;
+        std::memcpy(&v, e, 2);
+        out[i] = v;
+      } else {
+        std::memcpy(&out[i], e, 4);
+      }
+    }
+    return out;
+  }
+
+  static double ext_number(const tinygltf::ExtensionMap& exts, const char* ext, const char* key,
+                           double def) {
+    auto it = exts.find(ext);
+    if (it == exts.end() || !it->second.Has(key) || !it->second.Get(key).IsNumber()) return def;
+    return it->second.Get(key).GetNumberAsDouble();
+  }
+
+  uint32_t material(int index) {
+    if (material_override_ != kInvalid) return material_override_;
+    if (index < 0 || size_t(index) >= model_.materials.size()) {
+      if (index >= 0) {
+        scene_.diagnostics.warn(file(), "a primitive refers to material " + std::to_string(index) +
+                                            ", which does not exist" + suffix_,
+                                "used grey diffuse");
+      }
+      if (default_material_ == kInvalid)
+        default_material_ = scene_.add_material("default grey", Material());
+      return default_material_;
+    }
+    auto found = materials_.find(index);
+    if (found != materials_.end()) return found->second;
+    const tinygltf::Material& g = model_.materials[size_t(index)];
+    const tinygltf::PbrMetallicRoughness& pbr = g.pbrMetallicRoughness;
+    Material m;
+    vec3 base(1.0f);
+    if (pbr.baseColorFactor.size() >= 3)
+      base = vec3(float(pbr.baseColorFactor[0]), float(pbr.baseColorFactor[1]),
+                  float(pbr.baseColorFactor[2]));
+    base = glm::clamp(is_finite(base) ? base : vec3(0.8f), vec3(0.0f), vec3(1.0f));
+    if (g.emissiveFactor.size() >= 3) {
+      const float strength = float(ext_number(g.extensions, "KHR_materials_emissive_strength",
+                                              "emissiveStrength", 1.0));
+      m.emission = strength * vec3(float(g.emissiveFactor[0]), float(g.emissiveFactor[1]),
+                                   float(g.emissiveFactor[2]));
+      if (!is_finite(m.emission)) fail("material \"" + g.name + "\" has a non-finite emission");
+      m.emission = glm::max(m.emission, vec3(0.0f));
+    }
+    const double transmission =
+        ext_number(g.extensions, "KHR_materials_transmission", "transmissionFactor", 0.0);
+    if (transmission > 0.0) {
+      m.type = MaterialType::kDielectric;
+      m.albedo = base;
+      const float ior = float(ext_number(g.extensions, "KHR_materials_ior", "ior", 1.5));
+      m.ior = ior > 1.0f && ior <= 4.0f ? ior : 1.5f;
+      if (ior != m.ior) approximated_.insert("ior outside (1, 4]");
+      if (transmission < 1.0) approximated_.insert("partial transmission");
+    } else if (pbr.metallicFactor >= 0.5 && pbr.roughnessFactor < 0.2) {
+      m.type = MaterialType::kMirror;
+      m.albedo = base;
+      if (pbr.roughnessFactor > 0.0) approximated_.insert("roughness");
+    } else {
+      m.albedo = base;
+      if (pbr.metallicFactor > 0.0) approximated_.insert("metallic");
+    }
+    if (pbr.baseColorTexture.index >= 0 || pbr.metallicRoughnessTexture.index >= 0 ||
+        g.normalTexture.index >= 0 || g.emissiveTexture.index >= 0 || g.occlusionTexture.index >= 0)
+      approximated_.insert("textures");
+    if (!g.alphaMode.empty() && g.alphaMode != "OPAQUE") approximated_.insert("alphaMode");
+    for (const auto& e : g.extensions) {
+      if (e.first != "KHR_materials_emissive_strength" && e.first != "KHR_materials_transmission" &&
+          e.first != "KHR_materials_ior")
+        approximated_.insert(e.first);
+    }
+    const std::string name = g.name.empty() ? "material " + std::to_string(index) : g.name;
+    const uint32_t id = scene_.add_material(name, m);
+    materials_[index] = id;
+    return id;
+  }
+
+  void append_mesh(int mesh_index, const mat4& world) {
+    if (size_t(mesh_index) >= model_.meshes.size())
+      fail("a node refers to mesh " + std::to_string(mesh_index) + ", which does not exist");
+    const tinygltf::Mesh& mesh = model_.meshes[size_t(mesh_index)];
+    for (size_t pi = 0; pi < mesh.primitives.size(); ++pi) {
+      const tinygltf::Primitive& prim = mesh.primitives[pi];
+      const std::string what = "mesh " + std::to_string(mesh_index) +
+                               (mesh.name.empty() ? "" : " (\"" + mesh.name + "\")") +
+                               " primitive " + std::to_string(pi);
+      if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) {
+        ++skipped_primitives_;
+        continue;
+      }
+      if (prim.extensions.count("KHR_draco_mesh_compression")) {
+        approximated_.insert("Draco compression (primitives skipped)");
+        continue;
+      }
+      auto pos = prim.attributes.find("POSITION");
+      if (pos == prim.attributes.end()) {
+        scene_.diagnostics.warn(file(), what + " has no POSITION" + suffix_, "skipped it");
+        continue;
+      }
+      MeshPart part;
+      part.positions = read_vec3(pos->second, what + " POSITION");
+      for (const vec3& p : part.positions)
+        if (!is_finite(p)) fail(what + " has a non-finite vertex position " + vec3_str(p));
+      auto nrm = prim.attributes.find("NORMAL");
+      if (nrm != prim.attributes.end()) {
+        part.normals = read_vec3(nrm->second, what + " NORMAL");
+        bool good = part.normals.size() == part.positions.size();
+        for (const vec3& n : part.normals) good &= is_finite(n) && glm::length(n) > 0.0f;
+        if (!good) {
+          scene_.diagnostics.warn(file(), what + " has missing, non-finite or zero normals" + suffix_,
+                                  "used flat shading");
+          part.normals.clear();
+        }
+      }
+      std::vector<uint32_t> idx;
+      if (prim.indices >= 0) {
+        idx = read_indices(prim.indices, what + " indices");
+        for (size_t i = 0; i < idx.size(); ++i)
+          if (idx[i] >= part.positions.size())
+            fail(what + ": index " + std::to_string(idx[i]) + " (at position " + std::to_string(i) +
+                 ") is out of range; the primitive has " + std::to_string(part.positions.size()) +
+                 " vertices");
+      } else {
+        idx.resize(part.positions.size());
+        for (size_t i = 0; i < idx.size(); ++i) idx[i] = uint32_t(i);
+      }
+      if (idx.size() % 3 != 0)
+        fail(what + " has " + std::to_string(idx.size()) + " indices, not a multiple of 3");
+      if (idx.empty()) continue;
+      const uint32_t mat = material(prim.material);
+      for (size_t i = 0; i < idx.size(); i += 3) {
+        part.indices.push_back(uvec3(idx[i], idx[i + 1], idx[i + 2]));
+        part.materials.push_back(mat);
+      }
+      append_part(scene_, part, world);
+    }
+  }
+
+  bool read_camera(const tinygltf::Node& node, const mat4& world, CameraDesc* cam) {
+    if (size_t(node.camera) >= model_.cameras.size()) {
+      scene_.diagnostics.warn(file(), "a node refers to camera " + std::to_string(node.camera) +
+                                          ", which does not exist" + suffix_,
+                              "ignored it");
+      return false;
+    }
+    const tinygltf::Camera& c = model_.cameras[size_t(node.camera)];
+    const double yfov = c.perspective.yfov;
+    if (c.type != "perspective" || !(yfov > 0.0 && yfov < kPi)) {
+      scene_.diagnostics.warn(file(), "camera " + std::to_string(node.camera) +
+                                          " is not a usable perspective camera" + suffix_,
+                              "framed the model with a default camera");
+      return false;
+    }
+    // glTF cameras look down their local -Z with +Y up.
+    const vec3 pos = vec3(world * vec4(0, 0, 0, 1));
+    const vec3 fwd = mat3(world) * vec3(0, 0, -1);
+    const vec3 up = mat3(world) * vec3(0, 1, 0);
+    if (!is_finite(pos) || glm::length(fwd) == 0.0f || glm::length(glm::cross(fwd, up)) == 0.0f) {
+      scene_.diagnostics.warn(file(), "camera node transform is degenerate" + suffix_,
+                              "framed the model with a default camera");
+      return false;
+    }
+    *cam = CameraDesc();
+    cam->position = pos;
+    cam->look_at = pos + glm::normalize(fwd);
+    cam->up = glm::normalize(up);
+    cam->vfov_deg = float(glm::degrees(yfov));
+    return true;
+  }
+
+  Scene& scene_;
+  const std::string& path_;
+  std::string suffix_;
+  tinygltf::Model model_;
+  uint32_t material_override_ = kInvalid;
+  uint32_t default_material_ = kInvalid;
+  std::map<int, uint32_t> materials_;
+  std::set<std::string> approximated_;
+  int skipped_primitives_ = 0;
+};
+
+}  // namespace
+
+void append_gltf_file(Scene& scene, const std::string& path, const mat4& xform,
+                      uint32_t material_override, const SourceLoc& from, CameraDesc* camera,
+                      bool* has_camera) {
+  bool found = false;
+  GltfReader reader(scene, path, from);
+  reader.load();
+  reader.append(xform, material_override, camera, has_camera ? has_camera : &found);
+}
+
+}  // namespace tracer

@@ -1,0 +1,524 @@
+// The JSON scene format (docs/SCENE_FORMAT.md): camera, render settings, named materials and
+// objects, read with a line for every value so that each message points at the offending spot.
+#include <cmath>
+#include <initializer_list>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "core/math.h"
+#include "scene/json_lines.h"
+#include "scene/loader.h"
+#include "scene/loader_util.h"
+
+namespace tracer {
+
+extern const char* const kBuiltinSceneJson;
+
+namespace {
+
+using nlohmann::json;
+
+const char* json_type_name(const json& v) {
+  if (v.is_number()) return "a number";
+  if (v.is_string()) return "a string";
+  if (v.is_boolean()) return "a boolean";
+  if (v.is_null()) return "null";
+  if (v.is_array()) return "an array";
+  if (v.is_object()) return "an object";
+  return "something else";
+}
+
+std::string in_quotes(const std::string& s) { return "\"" + s + "\""; }
+
+class JsonSceneReader {
+ public:
+  JsonSceneReader(const JsonDocument& doc, const std::string& path, Scene& scene)
+      : doc_(doc), path_(path), scene_(scene) {}
+
+  void read() {
+    const json& root = doc_.root;
+    if (!root.is_object())
+      fail("", std::string("a scene file must be a JSON object, not ") + json_type_name(root));
+    check_keys(root, "", {"camera", "render", "materials", "objects"}, "the scene");
+    if (root.contains("camera")) read_camera(root["camera"], "/camera");
+    if (root.contains("render")) read_render(root["render"], "/render");
+    if (root.contains("materials")) read_materials(root["materials"], "/materials");
+    if (!root.contains("objects")) fail("", "the scene has no \"objects\"");
+    read_objects(root["objects"], "/objects");
+  }
+
+ private:
+  SourceLoc at(const std::string& ptr) const { return {path_, doc_.line_of(ptr)}; }
+  [[noreturn]] void fail(const std::string& ptr, const std::string& problem) const {
+    throw InputError(at(ptr), problem);
+  }
+
+  void require_object(const json& v, const std::string& ptr, const std::string& what) const {
+    if (!v.is_object())
+      fail(ptr, what + " must be a JSON object {...}, not " + json_type_name(v));
+  }
+
+  // Unknown keys are errors, not warnings: a misspelt "albdo" would otherwise silently render
+  // the default colour.
+  void check_keys(const json& obj, const std::string& ptr, std::initializer_list<const char*> allowed,
+                  const std::string& where) const {
+    std::vector<std::string> names(allowed.begin(), allowed.end());
+    for (auto it = obj.begin(); it != obj.end(); ++it) {
+      if (std::find(names.begin(), names.end(), it.key()) != names.end()) continue;
+      const std::string guess = did_you_mean(it.key(), names);
+      const std::string key_ptr = json_pointer_child(ptr, it.key());
+      std::string msg = "unknown key " + in_quotes(it.key()) + " in " + where;
+      msg += guess.empty() ? " (expected one of: " + join(names) + ")"
+                           : " (did you mean " + in_quotes(guess) + "?)";
+      throw InputError({path_, doc_.key_line(key_ptr)}, msg);
+    }
+  }
+
+  static std::string join(const std::vector<std::string>& names) {
+    std::string s;
+    for (const std::string& n : names) s += (s.empty() ? "" : ", ") + n;
+    return s;
+  }
+
+  double number(const json& v, const std::string& ptr, const std::string& what) const {
+    if (!v.is_number()) fail(ptr, what + " must be a number, not " + json_type_name(v));
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) fail(ptr, what + " is not a finite number (too large for a float?)");
+    if (std::fabs(d) > 3.0e38) fail(ptr, what + " is too large for a 32-bit float");
+    return d;
+  }
+
+  float get_float(const json& obj, const std::string& ptr, const char* key, float def,
+                  const std::string& where) const {
+    if (!obj.contains(key)) return def;
+    return float(number(obj[key], json_pointer_child(ptr, key), in_quotes(key) + " in " + where));
+  }
+
+  int64_t get_int(const json& obj, const std::string& ptr, const char* key, int64_t def,
+                  int64_t lo, int64_t hi, const std::string& where) const {
+    if (!obj.contains(key)) return def;
+    const std::string p = json_pointer_child(ptr, key);
+    const std::string what = in_quotes(key) + " in " + where;
+    const double d = number(obj[key], p, what);
+    if (d != std::floor(d)) fail(p, what + " must be a whole number");
+    if (d < double(lo) || d > double(hi)) {
+      fail(p, what + " is " + obj[key].dump() + ", outside the allowed range " +
+                  std::to_string(lo) + ".." + std::to_string(hi));
+    }
+    return int64_t(d);
+  }
+
+  bool get_bool(const json& obj, const std::string& ptr, const char* key, bool def,
+                const std::string& where) const {
+    if (!obj.contains(key)) return def;
+    const json& v = obj[key];
+    if (!v.is_boolean()) {
+      fail(json_pointer_child(ptr, key),
+           in_quotes(key) + " in " + where + " must be true or false, not " + json_type_name(v));
+    }
+    return v.get<bool>();
+  }
+
+  std::string get_string(const json& obj, const std::string& ptr, const char* key,
+                         const std::string& def, const std::string& where) const {
+    if (!obj.contains(key)) return def;
+    const json& v = obj[key];
+    if (!v.is_string()) {
+      fail(json_pointer_child(ptr, key),
+           in_quotes(key) + " in " + where + " must be a string, not " + json_type_name(v));
+    }
+    return v.get<std::string>();
+  }
+
+  vec3 vec3_value(const json& v, const std::string& ptr, const std::string& what) const {
+    if (!v.is_array() || v.size() != 3) {
+      fail(ptr, what + " must be an array of 3 numbers, not " +
+                    (v.is_array() ? "one of " + std::to_string(v.size()) : json_type_name(v)));
+    }
+    vec3 out;
+    for (int i = 0; i < 3; ++i)
+      out[i] = float(number(v[i], json_pointer_child(ptr, size_t(i)), what));
+    return out;
+  }
+
+  vec3 get_vec3(const json& obj, const std::string& ptr, const char* key, vec3 def,
+                const std::string& where) const {
+    if (!obj.contains(key)) return def;
+    return vec3_value(obj[key], json_pointer_child(ptr, key), in_quotes(key) + " in " + where);
+  }
+
+  void read_camera(const json& c, const std::string& ptr) {
+    const std::string where = "\"camera\"";
+    require_object(c, ptr, where);
+    check_keys(c, ptr, {"position", "look_at", "up", "vfov", "aperture", "focus_distance"}, where);
+    CameraDesc& cam = scene_.camera;
+    cam.position = get_vec3(c, ptr, "position", cam.position, where);
+    cam.look_at = get_vec3(c, ptr, "look_at", cam.look_at, where);
+    cam.up = get_vec3(c, ptr, "up", cam.up, where);
+    cam.vfov_deg = get_float(c, ptr, "vfov", cam.vfov_deg, where);
+    cam.aperture_radius = get_float(c, ptr, "aperture", cam.aperture_radius, where);
+    cam.focus_distance = get_float(c, ptr, "focus_distance", cam.focus_distance, where);
+    if (!(cam.vfov_deg > 0.0f && cam.vfov_deg < 180.0f))
+      fail(json_pointer_child(ptr, "vfov"), "\"vfov\" must be between 0 and 180 degrees");
+    if (cam.aperture_radius < 0.0f)
+      fail(json_pointer_child(ptr, "aperture"), "\"aperture\" (lens radius) must be >= 0");
+    if (cam.focus_distance < 0.0f)
+      fail(json_pointer_child(ptr, "focus_distance"), "\"focus_distance\" must be >= 0");
+    const vec3 dir = cam.look_at - cam.position;
+    if (glm::length(dir) == 0.0f) fail(ptr, "camera \"position\" and \"look_at\" are the same point");
+    if (glm::length(glm::cross(glm::normalize(dir), cam.up)) < 1e-6f)
+      fail(ptr, "camera \"up\" is zero or parallel to the viewing direction");
+  }
+
+  void read_render(const json& r, const std::string& ptr) {
+    const std::string where = "\"render\"";
+    require_object(r, ptr, where);
+    check_keys(r, ptr,
+               {"width", "height", "spp", "time_limit_s", "max_depth", "nee", "mis",
+                "russian_roulette", "rr_start_depth", "seed"},
+               where);
+    RenderSettings& s = scene_.settings;
+    s.width = int(get_int(r, ptr, "width", s.width, 1, 16384, where));
+    s.height = int(get_int(r, ptr, "height", s.height, 1, 16384, where));
+    s.spp = int(get_int(r, ptr, "spp", s.spp, 1, int64_t(1) << 30, where));
+    s.time_limit_s = get_float(r, ptr, "time_limit_s", float(s.time_limit_s), where);
+    if (s.time_limit_s < 0.0)
+      fail(json_pointer_child(ptr, "time_limit_s"), "\"time_limit_s\" must be >= 0");
+    s.max_depth = int(get_int(r, ptr, "max_depth", s.max_depth, 1, 1024, where));
+    s.nee = get_bool(r, ptr, "nee", s.nee, where);
+    s.mis = get_bool(r, ptr, "mis", s.mis, where);
+    s.russian_roulette = get_bool(r, ptr, "russian_roulette", s.russian_roulette, where);
+    s.rr_start_depth = int(get_int(r, ptr, "rr_start_depth", s.rr_start_depth, 1, 1 << 20, where));
+    s.seed = uint32_t(get_int(r, ptr, "seed", s.seed, 0, 0xffffffffll, where));
+  }
+
+  void read_materials(const json& ms, const std::string& ptr) {
+    require_object(ms, ptr, "\"materials\"");
+    for (auto it = ms.begin(); it != ms.end(); ++it)
+      read_material(it.key(), it.value(), json_pointer_child(ptr, it.key()));
+  }
+
+  void read_material(const std::string& name, const json& m, const std::string& ptr) {
+    const std::string where = "material " + in_quotes(name);
+    if (name.empty()) fail(ptr, "a material name must not be empty");
+    require_object(m, ptr, where);
+    check_keys(m, ptr,
+               {"type", "albedo", "emission", "emission_strength", "two_sided", "ior", "fresnel",
+                "absorption"},
+               where);
+    Material mat;
+    const std::string type = get_string(m, ptr, "type", "diffuse", where);
+    const std::vector<std::string> types = {"diffuse", "mirror", "dielectric"};
+    if (type == "diffuse") {
+      mat.type = MaterialType::kDiffuse;
+    } else if (type == "mirror") {
+      mat.type = MaterialType::kMirror;
+    } else if (type == "dielectric") {
+      mat.type = MaterialType::kDielectric;
+    } else {
+      const std::string guess = did_you_mean(type, types);
+      fail(json_pointer_child(ptr, "type"),
+           "unknown material type " + in_quotes(type) + " in " + where +
+               (guess.empty() ? " (expected diffuse, mirror or dielectric)"
+                              : " (did you mean " + in_quotes(guess) + "?)"));
+    }
+    const vec3 default_albedo = mat.type == MaterialType::kDielectric ? vec3(1.0f) : vec3(0.8f);
+    mat.albedo = get_vec3(m, ptr, "albedo", default_albedo, where);
+    const vec3 clamped = glm::clamp(mat.albedo, vec3(0.0f), vec3(1.0f));
+    if (clamped != mat.albedo) {
+      // Albedo above 1 creates energy and below 0 is meaningless; both are likely typos of scale.
+      scene_.diagnostics.warn(at(json_pointer_child(ptr, "albedo")),
+                              "\"albedo\" " + vec3_str(mat.albedo) + " in " + where +
+                                  " is outside [0, 1]",
+                              "clamped to " + vec3_str(clamped));
+      mat.albedo = clamped;
+    }
+    const vec3 emission = get_vec3(m, ptr, "emission", vec3(0.0f), where);
+    if (glm::any(glm::lessThan(emission, vec3(0.0f))))
+      fail(json_pointer_child(ptr, "emission"), "\"emission\" in " + where + " must be >= 0");
+    const float strength = get_float(m, ptr, "emission_strength", 1.0f, where);
+    if (strength < 0.0f) {
+      fail(json_pointer_child(ptr, "emission_strength"),
+           "\"emission_strength\" in " + where + " must be >= 0");
+    }
+    mat.emission = emission * strength;
+    if (get_bool(m, ptr, "two_sided", false, where)) mat.flags |= kMaterialTwoSidedEmission;
+
+    const bool dielectric = mat.type == MaterialType::kDielectric;
+    for (const char* key : {"ior", "fresnel", "absorption"}) {
+      if (!dielectric && m.contains(key)) {
+        scene_.diagnostics.warn(at(json_pointer_child(ptr, key)),
+                                in_quotes(key) + " has no effect on a " + type + " material", "ignored");
+      }
+    }
+    mat.ior = get_float(m, ptr, "ior", 1.5f, where);
+    if (dielectric && !(mat.ior > 1.0f && mat.ior <= 4.0f)) {
+      fail(json_pointer_child(ptr, "ior"),
+           "\"ior\" in " + where + " must be greater than 1 and at most 4");
+    }
+    const std::string fresnel = get_string(m, ptr, "fresnel", "exact", where);
+    if (fresnel == "schlick") {
+      if (dielectric) mat.flags |= kMaterialSchlickFresnel;
+    } else if (fresnel != "exact") {
+      const std::string guess = did_you_mean(fresnel, {"exact", "schlick"});
+      fail(json_pointer_child(ptr, "fresnel"),
+           "\"fresnel\" in " + where + " must be \"exact\" or \"schlick\", not " + in_quotes(fresnel) +
+               (guess.empty() ? "" : " (did you mean " + in_quotes(guess) + "?)"));
+    }
+    mat.absorption = get_vec3(m, ptr, "absorption", vec3(0.0f), where);
+    if (glm::any(glm::lessThan(mat.absorption, vec3(0.0f))))
+      fail(json_pointer_child(ptr, "absorption"), "\"absorption\" in " + where + " must be >= 0");
+    if (!dielectric) mat.absorption = vec3(0.0f), mat.ior = 1.5f;
+    scene_.add_material(name, mat);
+  }
+
+  void read_objects(const json& objs, const std::string& ptr) {
+    if (!objs.is_array())
+      fail(ptr, std::string("\"objects\" must be an array [...], not ") + json_type_name(objs));
+    if (objs.empty()) fail(ptr, "the scene has no objects (\"objects\" is empty)");
+    for (size_t i = 0; i < objs.size(); ++i)
+      read_object(objs[i], json_pointer_child(ptr, i), i);
+  }
+
+  uint32_t object_material(const json& o, const std::string& ptr, const std::string& where,
+                           bool required) const {
+    if (!o.contains("material")) {
+      if (required) fail(ptr, where + " has no \"material\"");
+      return kInvalid;
+    }
+    const std::string name = get_string(o, ptr, "material", "", where);
+    const uint32_t id = scene_.find_material(name);
+    if (id != kInvalid) return id;
+    std::vector<std::string> names;
+    for (const NamedMaterial& m : scene_.materials) names.push_back(m.name);
+    const std::string guess = did_you_mean(name, names);
+    fail(json_pointer_child(ptr, "material"),
+         "unknown material " + in_quotes(name) + " in " + where +
+             (guess.empty() ? (names.empty() ? " (no materials are defined)"
+                                             : " (defined: " + join(names) + ")")
+                            : " (did you mean " + in_quotes(guess) + "?)"));
+  }
+
+  // scale -> rotate (X, then Y, then Z, degrees) -> translate, or a row-major "matrix".
+  mat4 read_transform(const json& o, const std::string& obj_ptr, const std::string& where) const {
+    if (!o.contains("transform")) return mat4(1.0f);
+    const json& t = o["transform"];
+    const std::string ptr = json_pointer_child(obj_ptr, "transform");
+    const std::string w = "\"transform\" of " + where;
+    require_object(t, ptr, w);
+    check_keys(t, ptr, {"translate", "rotate", "scale", "matrix"}, w);
+    if (t.contains("matrix")) {
+      if (t.size() > 1)
+        fail(ptr, w + ": \"matrix\" cannot be combined with translate/rotate/scale");
+      const json& m = t["matrix"];
+      const std::string mp = json_pointer_child(ptr, "matrix");
+      if (!m.is_array() || m.size() != 16)
+        fail(mp, "\"matrix\" in " + w + " must be an array of 16 numbers (row-major)");
+      mat4 out;
+      for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c)
+          out[c][r] = float(number(m[size_t(r * 4 + c)], json_pointer_child(mp, size_t(r * 4 + c)),
+                                   "\"matrix\" in " + w));
+      if (out[0][3] != 0.0f || out[1][3] != 0.0f || out[2][3] != 0.0f || out[3][3] != 1.0f)
+        fail(mp, "\"matrix\" in " + w + " must be affine (last row 0, 0, 0, 1)");
+      if (glm::determinant(mat3(out)) == 0.0f) fail(mp, "\"matrix\" in " + w + " is singular");
+      return out;
+    }
+    vec3 scale(1.0f);
+    if (t.contains("scale")) {
+      const std::string sp = json_pointer_child(ptr, "scale");
+      scale = t["scale"].is_number() ? vec3(float(number(t["scale"], sp, "\"scale\" in " + w)))
+                                     : vec3_value(t["scale"], sp, "\"scale\" in " + w);
+      if (scale.x == 0.0f || scale.y == 0.0f || scale.z == 0.0f)
+        fail(sp, "\"scale\" in " + w + " must not be zero");
+    }
+    const vec3 rot = get_vec3(t, ptr, "rotate", vec3(0.0f), w);
+    const vec3 tr = get_vec3(t, ptr, "translate", vec3(0.0f), w);
+    mat4 m = glm::translate(mat4(1.0f), tr);
+    m = glm::rotate(m, glm::radians(rot.z), vec3(0, 0, 1));
+    m = glm::rotate(m, glm::radians(rot.y), vec3(0, 1, 0));
+    m = glm::rotate(m, glm::radians(rot.x), vec3(1, 0, 0));
+    return glm::scale(m, scale);
+  }
+
+  void read_object(const json& o, const std::string& ptr, size_t index) {
+    require_object(o, ptr, "object " + std::to_string(index));
+    if (!o.contains("type")) fail(ptr, "object " + std::to_string(index) + " has no \"type\"");
+    const std::string type = get_string(o, ptr, "type", "", "object " + std::to_string(index));
+    const std::vector<std::string> types = {"sphere", "box", "quad", "mesh"};
+    if (std::find(types.begin(), types.end(), type) == types.end()) {
+      const std::string guess = did_you_mean(type, types);
+      fail(json_pointer_child(ptr, "type"),
+           "unknown object type " + in_quotes(type) +
+               (guess.empty() ? " (expected sphere, box, quad or mesh)"
+                              : " (did you mean " + in_quotes(guess) + "?)"));
+    }
+    ObjectInfo info;
+    info.kind = type;
+    info.loc = at(ptr);
+    info.name = type + " " + std::to_string(index);
+    info.name = get_string(o, ptr, "name", info.name, "object " + in_quotes(info.name));
+    const std::string where = "object " + in_quotes(info.name);
+    const mat4 xform = read_transform(o, ptr, where);
+
+    if (type == "sphere") {
+      check_keys(o, ptr, {"type", "name", "center", "radius", "material", "transform"}, where);
+      SphereDesc s;
+      s.material = object_material(o, ptr, where, true);
+      s.center = get_vec3(o, ptr, "center", vec3(0.0f), where);
+      s.radius = get_float(o, ptr, "radius", 1.0f, where);
+      if (!(s.radius > 0.0f))
+        fail(json_pointer_child(ptr, "radius"), "\"radius\" of " + where + " must be > 0");
+      // A sphere stays a sphere under rotation and uniform scale only.
+      const mat3 m(xform);
+      const float sx = glm::length(m[0]), sy = glm::length(m[1]), sz = glm::length(m[2]);
+      const float tol = 1e-4f * std::max(sx, std::max(sy, sz));
+      if (std::fabs(sx - sy) > tol || std::fabs(sx - sz) > tol ||
+          std::fabs(glm::dot(m[0], m[1])) > tol * sx || std::fabs(glm::dot(m[0], m[2])) > tol * sx ||
+          std::fabs(glm::dot(m[1], m[2])) > tol * sx) {
+        fail(json_pointer_child(ptr, "transform"),
+             "the transform of " + where + " scales non-uniformly or shears; a sphere allows only "
+             "translate, rotate and a uniform scale");
+      }
+      s.center = vec3(xform * vec4(s.center, 1.0f));
+      s.radius *= sx;
+      info.is_sphere = true;
+      info.first = uint32_t(scene_.spheres.size());
+      info.count = 1;
+      scene_.spheres.push_back(s);
+    } else if (type == "box") {
+      check_keys(o, ptr, {"type", "name", "min", "max", "material", "transform"}, where);
+      const uint32_t mat = object_material(o, ptr, where, true);
+      const vec3 lo = get_vec3(o, ptr, "min", vec3(-0.5f), where);
+      const vec3 hi = get_vec3(o, ptr, "max", vec3(0.5f), where);
+      if (!glm::all(glm::lessThan(lo, hi)))
+        fail(ptr, "\"min\" of " + where + " must be smaller than \"max\" in every coordinate");
+      info.first = append_part(scene_, box_part(lo, hi, mat), xform);
+      info.count = 12;
+    } else if (type == "quad") {
+      check_keys(o, ptr, {"type", "name", "corner", "edge1", "edge2", "material", "transform"},
+                 where);
+      const uint32_t mat = object_material(o, ptr, where, true);
+      const vec3 c = get_vec3(o, ptr, "corner", vec3(0.0f), where);
+      const vec3 e1 = get_vec3(o, ptr, "edge1", vec3(1, 0, 0), where);
+      const vec3 e2 = get_vec3(o, ptr, "edge2", vec3(0, 1, 0), where);
+      if (glm::length(glm::cross(e1, e2)) == 0.0f)
+        fail(ptr, "\"edge1\" and \"edge2\" of " + where + " are zero or parallel");
+      MeshPart q;
+      // Counter-clockwise seen from the front, so the geometric normal is cross(edge1, edge2).
+      q.positions = {c, c + e1, c + e1 + e2, c + e2};
+      q.indices = {uvec3(0, 1, 2), uvec3(0, 2, 3)};
+      q.materials = {mat, mat};
+      info.first = append_part(scene_, q, xform);
+      info.count = 2;
+    } else {  // mesh
+      check_keys(o, ptr, {"type", "name", "file", "material", "transform"}, where);
+      if (!o.contains("file")) fail(ptr, where + " has no \"file\"");
+      const std::string file = get_string(o, ptr, "file", "", where);
+      const uint32_t mat = object_material(o, ptr, where, false);
+      const std::string full = path_join(path_directory(path_), file);
+      const SourceLoc from = at(json_pointer_child(ptr, "file"));
+      if (!file_exists(full))
+        throw InputError(from, "mesh file " + in_quotes(file) + " of " + where + " not found (looked for " + in_quotes(full) + ")");
+      const uint32_t before = uint32_t(scene_.mesh.indices.size());
+      append_mesh_file(scene_, full, xform, mat, from);
+      info.first = before;
+      info.count = uint32_t(scene_.mesh.indices.size()) - before;
+    }
+    scene_.objects.push_back(info);
+  }
+
+  // Four vertices per face so that faces do not share (and average) normals.
+  static MeshPart box_part(vec3 lo, vec3 hi, uint32_t mat) {
+    MeshPart b;
+    const vec3 d = hi - lo;
+    // Each face as corner + two edges with cross(e1, e2) pointing out of the box.
+    const struct {
+      vec3 corner, e1, e2;
+    } faces[6] = {
+        {lo, vec3(0, 0, d.z), vec3(0, d.y, 0)},                         // -x
+        {vec3(hi.x, lo.y, lo.z), vec3(0, d.y, 0), vec3(0, 0, d.z)},     // +x
+        {lo, vec3(d.x, 0, 0), vec3(0, 0, d.z)},                         // -y
+        {vec3(lo.x, hi.y, lo.z), vec3(0, 0, d.z), vec3(d.x, 0, 0)},     // +y
+        {lo, vec3(0, d.y, 0), vec3(d.x, 0, 0)},                         // -z
+        {vec3(lo.x, lo.y, hi.z), vec3(d.x, 0, 0), vec3(0, d.y, 0)},     // +z
+    };
+    for (const auto& f : faces) {
+      const uint32_t base = uint32_t(b.positions.size());
+      b.positions.insert(b.positions.end(),
+                         {f.corner, f.corner + f.e1, f.corner + f.e1 + f.e2, f.corner + f.e2});
+      b.indices.push_back(uvec3(base, base + 1, base + 2));
+      b.indices.push_back(uvec3(base, base + 2, base + 3));
+      b.materials.insert(b.materials.end(), {mat, mat});
+    }
+    return b;
+  }
+
+  const JsonDocument& doc_;
+  const std::string& path_;
+  Scene& scene_;
+};
+
+}  // namespace
+
+Scene load_scene_from_json(const std::string& text, const std::string& path) {
+  Scene scene;
+  scene.source = path;
+  const JsonDocument doc = parse_json_with_lines(text, path);
+  JsonSceneReader(doc, path, scene).read();
+  validate_scene(scene);
+  return scene;
+}
+
+Scene builtin_default_scene() { return load_scene_from_json(kBuiltinSceneJson, "<built-in>"); }
+
+void append_mesh_file(Scene& scene, const std::string& path, const glm::mat4& xform,
+                      uint32_t material_override, const SourceLoc& from) {
+  const std::string ext = path_extension_lower(path);
+  if (ext == ".obj") {
+    append_obj_file(scene, path, xform, material_override, from);
+  } else if (ext == ".gltf" || ext == ".glb") {
+    append_gltf_file(scene, path, xform, material_override, from, nullptr, nullptr);
+  } else {
+    throw InputError(from, "unsupported mesh file type \"" + ext + "\" for \"" + path +
+                               "\" (expected .obj, .gltf or .glb)");
+  }
+}
+
+Scene load_scene(const std::string& path) {
+  const std::string ext = path_extension_lower(path);
+  const SourceLoc file{path, 0};
+  if (ext == ".json") return load_scene_from_json(read_file_text(path, file), path);
+  if (ext != ".obj" && ext != ".gltf" && ext != ".glb") {
+    throw InputError(file, "unknown scene file type \"" + ext +
+                               "\" (expected .json, .obj, .gltf or .glb)");
+  }
+  if (!file_exists(path)) read_file_text(path, file);  // throws the precise reason
+  Scene scene;
+  scene.source = path;
+  bool has_camera = false;
+  const uint32_t before = uint32_t(scene.mesh.indices.size());
+  if (ext == ".obj")
+    append_obj_file(scene, path, mat4(1.0f), kInvalid, file);
+  else
+    append_gltf_file(scene, path, mat4(1.0f), kInvalid, file, &scene.camera, &has_camera);
+  if (scene.mesh.indices.size() == before) {
+    // Say why, rather than a bare "no geometry": the reader's warnings usually hold the reason.
+    std::string why;
+    for (const std::string& w : scene.diagnostics.warnings) why += (why.empty() ? " (" : " | ") + w;
+    throw InputError(file, "the file contains no triangles" + (why.empty() ? "" : why + ")"));
+  }
+  ObjectInfo info;
+  const size_t slash = path.find_last_of('/');
+  info.name = slash == std::string::npos ? path : path.substr(slash + 1);
+  info.kind = "mesh";
+  info.first = before;
+  info.count = uint32_t(scene.mesh.indices.size()) - before;
+  info.loc = file;
+  scene.objects.push_back(info);
+  frame_mesh_scene(scene, has_camera);
+  validate_scene(scene);
+  return scene;
+}
+
+}  // namespace tracer

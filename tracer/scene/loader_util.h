@@ -1,0 +1,52 @@
+// Internal to the scene loaders: appending transformed triangles to the scene mesh, file and path
+// helpers, framing a camera and light for a mesh opened on its own, and the per-format readers.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace tracer {
+
+// Triangles in object space, as a mesh reader produces them.
+struct MeshPart {
+  std::vector<vec3> positions;
+  std::vector<vec3> normals;  // empty, or one per position
+  std::vector<uvec3> indices;
+  std::vector<uint32_t> materials;  // one per triangle
+};
+
+// Transforms `part` by `xform` (normals by its inverse transpose; winding flipped for a mirroring
+// transform so the geometric normal keeps facing out) and appends it to scene.mesh. Keeps
+// scene.mesh.normals either empty or one per position by giving triangles that have none their
+// flat geometric normal. Returns the index of the first appended triangle.
+uint32_t append_part(Scene& scene, const MeshPart& part, const mat4& xform);
+
+// Gives triangles [first, first + count) their geometric normal as vertex normals (so shading is
+// exactly flat), duplicating a vertex where faces with different normals share it.
+void set_flat_normals(TriangleMesh& mesh, uint32_t first, uint32_t count);
+
+// Reads a whole file; a missing or unreadable file throws InputError at `from`.
+std::string read_file_text(const std::string& path, const SourceLoc& from);
+bool file_exists(const std::string& path);
+std::string path_extension_lower(const std::string& path);  // ".obj"; "" when there is none
+std::string path_directory(const std::string& path);        // "" for a bare file name
+std::string path_join(const std::string& dir, const std::string& rel);
+
+// For a mesh file opened as a scene: a camera framing the bounds unless `keep_camera`, and a
+// default area light (with a warning) when no material emits.
+void frame_mesh_scene(Scene& scene, bool keep_camera);
+
+// "[1, 2, 3]" for messages.
+std::string vec3_str(vec3 v);
+
+// The format readers behind append_mesh_file. The glTF reader also returns the file's first
+// camera, placed by its node transform and `xform`, when `camera` is non-null.
+void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
+                     uint32_t material_override, const SourceLoc& from);
+void append_gltf_file(Scene& scene, const std::string& path, const mat4& xform,
+                      uint32_t material_override, const SourceLoc& from, CameraDesc* camera,
+                      bool* has_camera);
+
+}  // namespace tracer

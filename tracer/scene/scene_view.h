@@ -1,0 +1,189 @@
+// The flattened scene both backends trace: plain arrays linked by uint32 indices, readable from
+// host or device memory alike, plus BVH traversal over them.
+#pragma once
+
+#include "bvh/bvh.h"
+#include "bvh/geometry.h"
+#include "camera/camera.h"
+#include "materials/material.h"
+
+namespace tracer {
+
+// What a scene needs; the CUDA backend specialises its kernels on these.
+enum SceneFeature : uint32_t {
+  kFeatureDepthOfField = 1u << 0,
+  kFeatureDielectric = 1u << 1,
+  kFeatureSubsurface = 1u << 2,
+  kFeatureTextures = 1u << 3,
+  kFeatureEmissiveMeshes = 1u << 4,
+  kFeatureSpheres = 1u << 5,
+  kFeatureMirror = 1u << 6,
+  kFeatureAbsorption = 1u << 7,
+  kFeatureShadingNormals = 1u << 8,
+};
+
+// Cold per-triangle data, read only after a hit.
+struct TriangleShading {
+  vec3 n0, n1, n2;     // vertex normals; zero when the mesh has none
+  uint32_t material;
+  uint32_t light;      // index into the light list, kInvalid when not emissive
+  uint32_t has_normals;
+};
+
+// An emissive primitive. `prim` is a unified primitive id (triangles first, then spheres).
+struct Light {
+  uint32_t prim;
+  float area;
+  float power;  // luminance of the emission times area: how often it is chosen
+  uint32_t pad;
+};
+
+struct SceneView {
+  const BvhNode* nodes = nullptr;
+  const uint32_t* prim_indices = nullptr;
+  const TriangleVerts* tri_verts = nullptr;
+  const TriangleShading* tri_shading = nullptr;
+  const Sphere* spheres = nullptr;
+  const Material* materials = nullptr;
+  const Light* lights = nullptr;
+  const float* light_cdf = nullptr;  // light_count + 1 entries, 0 .. 1
+  uint32_t node_count = 0, tri_count = 0, sphere_count = 0, material_count = 0, light_count = 0;
+  uint32_t features = 0;
+  Camera camera;
+};
+
+// Nearest hit along the ray in (0, ray.tmax).
+TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
+  Hit hit;
+  if (s.node_count == 0) return hit;
+  const RayTriSetup setup(ray.d);
+  const vec3 inv_d = 1.0f / ray.d;  // infinities are handled by intersect_aabb
+  float tmax = ray.tmax;
+  uint32_t stack[kBvhStackSize];
+  int sp = 0;
+  uint32_t node_index = 0;
+  if (intersect_aabb(s.nodes[0].lo, s.nodes[0].hi, ray.o, inv_d, tmax) == kInfinity) return hit;
+  for (;;) {
+    const BvhNode& node = s.nodes[node_index];
+    if (node.is_leaf()) {
+      for (uint32_t i = 0; i < node.count; ++i) {
+        const uint32_t prim = s.prim_indices[node.left_first + i];
+        float t, b1 = 0.0f, b2 = 0.0f;
+        bool h;
+        if (prim < s.tri_count) {
+          const TriangleVerts& tv = s.tri_verts[prim];
+          h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
+        } else {
+          const Sphere& sp_ = s.spheres[prim - s.tri_count];
+          h = intersect_sphere(ray, sp_.center, sp_.radius, tmax, t);
+        }
+        if (h) {
+          tmax = t;
+          hit.t = t;
+          hit.prim = prim;
+          hit.u = b1;
+          hit.v = b2;
+        }
+      }
+      if (sp == 0) break;
+      node_index = stack[--sp];
+      continue;
+    }
+    const uint32_t c0 = node.left_first, c1 = node.left_first + 1;
+    float d0 = intersect_aabb(s.nodes[c0].lo, s.nodes[c0].hi, ray.o, inv_d, tmax);
+    float d1 = intersect_aabb(s.nodes[c1].lo, s.nodes[c1].hi, ray.o, inv_d, tmax);
+    uint32_t near = c0, far = c1;
+    if (d1 < d0) {
+      const float td = d0;
+      d0 = d1;
+      d1 = td;
+      near = c1;
+      far = c0;
+    }
+    if (d0 == kInfinity) {
+      if (sp == 0) break;
+      node_index = stack[--sp];
+      continue;
+    }
+    node_index = near;
+    if (d1 != kInfinity) stack[sp++] = far;
+  }
+  return hit;
+}
+
+// True when anything blocks the ray in (0, ray.tmax), ignoring primitive `skip` (the light the
+// shadow ray aims at, so that reaching it is never mistaken for being blocked).
+TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t skip) {
+  if (s.node_count == 0) return false;
+  const RayTriSetup setup(ray.d);
+  const vec3 inv_d = 1.0f / ray.d;  // infinities are handled by intersect_aabb
+  uint32_t stack[kBvhStackSize];
+  int sp = 0;
+  stack[sp++] = 0;
+  while (sp > 0) {
+    const BvhNode& node = s.nodes[stack[--sp]];
+    if (intersect_aabb(node.lo, node.hi, ray.o, inv_d, ray.tmax) == kInfinity) continue;
+    if (node.is_leaf()) {
+      for (uint32_t i = 0; i < node.count; ++i) {
+        const uint32_t prim = s.prim_indices[node.left_first + i];
+        if (prim == skip) continue;
+        float t, b1, b2;
+        if (prim < s.tri_count) {
+          const TriangleVerts& tv = s.tri_verts[prim];
+          if (intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, ray.tmax, t, b1, b2)) return true;
+        } else {
+          const Sphere& sph = s.spheres[prim - s.tri_count];
+          if (intersect_sphere(ray, sph.center, sph.radius, ray.tmax, t)) return true;
+        }
+      }
+    } else {
+      stack[sp++] = node.left_first + 1;
+      stack[sp++] = node.left_first;
+    }
+  }
+  return false;
+}
+
+// Everything the shading stage needs to know about a hit point.
+struct SurfaceHit {
+  vec3 p;         // position
+  vec3 ng;        // unit geometric normal (triangle winding / sphere outward)
+  vec3 ns;        // unit shading normal, on the same side as ng
+  uint32_t material;
+  uint32_t light;  // kInvalid when not emissive
+  bool front;      // the ray arrived on the ng side
+};
+
+TRACER_HD inline SurfaceHit make_surface_hit(const SceneView& s, const Ray& ray, const Hit& hit) {
+  SurfaceHit sh;
+  if (hit.prim < s.tri_count) {
+    const TriangleVerts& tv = s.tri_verts[hit.prim];
+    const TriangleShading& ts = s.tri_shading[hit.prim];
+    const float b0 = 1.0f - hit.u - hit.v;
+    // Barycentric interpolation is more accurate than o + t d (pbrt-v4 sec. 6.8.5).
+    sh.p = b0 * tv.v0 + hit.u * tv.v1 + hit.v * tv.v2;
+    sh.ng = glm::normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
+    sh.ns = sh.ng;
+    if (ts.has_normals) {
+      const vec3 n = b0 * ts.n0 + hit.u * ts.n1 + hit.v * ts.n2;
+      const float len = glm::length(n);
+      if (len > 0.0f) sh.ns = n / len;
+      if (glm::dot(sh.ns, sh.ng) < 0.0f) sh.ns = -sh.ns;
+    }
+    sh.material = ts.material;
+    sh.light = ts.light;
+  } else {
+    const Sphere& sph = s.spheres[hit.prim - s.tri_count];
+    const vec3 p = ray.o + hit.t * ray.d;
+    sh.ng = glm::normalize(p - sph.center);
+    // Re-project onto the surface to remove the error of o + t d (pbrt-v4 sec. 6.8.5).
+    sh.p = sph.center + sph.radius * sh.ng;
+    sh.ns = sh.ng;
+    sh.material = sph.material;
+    sh.light = sph.light;
+  }
+  sh.front = glm::dot(ray.d, sh.ng) < 0.0f;
+  return sh;
+}
+
+}  // namespace tracer

@@ -1,0 +1,213 @@
+// validate_scene: the last gate between any loader (or the UI) and the renderer. Repairs what has
+// an obvious repair (degenerate triangles, zero normals, albedo out of range) with a warning and
+// rejects the rest, so that the backends may assume finite, in-range data.
+#include <unistd.h>
+
+#include <cmath>
+#include <sstream>
+
+#include "core/math.h"
+#include "scene/loader.h"
+#include "scene/loader_util.h"
+
+namespace tracer {
+
+namespace {
+
+// The object that owns triangle t, for messages; objects are appended in triangle order.
+const ObjectInfo* owner_of(const Scene& scene, uint32_t t) {
+  for (const ObjectInfo& o : scene.objects)
+    if (!o.is_sphere && t >= o.first && t - o.first < o.count) return &o;
+  return nullptr;
+}
+
+SourceLoc where(const Scene& scene, const ObjectInfo* o) {
+  return o ? o->loc : SourceLoc{scene.source, 0};
+}
+
+std::string object_name(const ObjectInfo* o) {
+  return o ? "object \"" + o->name + "\"" : "an unnamed triangle";
+}
+
+void validate_camera_and_settings(const Scene& scene) {
+  const SourceLoc loc{scene.source, 0};
+  const CameraDesc& c = scene.camera;
+  if (!is_finite(c.position) || !is_finite(c.look_at) || !is_finite(c.up) ||
+      !is_finite(c.vfov_deg) || !is_finite(c.aperture_radius) || !is_finite(c.focus_distance))
+    throw InputError(loc, "the camera has a non-finite value");
+  if (c.position == c.look_at) throw InputError(loc, "camera position and look_at are the same");
+  if (glm::length(glm::cross(glm::normalize(c.look_at - c.position), c.up)) < 1e-6f)
+    throw InputError(loc, "camera up is zero or parallel to the viewing direction");
+  if (!(c.vfov_deg > 0.0f && c.vfov_deg < 180.0f))
+    throw InputError(loc, "camera vfov " + std::to_string(c.vfov_deg) + " is not in (0, 180)");
+  if (c.aperture_radius < 0.0f || c.focus_distance < 0.0f)
+    throw InputError(loc, "camera aperture and focus distance must be >= 0");
+
+  const RenderSettings& s = scene.settings;
+  if (s.width < 1 || s.height < 1 || s.width > 16384 || s.height > 16384)
+    throw InputError(loc, "image size " + std::to_string(s.width) + "x" +
+                              std::to_string(s.height) + " is outside 1..16384");
+  if (s.spp < 1) throw InputError(loc, "spp must be at least 1");
+  if (s.max_depth < 1 || s.max_depth > 1024) throw InputError(loc, "max_depth must be in 1..1024");
+  if (s.rr_start_depth < 1) throw InputError(loc, "rr_start_depth must be at least 1");
+  if (!(s.time_limit_s >= 0.0) || !std::isfinite(s.time_limit_s))
+    throw InputError(loc, "time limit must be a finite number >= 0");
+  // Film, variance and display buffers together take about 64 bytes a pixel.
+  const double bytes = double(s.width) * double(s.height) * 64.0;
+  const double memory = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGESIZE));
+  if (memory > 0.0 && bytes > 0.5 * memory) {
+    std::ostringstream gib;
+    gib.precision(3);
+    gib << bytes / double(1ull << 30);
+    throw InputError(loc, "image of " + std::to_string(s.width) + "x" + std::to_string(s.height) +
+                              " needs " + gib.str() +
+                              " GiB, more than this machine's memory allows");
+  }
+}
+
+void validate_materials(Scene& scene) {
+  const SourceLoc loc{scene.source, 0};
+  for (NamedMaterial& nm : scene.materials) {
+    Material& m = nm.material;
+    const std::string name = "material \"" + nm.name + "\"";
+    if (uint32_t(m.type) >= uint32_t(kMaterialTypeCount))
+      throw InputError(loc, name + " has an unknown type");
+    if (!is_finite(m.albedo) || !is_finite(m.emission) || !is_finite(m.absorption) ||
+        !is_finite(m.ior))
+      throw InputError(loc, name + " has a non-finite parameter");
+    const vec3 clamped = glm::clamp(m.albedo, vec3(0.0f), vec3(1.0f));
+    if (clamped != m.albedo) {
+      scene.diagnostics.warn(loc, name + " has albedo " + vec3_str(m.albedo) + " outside [0, 1]",
+                             "clamped to " + vec3_str(clamped));
+      m.albedo = clamped;
+    }
+    if (glm::any(glm::lessThan(m.emission, vec3(0.0f))))
+      throw InputError(loc, name + " has negative emission");
+    if (glm::any(glm::lessThan(m.absorption, vec3(0.0f))))
+      throw InputError(loc, name + " has negative absorption");
+    if (m.type == MaterialType::kDielectric && !(m.ior > 1.0f && m.ior <= 4.0f))
+      throw InputError(loc, name + " has ior " + std::to_string(m.ior) + ", outside (1, 4]");
+  }
+}
+
+void validate_geometry(Scene& scene) {
+  TriangleMesh& mesh = scene.mesh;
+  const size_t nmat = scene.materials.size();
+  for (size_t i = 0; i < scene.spheres.size(); ++i) {
+    const SphereDesc& s = scene.spheres[i];
+    const ObjectInfo* o = nullptr;
+    for (const ObjectInfo& info : scene.objects)
+      if (info.is_sphere && info.first == i) o = &info;
+    if (!is_finite(s.center) || !is_finite(s.radius) || !(s.radius > 0.0f))
+      throw InputError(where(scene, o), "sphere " + object_name(o) +
+                                            " has a non-finite centre or a radius that is not > 0");
+    if (s.material >= nmat)
+      throw InputError(where(scene, o), object_name(o) + " has material index " +
+                                            std::to_string(s.material) + " out of range");
+  }
+  if (mesh.materials.size() != mesh.indices.size())
+    throw InputError({scene.source, 0}, "triangle mesh has " + std::to_string(mesh.indices.size()) +
+                                            " triangles but " + std::to_string(mesh.materials.size()) +
+                                            " material ids");
+  if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+    throw InputError({scene.source, 0}, "triangle mesh has " + std::to_string(mesh.positions.size()) +
+                                            " positions but " + std::to_string(mesh.normals.size()) +
+                                            " normals");
+  if (mesh.indices.size() >= size_t(kInvalid))
+    throw InputError({scene.source, 0}, "too many triangles for 32-bit indices");
+
+  const size_t nv = mesh.positions.size();
+  std::vector<uint8_t> zero_normal_objects(scene.objects.size(), 0);
+  for (uint32_t t = 0; t < mesh.indices.size(); ++t) {
+    const uvec3 tri = mesh.indices[t];
+    if (tri.x >= nv || tri.y >= nv || tri.z >= nv) {
+      const ObjectInfo* o = owner_of(scene, t);
+      throw InputError(where(scene, o), object_name(o) + " has a vertex index out of range");
+    }
+    if (mesh.materials[t] >= nmat) {
+      const ObjectInfo* o = owner_of(scene, t);
+      throw InputError(where(scene, o), object_name(o) + " has a material index out of range");
+    }
+    for (int k = 0; k < 3; ++k) {
+      if (!is_finite(mesh.positions[tri[k]])) {
+        const ObjectInfo* o = owner_of(scene, t);
+        throw InputError(where(scene, o), object_name(o) + " has a non-finite vertex position " +
+                                              vec3_str(mesh.positions[tri[k]]));
+      }
+      if (mesh.normals.empty()) continue;
+      vec3& n = mesh.normals[tri[k]];
+      if (!is_finite(n)) {
+        const ObjectInfo* o = owner_of(scene, t);
+        throw InputError(where(scene, o), object_name(o) + " has a non-finite vertex normal");
+      }
+      const float len = glm::length(n);
+      if (len == 0.0f) {
+        const ObjectInfo* o = owner_of(scene, t);
+        if (o) zero_normal_objects[size_t(o - scene.objects.data())] = 1;
+      } else {
+        n /= len;
+      }
+    }
+  }
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    if (!zero_normal_objects[i]) continue;
+    const ObjectInfo& o = scene.objects[i];
+    set_flat_normals(mesh, o.first, o.count);
+    scene.diagnostics.warn(o.loc, "object \"" + o.name + "\" has zero-length vertex normals",
+                           "dropped its normals (flat shading)");
+  }
+
+  // Remove zero-area triangles: they can never be hit reliably and make light sampling divide by
+  // a zero area. Measured in double, relative to the longest edge, so tiny but valid triangles of
+  // a small-scale model survive.
+  std::vector<uint32_t> kept_before(mesh.indices.size() + 1, 0);
+  size_t out = 0;
+  for (size_t t = 0; t < mesh.indices.size(); ++t) {
+    kept_before[t] = uint32_t(out);
+    const uvec3 tri = mesh.indices[t];
+    const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]), p2(mesh.positions[tri.z]);
+    const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0, e3 = p2 - p1;
+    const double longest = std::max(glm::dot(e1, e1), std::max(glm::dot(e2, e2), glm::dot(e3, e3)));
+    const double area2 = glm::length(glm::cross(e1, e2));
+    if (area2 <= 1e-12 * longest || longest == 0.0) continue;
+    mesh.indices[out] = tri;
+    mesh.materials[out] = mesh.materials[t];
+    ++out;
+  }
+  kept_before[mesh.indices.size()] = uint32_t(out);
+  if (out != mesh.indices.size()) {
+    for (ObjectInfo& o : scene.objects) {
+      if (o.is_sphere) continue;
+      const uint32_t first = kept_before[o.first], last = kept_before[o.first + o.count];
+      if (last - first != o.count) {
+        scene.diagnostics.warn(o.loc, "object \"" + o.name + "\" has " +
+                                          std::to_string(o.count - (last - first)) +
+                                          " zero-area triangle(s)",
+                               "removed them");
+      }
+      o.first = first;
+      o.count = last - first;
+    }
+    mesh.indices.resize(out);
+    mesh.materials.resize(out);
+  }
+}
+
+}  // namespace
+
+void validate_scene(Scene& scene) {
+  validate_camera_and_settings(scene);
+  validate_materials(scene);
+  validate_geometry(scene);
+  if (scene.spheres.empty() && scene.mesh.indices.empty())
+    throw InputError({scene.source, 0}, "the scene has no geometry");
+  bool lit = false;
+  for (const SphereDesc& s : scene.spheres) lit |= scene.materials[s.material].material.is_emissive();
+  for (uint32_t m : scene.mesh.materials) lit |= scene.materials[m].material.is_emissive();
+  if (!lit) {
+    scene.diagnostics.warn({scene.source, 0}, "scene has no light; it will render black",
+                           "rendering anyway");
+  }
+}
+
+}  // namespace tracer
