@@ -102,7 +102,8 @@ def transform(mesh, scale=1.0, offset=(0, 0, 0)):
 
 
 def fmt(x):
-    return ("%.5f" % x).rstrip("0").rstrip(".").replace("-0", "-0") if x != 0 else "0"
+    s = ("%.5f" % x).rstrip("0").rstrip(".")
+    return "0" if s in ("", "-0") else s
 
 
 def write_obj(path, groups, mtllib=None, header=""):

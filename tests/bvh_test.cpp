@@ -67,7 +67,8 @@ void check_against_brute_force(const Scene& scene, int rays, const std::string& 
     const Hit a = intersect_closest(v, r);
     const Hit b = brute_force(v, r);
     if (a.valid()) ++hits;
-    if (a.prim != b.prim || a.t != b.t) {
+    // Coplanar duplicates (the Cornell OBJ has some) tie at the same t: either prim is right.
+    if (a.valid() != b.valid() || a.t != b.t) {
       if (mismatches++ < 5)
         ADD_FAILURE() << what << ": ray " << i << " bvh prim " << a.prim << " t " << a.t
                       << " vs brute force prim " << b.prim << " t " << b.t;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "bvh/geometry.h"
+#include "core/features.h"
 #include "core/sampling.h"
 
 namespace tracer {
@@ -21,6 +22,7 @@ struct Camera {
   TRACER_HD bool has_depth_of_field() const { return lens_radius > 0.0f; }
 
   // Ray through film position (x + jitter.x, y + jitter.y), y down, with a lens sample.
+  template <uint32_t F = kAllFeatures>
   TRACER_HD Ray generate_ray(uint32_t x, uint32_t y, vec2 jitter, vec2 u_lens) const {
     const float sx = (2.0f * (float(x) + jitter.x) / float(width) - 1.0f) * tan_half_fov * aspect;
     const float sy = (1.0f - 2.0f * (float(y) + jitter.y) / float(height)) * tan_half_fov;
@@ -29,7 +31,7 @@ struct Camera {
     r.o = position;
     r.tmax = kInfinity;
     r.pad = 0.0f;
-    if (lens_radius > 0.0f) {
+    if ((F & kFeatureDepthOfField) && lens_radius > 0.0f) {
       const vec2 l = lens_radius * sample_uniform_disk_concentric(u_lens);
       const vec3 focus = position + focus_distance * d;  // on the plane of focus
       r.o = position + l.x * right + l.y * up;

@@ -45,6 +45,7 @@ TRACER_HD TRACER_INLINE bool sphere_cone(const Sphere& sph, vec3 ref, float& cos
 
 // ref_n: the geometric normal at ref (either orientation), used to decide robustly whether ref
 // is inside a sphere light even when ref lies on that sphere's own surface.
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref_n, float u_pick,
                                           vec2 u) {
   LightSample ls;
@@ -56,7 +57,7 @@ TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref
   if (select <= 0.0f) return ls;
   ls.prim = light.prim;
   uint32_t material;
-  if (light.prim < s.tri_count) {
+  if (!(F & kFeatureSpheres) || light.prim < s.tri_count) {
     const TriangleVerts& tv = s.tri_verts[light.prim];
     const vec2 b = sample_uniform_triangle(u);
     ls.p = b.x * tv.v0 + b.y * tv.v1 + (1.0f - b.x - b.y) * tv.v2;
@@ -116,11 +117,12 @@ TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref
 
 // The solid-angle pdf with which sample_light would have produced point p (normal ng) on
 // primitive `light_index` as seen from ref, the (already offset) origin of the ray that hit p.
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline float light_pdf(const SceneView& s, uint32_t light_index, vec3 ref, vec3 p,
                                  vec3 ng) {
   const Light& light = s.lights[light_index];
   const float select = light_select_pdf(s, light_index);
-  if (light.prim >= s.tri_count) {
+  if ((F & kFeatureSpheres) && light.prim >= s.tri_count) {
     const Sphere& sph = s.spheres[light.prim - s.tri_count];
     float cos_max, sin2_max;
     if (sphere_cone(sph, ref, cos_max, sin2_max)) {

@@ -15,6 +15,7 @@ struct IntegratorSettings {
   uint32_t rr_start_depth = 3;
   uint32_t seed = 0;
   uint32_t nee = 1, mis = 1, russian_roulette = 1;
+  uint32_t jitter = 1;  // 0: every sample goes through the pixel centre (enables hit caching)
 };
 
 enum PathFlags : uint32_t {
@@ -41,12 +42,13 @@ struct ShadowRequest {
   bool valid;
 };
 
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline void generate_path(const SceneView& s, const IntegratorSettings& cfg,
                                     uint32_t pixel, uint32_t sample, PathState& st) {
   Pcg32 rng = make_path_rng(pixel, sample, 0, cfg.seed);
-  const vec2 jitter = rng.next_2d();
+  const vec2 jitter = cfg.jitter ? rng.next_2d() : vec2(0.5f);
   const vec2 lens = rng.next_2d();
-  st.ray = s.camera.generate_ray(pixel % cfg.width, pixel / cfg.width, jitter, lens);
+  st.ray = s.camera.template generate_ray<F>(pixel % cfg.width, pixel / cfg.width, jitter, lens);
   st.throughput = vec3(1.0f);
   st.radiance = vec3(0.0f);
   st.pixel = pixel;
@@ -88,15 +90,18 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) { return c.x <= 0.0f && c.y <= 0.0
 
 // Shades the hit of st.ray. Adds emission to st.radiance, may fill `shadow`, and returns whether
 // the path continues, in which case st.ray is the next segment.
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& cfg, PathState& st,
                                  const Hit& hit, ShadowRequest& shadow) {
   shadow.valid = false;
   if (!hit.valid()) return false;  // escaped: the scene has no environment light
-  const SurfaceHit sh = make_surface_hit(s, st.ray, hit);
+  const SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
   const Material& m = s.materials[sh.material];
+  // Without specular features in F, the compiler drops every non-diffuse branch below.
+  const MaterialType type = (F & kFeatureSpecular) ? m.type : MaterialType::kDiffuse;
 
   // Beer-Lambert attenuation along the segment that just ran inside a dielectric.
-  if (m.type == MaterialType::kDielectric && !sh.front && !is_black(m.absorption)) {
+  if (type == MaterialType::kDielectric && !sh.front && !is_black(m.absorption)) {
     st.throughput *= glm::exp(-m.absorption * hit.t);
   }
 
@@ -106,7 +111,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
       float w = 1.0f;
       if (cfg.nee && !(st.flags & kPathPrevSpecular)) {
         // This emitter could also have been reached by light sampling at the previous vertex.
-        w = cfg.mis ? power_heuristic(st.prev_pdf, light_pdf(s, sh.light, st.ray.o, sh.p, sh.ng))
+        w = cfg.mis ? power_heuristic(st.prev_pdf, light_pdf<F>(s, sh.light, st.ray.o, sh.p, sh.ng))
                     : 0.0f;
       }
       st.radiance += st.throughput * le * w;
@@ -122,14 +127,14 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const float u_rr = rng.next_float();
 
   const vec3 wo_world = -st.ray.d;
-  const bool dielectric = m.type == MaterialType::kDielectric;
+  const bool dielectric = type == MaterialType::kDielectric;
   // Reflectors are two-sided: their frame faces the viewer. A dielectric keeps +z outside.
   const Frame frame = Frame::from_normal(dielectric || sh.front ? sh.ns : -sh.ns);
   const vec3 wo = frame.to_local(wo_world);
   const vec3 ng_viewer = sh.front ? sh.ng : -sh.ng;
 
-  if (cfg.nee && !m.is_specular() && s.light_count > 0) {
-    const LightSample ls = sample_light(s, sh.p, sh.ng, u_pick, u_light);
+  if (cfg.nee && type == MaterialType::kDiffuse && s.light_count > 0) {
+    const LightSample ls = sample_light<F>(s, sh.p, sh.ng, u_pick, u_light);
     if (ls.valid && !is_black(ls.le)) {
       const vec3 to = ls.p - sh.p;
       const vec3 wi_world = glm::normalize(to);
@@ -147,7 +152,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
     }
   }
 
-  const BsdfSample bs = bsdf_sample(m, wo, u_bsdf, u_lobe);
+  const BsdfSample bs = bsdf_sample<F>(m, wo, u_bsdf, u_lobe);
   if (!bs.valid) return false;
   const vec3 wi_world = glm::normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wi_world, sh.ng);
@@ -173,18 +178,19 @@ struct RayCounts {
 };
 
 // One whole path, all bounces, in one call: the CPU backend and the CUDA megakernel.
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline vec3 trace_path(const SceneView& s, const IntegratorSettings& cfg, uint32_t pixel,
                                  uint32_t sample, RayCounts* counts = nullptr) {
   PathState st;
-  generate_path(s, cfg, pixel, sample, st);
+  generate_path<F>(s, cfg, pixel, sample, st);
   for (;;) {
-    const Hit hit = intersect_closest(s, st.ray);
+    const Hit hit = intersect_closest<F>(s, st.ray);
     if (counts) (st.depth == 1 ? counts->camera : counts->extension)++;
     ShadowRequest shadow;
-    const bool go_on = shade_path(s, cfg, st, hit, shadow);
+    const bool go_on = shade_path<F>(s, cfg, st, hit, shadow);
     if (shadow.valid) {
       if (counts) counts->shadow++;
-      if (!intersect_any(s, shadow.ray, shadow.target_prim)) st.radiance += shadow.contribution;
+      if (!intersect_any<F>(s, shadow.ray, shadow.target_prim)) st.radiance += shadow.contribution;
     }
     if (!go_on) break;
   }

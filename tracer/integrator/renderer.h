@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "image/image.h"
 #include "integrator/path.h"
@@ -11,11 +12,32 @@
 
 namespace tracer {
 
+// GPU design and speed switches. None of them changes the expected image.
+enum class KernelMode { kAuto, kWavefront, kMegakernel };
+struct GpuOptions {
+  KernelMode kernel = KernelMode::kAuto;
+  bool compaction = true;         // compact the indices of live paths after each bounce (CUB)
+  bool sort_materials = false;    // bucket paths by material type before shading
+  bool first_bounce_cache = true; // reuse camera-ray hits (only without jitter and DoF)
+  bool specialize = true;         // kernels compiled for the scene's features only
+};
+
+// Milliseconds spent per wavefront stage in one call of render() (zero for the megakernel).
+struct StageTimes {
+  double generate = 0, intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
+  double megakernel = 0;
+};
+
 struct FrameStats {
   uint32_t spp_added = 0;
   double ms = 0.0;
   RayCounts rays;
   uint64_t nonfinite = 0;  // samples rejected because they were NaN or infinite
+  StageTimes stages;
+  std::vector<uint32_t> alive_per_bounce;  // paths entering each bounce (first call's wave)
+  std::string kernel;                      // "wavefront", "megakernel", "cpu"
+  std::string specialization;              // which compiled variant ran
+  std::string note;                        // e.g. why the first-bounce cache is off
 };
 
 class Renderer {
@@ -33,6 +55,8 @@ class Renderer {
   virtual uint64_t nonfinite_total() const = 0;
   // The mean radiance per pixel so far.
   virtual ImageRGB image() const = 0;
+  // GPU-only switches; the CPU backend ignores them.
+  virtual void set_gpu_options(const GpuOptions&) {}
 };
 
 enum class BackendChoice { kAuto, kCpu, kCuda };

@@ -4,6 +4,7 @@
 // the outside so that entering and leaving can be told apart.
 #pragma once
 
+#include "core/features.h"
 #include "core/sampling.h"
 #include "materials/fresnel.h"
 #include "materials/material.h"
@@ -48,10 +49,13 @@ TRACER_HD TRACER_INLINE float bsdf_pdf(const Material& m, vec3 wo, vec3 wi) {
   return 0.0f;
 }
 
-// u: two uniform numbers for the direction, uc: one for choosing between lobes.
+// u: two uniform numbers for the direction, uc: one for choosing between lobes. Without
+// kFeatureSpecular in F every material is taken to be diffuse.
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline BsdfSample bsdf_sample(const Material& m, vec3 wo, vec2 u, float uc) {
   BsdfSample s;
-  switch (m.type) {
+  const MaterialType type = (F & kFeatureSpecular) ? m.type : MaterialType::kDiffuse;
+  switch (type) {
     case MaterialType::kDiffuse: {
       if (wo.z <= 0.0f) return s;
       s.wi = sample_cosine_hemisphere(u);
@@ -76,25 +80,25 @@ TRACER_HD inline BsdfSample bsdf_sample(const Material& m, vec3 wo, vec2 u, floa
       const bool entering = wo.z > 0.0f;
       const float eta = entering ? m.ior : 1.0f / m.ior;  // n_transmitted / n_incident
       const float cos_o = glm::abs(wo.z);
-      const float F = material_fresnel(m, cos_o, eta);
+      const float fr = material_fresnel(m, cos_o, eta);
       s.specular = true;
       s.valid = true;
-      if (uc < F) {
+      if (uc < fr) {
         s.wi = vec3(-wo.x, -wo.y, wo.z);
-        s.pdf = F;
+        s.pdf = fr;
         s.weight = vec3(1.0f);
         return s;
       }
       const vec3 n = vec3(0.0f, 0.0f, entering ? 1.0f : -1.0f);
       vec3 wt;
-      if (!refract(wo, n, eta, wt)) {  // cannot happen when F < 1, but rounding may disagree
+      if (!refract(wo, n, eta, wt)) {  // cannot happen when fr < 1, but rounding may disagree
         s.wi = vec3(-wo.x, -wo.y, wo.z);
         s.pdf = 1.0f;
         s.weight = vec3(1.0f);
         return s;
       }
       s.wi = glm::normalize(wt);
-      s.pdf = 1.0f - F;
+      s.pdf = 1.0f - fr;
       // Radiance is compressed by eta^2 when it crosses into a denser medium (pbrt-v4 eq. 9.8).
       s.weight = m.albedo / (eta * eta);
       return s;

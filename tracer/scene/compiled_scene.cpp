@@ -19,6 +19,7 @@ IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
   cfg.nee = rs.nee;
   cfg.mis = rs.mis;
   cfg.russian_roulette = rs.russian_roulette;
+  cfg.jitter = rs.jitter;
   return cfg;
 }
 

@@ -5,10 +5,9 @@
 
 #include <cmath>
 #include <cstring>
-#include <set>
-
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <set>
 
 #include "core/math.h"
 #include "scene/loader_util.h"
@@ -27,7 +26,9 @@ bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, in
 class GltfReader {
  public:
   GltfReader(Scene& scene, const std::string& path, const SourceLoc& from)
-      : scene_(scene), path_(path), suffix_(from.path == path ? "" : " (mesh referenced at " + from.str() + ")") {}
+      : scene_(scene),
+        path_(path),
+        suffix_(from.path == path ? "" : " (mesh referenced at " + from.str() + ")") {}
 
   void load() {
     tinygltf::TinyGLTF loader;
@@ -37,7 +38,8 @@ class GltfReader {
     const bool ok = binary ? loader.LoadBinaryFromFile(&model_, &err, &warn, path_)
                            : loader.LoadASCIIFromFile(&model_, &err, &warn, path_);
     if (!ok) fail("cannot read glTF: " + trim(err.empty() ? warn : err));
-    if (!warn.empty()) scene_.diagnostics.warn(file(), "tinygltf: " + trim(warn) + suffix_, "continued");
+    if (!warn.empty())
+      scene_.diagnostics.warn(file(), "tinygltf: " + trim(warn) + suffix_, "continued");
     for (const std::string& ext : model_.extensionsRequired) {
       if (ext != "KHR_materials_emissive_strength" && ext != "KHR_materials_transmission" &&
           ext != "KHR_materials_ior")
@@ -82,7 +84,8 @@ class GltfReader {
       const tinygltf::Node& node = model_.nodes[size_t(item.node)];
       const mat4 world = item.parent * local_transform(node, item.node);
       if (node.mesh >= 0) append_mesh(node.mesh, world);
-      if (node.camera >= 0 && camera && !*has_camera) *has_camera = read_camera(node, world, camera);
+      if (node.camera >= 0 && camera && !*has_camera)
+        *has_camera = read_camera(node, world, camera);
       for (auto c = node.children.rbegin(); c != node.children.rend(); ++c)
         stack.push_back({*c, world});
     }
@@ -93,9 +96,10 @@ class GltfReader {
                               "approximated with diffuse, mirror or glass materials");
     }
     if (skipped_primitives_ > 0) {
-      scene_.diagnostics.warn(file(), std::to_string(skipped_primitives_) +
-                                          " primitive(s) are not triangle lists" + suffix_,
-                              "skipped them");
+      scene_.diagnostics.warn(
+          file(),
+          std::to_string(skipped_primitives_) + " primitive(s) are not triangle lists" + suffix_,
+          "skipped them");
     }
   }
 
@@ -154,7 +158,8 @@ class GltfReader {
     };
     if (finite(n.matrix, 16, "matrix")) {
       mat4 m;
-      for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = float(n.matrix[size_t(i)]);  // column-major
+      for (int i = 0; i < 16; ++i)
+        glm::value_ptr(m)[i] = float(n.matrix[size_t(i)]);  // column-major
       return m;
     }
     mat4 m(1.0f);
@@ -177,22 +182,25 @@ class GltfReader {
 
   // Byte range of an accessor, checked against its buffer view and buffer. Returns nullptr for an
   // accessor without a buffer view (all zeros per spec) and sets *stride.
-  const unsigned char* accessor_data(const tinygltf::Accessor& a, size_t elem_size,
-                                     size_t* stride, const std::string& what) const {
+  const unsigned char* accessor_data(const tinygltf::Accessor& a, size_t elem_size, size_t* stride,
+                                     const std::string& what) const {
     if (a.sparse.isSparse) fail(what + " uses a sparse accessor, which is not supported");
     if (a.bufferView < 0) return nullptr;
     if (size_t(a.bufferView) >= model_.bufferViews.size())
-      fail(what + " refers to buffer view " + std::to_string(a.bufferView) + ", which does not exist");
+      fail(what + " refers to buffer view " + std::to_string(a.bufferView) +
+           ", which does not exist");
     const tinygltf::BufferView& view = model_.bufferViews[size_t(a.bufferView)];
     if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
-      fail(what + ": buffer view refers to buffer " + std::to_string(view.buffer) + ", which does not exist");
+      fail(what + ": buffer view refers to buffer " + std::to_string(view.buffer) +
+           ", which does not exist");
     const std::vector<unsigned char>& data = model_.buffers[size_t(view.buffer)].data;
     *stride = view.byteStride ? view.byteStride : elem_size;
     if (*stride < elem_size)
       fail(what + ": byte stride " + std::to_string(*stride) + " is smaller than an element");
     // All in 64 bits with explicit overflow guards: count and offsets come from the file.
     const uint64_t limit = uint64_t(1) << 40;
-    if (a.count > limit || view.byteOffset > limit || view.byteLength > limit || a.byteOffset > limit)
+    if (a.count > limit || view.byteOffset > limit || view.byteLength > limit ||
+        a.byteOffset > limit)
       fail(what + " has absurd sizes");
     if (view.byteOffset + view.byteLength > data.size())
       fail(what + ": buffer view (bytes " + std::to_string(view.byteOffset) + ".." +
@@ -228,10 +236,17 @@ class GltfReader {
     const tinygltf::Accessor& a = accessor(index, what);
     size_t size = 0;
     switch (a.componentType) {
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: size = 1; break;
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: size = 2; break;
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: size = 4; break;
-      default: fail(what + " must be unsigned 8, 16 or 32-bit integers");
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+        size = 1;
+        break;
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+        size = 2;
+        break;
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+        size = 4;
+        break;
+      default:
+        fail(what + " must be unsigned 8, 16 or 32-bit integers");
     }
     if (a.type != TINYGLTF_TYPE_SCALAR) fail(what + " must be SCALAR");
     std::vector<uint32_t> out(a.count, 0);
@@ -265,8 +280,9 @@ class GltfReader {
     if (material_override_ != kInvalid) return material_override_;
     if (index < 0 || size_t(index) >= model_.materials.size()) {
       if (index >= 0) {
-        scene_.diagnostics.warn(file(), "a primitive refers to material " + std::to_string(index) +
-                                            ", which does not exist" + suffix_,
+        scene_.diagnostics.warn(file(),
+                                "a primitive refers to material " + std::to_string(index) +
+                                    ", which does not exist" + suffix_,
                                 "used grey diffuse");
       }
       if (default_material_ == kInvalid)
@@ -284,8 +300,8 @@ class GltfReader {
                   float(pbr.baseColorFactor[2]));
     base = glm::clamp(is_finite(base) ? base : vec3(0.8f), vec3(0.0f), vec3(1.0f));
     if (g.emissiveFactor.size() >= 3) {
-      const float strength = float(ext_number(g.extensions, "KHR_materials_emissive_strength",
-                                              "emissiveStrength", 1.0));
+      const float strength = float(
+          ext_number(g.extensions, "KHR_materials_emissive_strength", "emissiveStrength", 1.0));
       m.emission = strength * vec3(float(g.emissiveFactor[0]), float(g.emissiveFactor[1]),
                                    float(g.emissiveFactor[2]));
       if (!is_finite(m.emission)) fail("material \"" + g.name + "\" has a non-finite emission");
@@ -355,7 +371,8 @@ class GltfReader {
         bool good = part.normals.size() == part.positions.size();
         for (const vec3& n : part.normals) good &= is_finite(n) && glm::length(n) > 0.0f;
         if (!good) {
-          scene_.diagnostics.warn(file(), what + " has missing, non-finite or zero normals" + suffix_,
+          scene_.diagnostics.warn(file(),
+                                  what + " has missing, non-finite or zero normals" + suffix_,
                                   "used flat shading");
           part.normals.clear();
         }
@@ -386,17 +403,19 @@ class GltfReader {
 
   bool read_camera(const tinygltf::Node& node, const mat4& world, CameraDesc* cam) {
     if (size_t(node.camera) >= model_.cameras.size()) {
-      scene_.diagnostics.warn(file(), "a node refers to camera " + std::to_string(node.camera) +
-                                          ", which does not exist" + suffix_,
+      scene_.diagnostics.warn(file(),
+                              "a node refers to camera " + std::to_string(node.camera) +
+                                  ", which does not exist" + suffix_,
                               "ignored it");
       return false;
     }
     const tinygltf::Camera& c = model_.cameras[size_t(node.camera)];
     const double yfov = c.perspective.yfov;
     if (c.type != "perspective" || !(yfov > 0.0 && yfov < kPi)) {
-      scene_.diagnostics.warn(file(), "camera " + std::to_string(node.camera) +
-                                          " is not a usable perspective camera" + suffix_,
-                              "framed the model with a default camera");
+      scene_.diagnostics.warn(
+          file(),
+          "camera " + std::to_string(node.camera) + " is not a usable perspective camera" + suffix_,
+          "framed the model with a default camera");
       return false;
     }
     // glTF cameras look down their local -Z with +Y up.

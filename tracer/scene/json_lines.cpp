@@ -102,8 +102,8 @@ class DomBuilder {
     const std::string ptr = json_pointer_child(pointers_.back(), k);
     if (parent.contains(k)) {
       error_line = tracker_.last_token_line;
-      error = "duplicate key \"" + k + "\" (first on line " + std::to_string(doc_.key_line(ptr)) +
-              ")";
+      error =
+          "duplicate key \"" + k + "\" (first on line " + std::to_string(doc_.key_line(ptr)) + ")";
       return false;
     }
     pending_key_ = k;
@@ -113,10 +113,14 @@ class DomBuilder {
   bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception& ex) {
     // nlohmann's text is "[json.exception.parse_error.101] parse error at line L, column C: why";
     // keep only "why", the location is printed our way.
+    // Numbers like 1e999 end up here too, as out_of_range.406 "number overflow parsing '1e999'".
     std::string what = ex.what();
     const size_t col = what.find("column ");
-    const size_t colon = col == std::string::npos ? what.find(": ") : what.find(": ", col);
-    error = "JSON syntax error: " + (colon == std::string::npos ? what : what.substr(colon + 2));
+    if (col != std::string::npos && what.find(": ", col) != std::string::npos)
+      what = what.substr(what.find(": ", col) + 2);
+    else if (what.find("] ") != std::string::npos)
+      what = what.substr(what.find("] ") + 2);
+    error = (ex.id == 406 ? "number out of range: " : "JSON syntax error: ") + what;
     error_line = tracker_.last_token_line;
     return false;
   }

@@ -1,9 +1,8 @@
 // The JSON scene format (docs/SCENE_FORMAT.md): camera, render settings, named materials and
 // objects, read with a line for every value so that each message points at the offending spot.
 #include <cmath>
-#include <initializer_list>
-
 #include <glm/gtc/matrix_transform.hpp>
+#include <initializer_list>
 
 #include "core/math.h"
 #include "scene/json_lines.h"
@@ -28,7 +27,9 @@ const char* json_type_name(const json& v) {
   return "something else";
 }
 
-std::string in_quotes(const std::string& s) { return "\"" + s + "\""; }
+std::string in_quotes(const std::string& s) {
+  return "\"" + s + "\"";
+}
 
 class JsonSceneReader {
  public:
@@ -54,14 +55,13 @@ class JsonSceneReader {
   }
 
   void require_object(const json& v, const std::string& ptr, const std::string& what) const {
-    if (!v.is_object())
-      fail(ptr, what + " must be a JSON object {...}, not " + json_type_name(v));
+    if (!v.is_object()) fail(ptr, what + " must be a JSON object {...}, not " + json_type_name(v));
   }
 
   // Unknown keys are errors, not warnings: a misspelt "albdo" would otherwise silently render
   // the default colour.
-  void check_keys(const json& obj, const std::string& ptr, std::initializer_list<const char*> allowed,
-                  const std::string& where) const {
+  void check_keys(const json& obj, const std::string& ptr,
+                  std::initializer_list<const char*> allowed, const std::string& where) const {
     std::vector<std::string> names(allowed.begin(), allowed.end());
     for (auto it = obj.begin(); it != obj.end(); ++it) {
       if (std::find(names.begin(), names.end(), it.key()) != names.end()) continue;
@@ -94,8 +94,8 @@ class JsonSceneReader {
     return float(number(obj[key], json_pointer_child(ptr, key), in_quotes(key) + " in " + where));
   }
 
-  int64_t get_int(const json& obj, const std::string& ptr, const char* key, int64_t def,
-                  int64_t lo, int64_t hi, const std::string& where) const {
+  int64_t get_int(const json& obj, const std::string& ptr, const char* key, int64_t def, int64_t lo,
+                  int64_t hi, const std::string& where) const {
     if (!obj.contains(key)) return def;
     const std::string p = json_pointer_child(ptr, key);
     const std::string what = in_quotes(key) + " in " + where;
@@ -165,7 +165,8 @@ class JsonSceneReader {
     if (cam.focus_distance < 0.0f)
       fail(json_pointer_child(ptr, "focus_distance"), "\"focus_distance\" must be >= 0");
     const vec3 dir = cam.look_at - cam.position;
-    if (glm::length(dir) == 0.0f) fail(ptr, "camera \"position\" and \"look_at\" are the same point");
+    if (glm::length(dir) == 0.0f)
+      fail(ptr, "camera \"position\" and \"look_at\" are the same point");
     if (glm::length(glm::cross(glm::normalize(dir), cam.up)) < 1e-6f)
       fail(ptr, "camera \"up\" is zero or parallel to the viewing direction");
   }
@@ -175,7 +176,7 @@ class JsonSceneReader {
     require_object(r, ptr, where);
     check_keys(r, ptr,
                {"width", "height", "spp", "time_limit_s", "max_depth", "nee", "mis",
-                "russian_roulette", "rr_start_depth", "seed"},
+                "russian_roulette", "rr_start_depth", "seed", "jitter"},
                where);
     RenderSettings& s = scene_.settings;
     s.width = int(get_int(r, ptr, "width", s.width, 1, 16384, where));
@@ -190,6 +191,7 @@ class JsonSceneReader {
     s.russian_roulette = get_bool(r, ptr, "russian_roulette", s.russian_roulette, where);
     s.rr_start_depth = int(get_int(r, ptr, "rr_start_depth", s.rr_start_depth, 1, 1 << 20, where));
     s.seed = uint32_t(get_int(r, ptr, "seed", s.seed, 0, 0xffffffffll, where));
+    s.jitter = get_bool(r, ptr, "jitter", s.jitter, where);
   }
 
   void read_materials(const json& ms, const std::string& ptr) {
@@ -227,10 +229,10 @@ class JsonSceneReader {
     const vec3 clamped = glm::clamp(mat.albedo, vec3(0.0f), vec3(1.0f));
     if (clamped != mat.albedo) {
       // Albedo above 1 creates energy and below 0 is meaningless; both are likely typos of scale.
-      scene_.diagnostics.warn(at(json_pointer_child(ptr, "albedo")),
-                              "\"albedo\" " + vec3_str(mat.albedo) + " in " + where +
-                                  " is outside [0, 1]",
-                              "clamped to " + vec3_str(clamped));
+      scene_.diagnostics.warn(
+          at(json_pointer_child(ptr, "albedo")),
+          "\"albedo\" " + vec3_str(mat.albedo) + " in " + where + " is outside [0, 1]",
+          "clamped to " + vec3_str(clamped));
       mat.albedo = clamped;
     }
     const vec3 emission = get_vec3(m, ptr, "emission", vec3(0.0f), where);
@@ -248,7 +250,8 @@ class JsonSceneReader {
     for (const char* key : {"ior", "fresnel", "absorption"}) {
       if (!dielectric && m.contains(key)) {
         scene_.diagnostics.warn(at(json_pointer_child(ptr, key)),
-                                in_quotes(key) + " has no effect on a " + type + " material", "ignored");
+                                in_quotes(key) + " has no effect on a " + type + " material",
+                                "ignored");
       }
     }
     mat.ior = get_float(m, ptr, "ior", 1.5f, where);
@@ -262,7 +265,8 @@ class JsonSceneReader {
     } else if (fresnel != "exact") {
       const std::string guess = did_you_mean(fresnel, {"exact", "schlick"});
       fail(json_pointer_child(ptr, "fresnel"),
-           "\"fresnel\" in " + where + " must be \"exact\" or \"schlick\", not " + in_quotes(fresnel) +
+           "\"fresnel\" in " + where + " must be \"exact\" or \"schlick\", not " +
+               in_quotes(fresnel) +
                (guess.empty() ? "" : " (did you mean " + in_quotes(guess) + "?)"));
     }
     mat.absorption = get_vec3(m, ptr, "absorption", vec3(0.0f), where);
@@ -276,8 +280,7 @@ class JsonSceneReader {
     if (!objs.is_array())
       fail(ptr, std::string("\"objects\" must be an array [...], not ") + json_type_name(objs));
     if (objs.empty()) fail(ptr, "the scene has no objects (\"objects\" is empty)");
-    for (size_t i = 0; i < objs.size(); ++i)
-      read_object(objs[i], json_pointer_child(ptr, i), i);
+    for (size_t i = 0; i < objs.size(); ++i) read_object(objs[i], json_pointer_child(ptr, i), i);
   }
 
   uint32_t object_material(const json& o, const std::string& ptr, const std::string& where,
@@ -374,11 +377,13 @@ class JsonSceneReader {
       const float sx = glm::length(m[0]), sy = glm::length(m[1]), sz = glm::length(m[2]);
       const float tol = 1e-4f * std::max(sx, std::max(sy, sz));
       if (std::fabs(sx - sy) > tol || std::fabs(sx - sz) > tol ||
-          std::fabs(glm::dot(m[0], m[1])) > tol * sx || std::fabs(glm::dot(m[0], m[2])) > tol * sx ||
+          std::fabs(glm::dot(m[0], m[1])) > tol * sx ||
+          std::fabs(glm::dot(m[0], m[2])) > tol * sx ||
           std::fabs(glm::dot(m[1], m[2])) > tol * sx) {
         fail(json_pointer_child(ptr, "transform"),
-             "the transform of " + where + " scales non-uniformly or shears; a sphere allows only "
-             "translate, rotate and a uniform scale");
+             "the transform of " + where +
+                 " scales non-uniformly or shears; a sphere allows only "
+                 "translate, rotate and a uniform scale");
       }
       s.center = vec3(xform * vec4(s.center, 1.0f));
       s.radius *= sx;
@@ -419,7 +424,8 @@ class JsonSceneReader {
       const std::string full = path_join(path_directory(path_), file);
       const SourceLoc from = at(json_pointer_child(ptr, "file"));
       if (!file_exists(full))
-        throw InputError(from, "mesh file " + in_quotes(file) + " of " + where + " not found (looked for " + in_quotes(full) + ")");
+        throw InputError(from, "mesh file " + in_quotes(file) + " of " + where +
+                                   " not found (looked for " + in_quotes(full) + ")");
       const uint32_t before = uint32_t(scene_.mesh.indices.size());
       append_mesh_file(scene_, full, xform, mat, from);
       info.first = before;
@@ -436,12 +442,12 @@ class JsonSceneReader {
     const struct {
       vec3 corner, e1, e2;
     } faces[6] = {
-        {lo, vec3(0, 0, d.z), vec3(0, d.y, 0)},                         // -x
-        {vec3(hi.x, lo.y, lo.z), vec3(0, d.y, 0), vec3(0, 0, d.z)},     // +x
-        {lo, vec3(d.x, 0, 0), vec3(0, 0, d.z)},                         // -y
-        {vec3(lo.x, hi.y, lo.z), vec3(0, 0, d.z), vec3(d.x, 0, 0)},     // +y
-        {lo, vec3(0, d.y, 0), vec3(d.x, 0, 0)},                         // -z
-        {vec3(lo.x, lo.y, hi.z), vec3(d.x, 0, 0), vec3(0, d.y, 0)},     // +z
+        {lo, vec3(0, 0, d.z), vec3(0, d.y, 0)},                      // -x
+        {vec3(hi.x, lo.y, lo.z), vec3(0, d.y, 0), vec3(0, 0, d.z)},  // +x
+        {lo, vec3(d.x, 0, 0), vec3(0, 0, d.z)},                      // -y
+        {vec3(lo.x, hi.y, lo.z), vec3(0, 0, d.z), vec3(d.x, 0, 0)},  // +y
+        {lo, vec3(0, d.y, 0), vec3(d.x, 0, 0)},                      // -z
+        {vec3(lo.x, lo.y, hi.z), vec3(d.x, 0, 0), vec3(0, d.y, 0)},  // +z
     };
     for (const auto& f : faces) {
       const uint32_t base = uint32_t(b.positions.size());
@@ -470,55 +476,8 @@ Scene load_scene_from_json(const std::string& text, const std::string& path) {
   return scene;
 }
 
-Scene builtin_default_scene() { return load_scene_from_json(kBuiltinSceneJson, "<built-in>"); }
-
-void append_mesh_file(Scene& scene, const std::string& path, const glm::mat4& xform,
-                      uint32_t material_override, const SourceLoc& from) {
-  const std::string ext = path_extension_lower(path);
-  if (ext == ".obj") {
-    append_obj_file(scene, path, xform, material_override, from);
-  } else if (ext == ".gltf" || ext == ".glb") {
-    append_gltf_file(scene, path, xform, material_override, from, nullptr, nullptr);
-  } else {
-    throw InputError(from, "unsupported mesh file type \"" + ext + "\" for \"" + path +
-                               "\" (expected .obj, .gltf or .glb)");
-  }
-}
-
-Scene load_scene(const std::string& path) {
-  const std::string ext = path_extension_lower(path);
-  const SourceLoc file{path, 0};
-  if (ext == ".json") return load_scene_from_json(read_file_text(path, file), path);
-  if (ext != ".obj" && ext != ".gltf" && ext != ".glb") {
-    throw InputError(file, "unknown scene file type \"" + ext +
-                               "\" (expected .json, .obj, .gltf or .glb)");
-  }
-  if (!file_exists(path)) read_file_text(path, file);  // throws the precise reason
-  Scene scene;
-  scene.source = path;
-  bool has_camera = false;
-  const uint32_t before = uint32_t(scene.mesh.indices.size());
-  if (ext == ".obj")
-    append_obj_file(scene, path, mat4(1.0f), kInvalid, file);
-  else
-    append_gltf_file(scene, path, mat4(1.0f), kInvalid, file, &scene.camera, &has_camera);
-  if (scene.mesh.indices.size() == before) {
-    // Say why, rather than a bare "no geometry": the reader's warnings usually hold the reason.
-    std::string why;
-    for (const std::string& w : scene.diagnostics.warnings) why += (why.empty() ? " (" : " | ") + w;
-    throw InputError(file, "the file contains no triangles" + (why.empty() ? "" : why + ")"));
-  }
-  ObjectInfo info;
-  const size_t slash = path.find_last_of('/');
-  info.name = slash == std::string::npos ? path : path.substr(slash + 1);
-  info.kind = "mesh";
-  info.first = before;
-  info.count = uint32_t(scene.mesh.indices.size()) - before;
-  info.loc = file;
-  scene.objects.push_back(info);
-  frame_mesh_scene(scene, has_camera);
-  validate_scene(scene);
-  return scene;
+Scene builtin_default_scene() {
+  return load_scene_from_json(kBuiltinSceneJson, "<built-in>");
 }
 
 }  // namespace tracer

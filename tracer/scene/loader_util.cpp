@@ -2,13 +2,14 @@
 // the default camera and light for meshes opened directly.
 #include "scene/loader_util.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <sstream>
-#include <sys/stat.h>
 
 #include "core/math.h"
 

@@ -35,19 +35,21 @@ void for_each_obj_line(const std::string& text, Fn fn) {
   }
 }
 
-void check_index(long idx, long seen, long total, const char* what, const SourceLoc& loc,
-                 const std::string& suffix) {
+void check_index(long idx, long seen, long total, const char* what, const char* plural,
+                 const SourceLoc& loc, const std::string& suffix) {
   if (idx == 0)
-    throw InputError(loc, std::string(what) + " index 0 in a face (OBJ indices start at 1)" + suffix);
+    throw InputError(loc,
+                     std::string(what) + " index 0 in a face (OBJ indices start at 1)" + suffix);
   // Negative indices count back from the elements defined so far (OBJ spec); positive ones may
   // refer to any element of the file, as tinyobjloader resolves them after reading it all.
   const long resolved = idx > 0 ? idx : seen + idx + 1;
   const long limit = idx > 0 ? total : seen;
   if (resolved < 1 || resolved > limit) {
     throw InputError(loc, "face refers to " + std::string(what) + " " + std::to_string(idx) +
-                              ", but " + std::to_string(limit) + " " + what +
-                              (limit == 1 ? " is" : "s are") + " defined" +
-                              (idx < 0 ? " before this line" : " in the file") + suffix);
+                              ", but " + std::to_string(limit) + " " +
+                              (limit == 1 ? what : plural) + (limit == 1 ? " is" : " are") +
+                              " defined" + (idx < 0 ? " before this line" : " in the file") +
+                              suffix);
   }
 }
 
@@ -92,21 +94,24 @@ bool prescan_obj(const std::string& text, const std::string& path, const std::st
         size_t start = 0;
         for (int k = 0; k < 3 && start <= corner.size(); ++k) {
           const size_t slash = corner.find('/', start);
-          const std::string part = corner.substr(start, slash == std::string::npos ? std::string::npos : slash - start);
+          const std::string part =
+              corner.substr(start, slash == std::string::npos ? std::string::npos : slash - start);
           if (!part.empty()) {
             char* end = nullptr;
             idx[k] = std::strtol(part.c_str(), &end, 10);
-            if (*end != '\0')
-              throw InputError(loc, "bad face index \"" + corner + "\"" + suffix);
+            if (*end != '\0') throw InputError(loc, "bad face index \"" + corner + "\"" + suffix);
             present[k] = true;
           }
           if (slash == std::string::npos) break;
           start = slash + 1;
         }
-        if (!present[0]) throw InputError(loc, "face corner \"" + corner + "\" has no vertex index" + suffix);
-        check_index(idx[0], seen.v, total.v, "vertex", loc, suffix);
-        if (present[1]) check_index(idx[1], seen.vt, total.vt, "texture coordinate", loc, suffix);
-        if (present[2]) check_index(idx[2], seen.vn, total.vn, "normal", loc, suffix);
+        if (!present[0])
+          throw InputError(loc, "face corner \"" + corner + "\" has no vertex index" + suffix);
+        check_index(idx[0], seen.v, total.v, "vertex", "vertices", loc, suffix);
+        if (present[1])
+          check_index(idx[1], seen.vt, total.vt, "texture coordinate", "texture coordinates", loc,
+                      suffix);
+        if (present[2]) check_index(idx[2], seen.vn, total.vn, "normal", "normals", loc, suffix);
       }
       if (corners < 3) {
         diag.warn(loc, "face with " + std::to_string(corners) + " corners" + suffix,
@@ -141,8 +146,9 @@ Material convert_mtl(const tinyobj::material_t& m, const std::string& path, Diag
     out.albedo = max_component(tf) > 0.0f ? tf : vec3(1.0f);
     out.ior = m.ior > 1.0f && m.ior <= 4.0f ? m.ior : 1.5f;
     if (m.ior != 1.0f && out.ior != m.ior) {
-      diag.warn(loc, "material \"" + m.name + "\" has Ni " + std::to_string(m.ior) +
-                         " outside (1, 4]", "used 1.5");
+      diag.warn(loc,
+                "material \"" + m.name + "\" has Ni " + std::to_string(m.ior) + " outside (1, 4]",
+                "used 1.5");
     }
   } else if (m.illum == 3 || m.illum == 5) {
     // illum 3 and 5 are the ray-traced reflection models: a mirror tinted by Ks.
@@ -153,8 +159,9 @@ Material convert_mtl(const tinyobj::material_t& m, const std::string& path, Diag
   }
   const vec3 clamped = glm::clamp(out.albedo, vec3(0.0f), vec3(1.0f));
   if (clamped != out.albedo) {
-    diag.warn(loc, "material \"" + m.name + "\" has a colour " + vec3_str(out.albedo) +
-                       " outside [0, 1]", "clamped");
+    diag.warn(
+        loc, "material \"" + m.name + "\" has a colour " + vec3_str(out.albedo) + " outside [0, 1]",
+        "clamped");
     out.albedo = clamped;
   }
   if (!is_finite(out.albedo) || !is_finite(out.emission)) {
@@ -208,8 +215,8 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
       return default_material;
     }
     if (material_ids[size_t(id)] == kInvalid) {
-      material_ids[size_t(id)] =
-          scene.add_material(mtls[size_t(id)].name, convert_mtl(mtls[size_t(id)], path, scene.diagnostics));
+      material_ids[size_t(id)] = scene.add_material(
+          mtls[size_t(id)].name, convert_mtl(mtls[size_t(id)], path, scene.diagnostics));
     }
     return material_ids[size_t(id)];
   };
@@ -252,8 +259,7 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
       offset += 3;
       if (!ok) throw InputError({path, 0}, "face index out of range" + suffix);
       part.indices.push_back(tri);
-      part.materials.push_back(
-          material_for(f < m.material_ids.size() ? m.material_ids[f] : -1));
+      part.materials.push_back(material_for(f < m.material_ids.size() ? m.material_ids[f] : -1));
     }
   }
   if (part.indices.empty()) {

@@ -1,8 +1,8 @@
 // Scene's material table and the did-you-mean helper used by every loader's messages.
+#include "scene/scene.h"
+
 #include <algorithm>
 #include <cctype>
-
-#include "scene/scene.h"
 
 namespace tracer {
 

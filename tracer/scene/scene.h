@@ -30,6 +30,7 @@ struct RenderSettings {
   bool russian_roulette = true;
   int rr_start_depth = 3;  // roulette applies from this path depth on
   uint32_t seed = 0;
+  bool jitter = true;  // jitter samples inside each pixel (antialiasing)
 };
 
 struct NamedMaterial {

@@ -5,22 +5,10 @@
 #include "bvh/bvh.h"
 #include "bvh/geometry.h"
 #include "camera/camera.h"
+#include "core/features.h"
 #include "materials/material.h"
 
 namespace tracer {
-
-// What a scene needs; the CUDA backend specialises its kernels on these.
-enum SceneFeature : uint32_t {
-  kFeatureDepthOfField = 1u << 0,
-  kFeatureDielectric = 1u << 1,
-  kFeatureSubsurface = 1u << 2,
-  kFeatureTextures = 1u << 3,
-  kFeatureEmissiveMeshes = 1u << 4,
-  kFeatureSpheres = 1u << 5,
-  kFeatureMirror = 1u << 6,
-  kFeatureAbsorption = 1u << 7,
-  kFeatureShadingNormals = 1u << 8,
-};
 
 // Cold per-triangle data, read only after a hit.
 struct TriangleShading {
@@ -52,7 +40,8 @@ struct SceneView {
   Camera camera;
 };
 
-// Nearest hit along the ray in (0, ray.tmax).
+// Nearest hit along the ray in (0, ray.tmax). F without kFeatureSpheres: the scene has none.
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
   Hit hit;
   if (s.node_count == 0) return hit;
@@ -70,7 +59,7 @@ TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
         const uint32_t prim = s.prim_indices[node.left_first + i];
         float t, b1 = 0.0f, b2 = 0.0f;
         bool h;
-        if (prim < s.tri_count) {
+        if (!(F & kFeatureSpheres) || prim < s.tri_count) {
           const TriangleVerts& tv = s.tri_verts[prim];
           h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
         } else {
@@ -113,6 +102,7 @@ TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
 
 // True when anything blocks the ray in (0, ray.tmax), ignoring primitive `skip` (the light the
 // shadow ray aims at, so that reaching it is never mistaken for being blocked).
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t skip) {
   if (s.node_count == 0) return false;
   const RayTriSetup setup(ray.d);
@@ -128,7 +118,7 @@ TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t
         const uint32_t prim = s.prim_indices[node.left_first + i];
         if (prim == skip) continue;
         float t, b1, b2;
-        if (prim < s.tri_count) {
+        if (!(F & kFeatureSpheres) || prim < s.tri_count) {
           const TriangleVerts& tv = s.tri_verts[prim];
           if (intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, ray.tmax, t, b1, b2)) return true;
         } else {
@@ -154,9 +144,10 @@ struct SurfaceHit {
   bool front;      // the ray arrived on the ng side
 };
 
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline SurfaceHit make_surface_hit(const SceneView& s, const Ray& ray, const Hit& hit) {
   SurfaceHit sh;
-  if (hit.prim < s.tri_count) {
+  if (!(F & kFeatureSpheres) || hit.prim < s.tri_count) {
     const TriangleVerts& tv = s.tri_verts[hit.prim];
     const TriangleShading& ts = s.tri_shading[hit.prim];
     const float b0 = 1.0f - hit.u - hit.v;

@@ -14,6 +14,15 @@ namespace tracer {
 
 namespace {
 
+// validate_scene may run again after the front end changes settings; do not repeat a warning.
+void warn_once(Scene& scene, const SourceLoc& loc, const std::string& problem,
+               const std::string& action) {
+  const std::string text = loc.str() + ": " + problem + "; " + action;
+  for (const std::string& w : scene.diagnostics.warnings)
+    if (w == text) return;
+  scene.diagnostics.warn(loc, problem, action);
+}
+
 // The object that owns triangle t, for messages; objects are appended in triangle order.
 const ObjectInfo* owner_of(const Scene& scene, uint32_t t) {
   for (const ObjectInfo& o : scene.objects)
@@ -45,8 +54,8 @@ void validate_camera_and_settings(const Scene& scene) {
 
   const RenderSettings& s = scene.settings;
   if (s.width < 1 || s.height < 1 || s.width > 16384 || s.height > 16384)
-    throw InputError(loc, "image size " + std::to_string(s.width) + "x" +
-                              std::to_string(s.height) + " is outside 1..16384");
+    throw InputError(loc, "image size " + std::to_string(s.width) + "x" + std::to_string(s.height) +
+                              " is outside 1..16384");
   if (s.spp < 1) throw InputError(loc, "spp must be at least 1");
   if (s.max_depth < 1 || s.max_depth > 1024) throw InputError(loc, "max_depth must be in 1..1024");
   if (s.rr_start_depth < 1) throw InputError(loc, "rr_start_depth must be at least 1");
@@ -77,8 +86,8 @@ void validate_materials(Scene& scene) {
       throw InputError(loc, name + " has a non-finite parameter");
     const vec3 clamped = glm::clamp(m.albedo, vec3(0.0f), vec3(1.0f));
     if (clamped != m.albedo) {
-      scene.diagnostics.warn(loc, name + " has albedo " + vec3_str(m.albedo) + " outside [0, 1]",
-                             "clamped to " + vec3_str(clamped));
+      warn_once(scene, loc, name + " has albedo " + vec3_str(m.albedo) + " outside [0, 1]",
+                "clamped to " + vec3_str(clamped));
       m.albedo = clamped;
     }
     if (glm::any(glm::lessThan(m.emission, vec3(0.0f))))
@@ -107,12 +116,13 @@ void validate_geometry(Scene& scene) {
   }
   if (mesh.materials.size() != mesh.indices.size())
     throw InputError({scene.source, 0}, "triangle mesh has " + std::to_string(mesh.indices.size()) +
-                                            " triangles but " + std::to_string(mesh.materials.size()) +
+                                            " triangles but " +
+                                            std::to_string(mesh.materials.size()) +
                                             " material ids");
   if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
-    throw InputError({scene.source, 0}, "triangle mesh has " + std::to_string(mesh.positions.size()) +
-                                            " positions but " + std::to_string(mesh.normals.size()) +
-                                            " normals");
+    throw InputError({scene.source, 0},
+                     "triangle mesh has " + std::to_string(mesh.positions.size()) +
+                         " positions but " + std::to_string(mesh.normals.size()) + " normals");
   if (mesh.indices.size() >= size_t(kInvalid))
     throw InputError({scene.source, 0}, "too many triangles for 32-bit indices");
 
@@ -153,8 +163,8 @@ void validate_geometry(Scene& scene) {
     if (!zero_normal_objects[i]) continue;
     const ObjectInfo& o = scene.objects[i];
     set_flat_normals(mesh, o.first, o.count);
-    scene.diagnostics.warn(o.loc, "object \"" + o.name + "\" has zero-length vertex normals",
-                           "dropped its normals (flat shading)");
+    warn_once(scene, o.loc, "object \"" + o.name + "\" has zero-length vertex normals",
+              "dropped its normals (flat shading)");
   }
 
   // Remove zero-area triangles: they can never be hit reliably and make light sampling divide by
@@ -165,7 +175,8 @@ void validate_geometry(Scene& scene) {
   for (size_t t = 0; t < mesh.indices.size(); ++t) {
     kept_before[t] = uint32_t(out);
     const uvec3 tri = mesh.indices[t];
-    const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]), p2(mesh.positions[tri.z]);
+    const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]),
+        p2(mesh.positions[tri.z]);
     const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0, e3 = p2 - p1;
     const double longest = std::max(glm::dot(e1, e1), std::max(glm::dot(e2, e2), glm::dot(e3, e3)));
     const double area2 = glm::length(glm::cross(e1, e2));
@@ -180,10 +191,10 @@ void validate_geometry(Scene& scene) {
       if (o.is_sphere) continue;
       const uint32_t first = kept_before[o.first], last = kept_before[o.first + o.count];
       if (last - first != o.count) {
-        scene.diagnostics.warn(o.loc, "object \"" + o.name + "\" has " +
-                                          std::to_string(o.count - (last - first)) +
-                                          " zero-area triangle(s)",
-                               "removed them");
+        warn_once(scene, o.loc,
+                  "object \"" + o.name + "\" has " + std::to_string(o.count - (last - first)) +
+                      " zero-area triangle(s)",
+                  "removed them");
       }
       o.first = first;
       o.count = last - first;
@@ -202,11 +213,12 @@ void validate_scene(Scene& scene) {
   if (scene.spheres.empty() && scene.mesh.indices.empty())
     throw InputError({scene.source, 0}, "the scene has no geometry");
   bool lit = false;
-  for (const SphereDesc& s : scene.spheres) lit |= scene.materials[s.material].material.is_emissive();
+  for (const SphereDesc& s : scene.spheres)
+    lit |= scene.materials[s.material].material.is_emissive();
   for (uint32_t m : scene.mesh.materials) lit |= scene.materials[m].material.is_emissive();
   if (!lit) {
-    scene.diagnostics.warn({scene.source, 0}, "scene has no light; it will render black",
-                           "rendering anyway");
+    warn_once(scene, {scene.source, 0}, "scene has no light; it will render black",
+              "rendering anyway");
   }
 }
 

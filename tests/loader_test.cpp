@@ -1,0 +1,344 @@
+// Scene loaders on good and broken input: every asset loads, every bad file fails with its file
+// name, line and a useful hint, and no broken glTF from assimp's test set crashes or hangs.
+#include "scene/loader.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "test_util.h"
+
+namespace fs = std::filesystem;
+using namespace tracer;
+
+namespace {
+
+std::string bad(const std::string& name) {
+  return test::data_dir() + "/bad/" + name;
+}
+
+// Loads `path`, expects an InputError, returns its message.
+std::string load_error(const std::string& path) {
+  try {
+    load_scene(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << path << " loaded without an error";
+  return "";
+}
+
+bool has_warning(const Scene& s, const std::string& text) {
+  for (const std::string& w : s.diagnostics.warnings)
+    if (w.find(text) != std::string::npos) return true;
+  return false;
+}
+
+size_t emissive_materials(const Scene& s) {
+  size_t n = 0;
+  for (const NamedMaterial& m : s.materials) n += m.material.is_emissive();
+  return n;
+}
+
+}  // namespace
+
+TEST(Loader, BuiltinCornellBox) {
+  const Scene s = builtin_default_scene();
+  EXPECT_EQ(s.source, "<built-in>");
+  // Five walls and the light as quads (2 triangles each) plus two boxes (12 each).
+  EXPECT_EQ(s.mesh.indices.size(), 6u * 2u + 2u * 12u);
+  EXPECT_EQ(s.mesh.materials.size(), s.mesh.indices.size());
+  EXPECT_TRUE(s.spheres.empty());
+  EXPECT_EQ(s.objects.size(), 8u);
+  EXPECT_EQ(emissive_materials(s), 1u);
+  EXPECT_EQ(s.camera.position, vec3(278, 273, -800));
+  EXPECT_EQ(s.camera.look_at, vec3(278, 273, 0));
+  EXPECT_FLOAT_EQ(s.camera.vfov_deg, 39.3f);
+  EXPECT_EQ(s.settings.width, 512);
+  EXPECT_EQ(s.settings.spp, 64);
+  EXPECT_TRUE(s.diagnostics.warnings.empty()) << s.diagnostics.warnings.front();
+
+  // The light faces down: its triangles' geometric normal is -y.
+  const uint32_t light = s.find_material("light");
+  ASSERT_NE(light, kInvalid);
+  EXPECT_EQ(s.materials[light].material.emission, vec3(17, 12, 4));
+  for (size_t t = 0; t < s.mesh.indices.size(); ++t) {
+    if (s.mesh.materials[t] != light) continue;
+    const uvec3 i = s.mesh.indices[t];
+    const vec3 n = glm::cross(s.mesh.positions[i.y] - s.mesh.positions[i.x],
+                              s.mesh.positions[i.z] - s.mesh.positions[i.x]);
+    EXPECT_LT(n.y, 0.0f);
+  }
+  // The red wall is at x = 555, which appears on the left of this camera.
+  const uint32_t red = s.find_material("red");
+  for (size_t t = 0; t < s.mesh.indices.size(); ++t)
+    if (s.mesh.materials[t] == red) EXPECT_NEAR(s.mesh.positions[s.mesh.indices[t].x].x, 555, 1);
+}
+
+TEST(Loader, BoxesHaveOutwardNormals) {
+  const Scene s = builtin_default_scene();
+  for (const ObjectInfo& o : s.objects) {
+    if (o.kind != "box") continue;
+    vec3 centre(0.0f);
+    for (uint32_t t = o.first; t < o.first + o.count; ++t)
+      for (int k = 0; k < 3; ++k) centre += s.mesh.positions[s.mesh.indices[t][k]];
+    centre /= float(3 * o.count);
+    for (uint32_t t = o.first; t < o.first + o.count; ++t) {
+      const uvec3 i = s.mesh.indices[t];
+      const vec3 p0 = s.mesh.positions[i.x];
+      const vec3 n = glm::cross(s.mesh.positions[i.y] - p0, s.mesh.positions[i.z] - p0);
+      EXPECT_GT(glm::dot(n, p0 - centre), 0.0f) << o.name << " triangle " << t;
+    }
+  }
+}
+
+TEST(Loader, EveryAssetLoads) {
+  int count = 0;
+  for (const char* dir : {"/assets/scenes", "/assets/meshes"}) {
+    for (const auto& entry : fs::directory_iterator(test::source_dir() + dir)) {
+      const std::string ext = entry.path().extension().string();
+      if (ext != ".json" && ext != ".obj" && ext != ".gltf" && ext != ".glb") continue;
+      SCOPED_TRACE(entry.path().string());
+      Scene s;
+      ASSERT_NO_THROW(s = load_scene(entry.path().string()));
+      EXPECT_GT(s.mesh.indices.size() + s.spheres.size(), 0u);
+      EXPECT_GE(emissive_materials(s), 1u);
+      for (const std::string& w : s.diagnostics.warnings)
+        if (ext == ".json" || ext == ".gltf") ADD_FAILURE() << "unexpected warning: " << w;
+      ++count;
+    }
+  }
+  EXPECT_GE(count, 7);
+}
+
+TEST(Loader, GltfSceneHasCameraDielectricAndLight) {
+  const Scene s = load_scene(test::source_dir() + "/assets/scenes/gltf_scene.gltf");
+  EXPECT_NEAR(s.camera.vfov_deg, 40.0f, 1e-3f);
+  EXPECT_NEAR(s.camera.position.z, 5.0f, 1e-4f);
+  EXPECT_LT(s.camera.look_at.y, s.camera.position.y);  // pitched down
+  const uint32_t glass = s.find_material("glass");
+  ASSERT_NE(glass, kInvalid);
+  EXPECT_EQ(s.materials[glass].material.type, MaterialType::kDielectric);
+  EXPECT_FLOAT_EQ(s.materials[glass].material.ior, 1.5f);
+  const uint32_t lamp = s.find_material("lamp");
+  ASSERT_NE(lamp, kInvalid);
+  EXPECT_NEAR(s.materials[lamp].material.emission.x, 10.0f, 1e-4f);  // x emissiveStrength
+  EXPECT_EQ(s.mesh.normals.size(), s.mesh.positions.size());
+}
+
+TEST(Loader, ObjSceneUsesFileAndOverrideMaterials) {
+  const Scene s = load_scene(test::source_dir() + "/assets/scenes/obj_scene.json");
+  EXPECT_NE(s.find_material("blue"), kInvalid);  // from lit_sphere.mtl
+  const uint32_t lamp = s.find_material("lamp");
+  ASSERT_NE(lamp, kInvalid);
+  EXPECT_TRUE(s.materials[lamp].material.is_emissive());  // Ke
+  const uint32_t clay = s.find_material("clay");
+  for (const ObjectInfo& o : s.objects) {
+    if (o.name != "torus") continue;
+    EXPECT_GT(o.count, 0u);
+    for (uint32_t t = o.first; t < o.first + o.count; ++t) EXPECT_EQ(s.mesh.materials[t], clay);
+    EXPECT_EQ(o.loc.line, 16);  // the torus line in obj_scene.json
+  }
+  EXPECT_EQ(s.mesh.normals.size(), s.mesh.positions.size());
+}
+
+TEST(Loader, ObjectsAndTransforms) {
+  const Scene s = load_scene_from_json(R"({
+    "materials": {"m": {"emission": [1, 1, 1]}},
+    "objects": [
+      {"type": "sphere", "name": "a", "center": [1, 0, 0], "radius": 2, "material": "m",
+       "transform": {"scale": 3, "rotate": [0, 90, 0], "translate": [0, 10, 0]}},
+      {"type": "quad", "corner": [0, 0, 0], "edge1": [1, 0, 0], "edge2": [0, 0, 1],
+       "material": "m", "transform": {"matrix": [1, 0, 0, 5,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1]}}
+    ]})",
+                                       "inline.json");
+  ASSERT_EQ(s.spheres.size(), 1u);
+  // Scale 3, then rotate +90 about y: (3, 0, 0) -> (0, 0, -3), then translate.
+  EXPECT_NEAR(s.spheres[0].center.x, 0.0f, 1e-5f);
+  EXPECT_NEAR(s.spheres[0].center.y, 10.0f, 1e-5f);
+  EXPECT_NEAR(s.spheres[0].center.z, -3.0f, 1e-5f);
+  EXPECT_FLOAT_EQ(s.spheres[0].radius, 6.0f);
+  EXPECT_EQ(s.objects[0].name, "a");
+  EXPECT_EQ(s.objects[0].loc.line, 4);
+  EXPECT_EQ(s.objects[1].name, "quad 1");
+  EXPECT_EQ(s.objects[1].loc.line, 6);
+  // Row-major matrix: translation in the last column.
+  EXPECT_FLOAT_EQ(s.mesh.positions[s.mesh.indices[0].x].x, 5.0f);
+  // Quad front faces cross(edge1, edge2) = (0, -1, 0).
+  const uvec3 i = s.mesh.indices[0];
+  const vec3 n = glm::cross(s.mesh.positions[i.y] - s.mesh.positions[i.x],
+                            s.mesh.positions[i.z] - s.mesh.positions[i.x]);
+  EXPECT_LT(n.y, 0.0f);
+}
+
+TEST(Loader, DidYouMean) {
+  EXPECT_EQ(did_you_mean("albdo", {"albedo", "emission"}), "albedo");
+  EXPECT_EQ(did_you_mean("Emision", {"albedo", "emission"}), "emission");
+  EXPECT_EQ(did_you_mean("xyz", {"albedo", "emission"}), "");
+}
+
+struct BadCase {
+  const char* file;
+  int line;  // 0: the message names no line
+  std::vector<const char*> words;
+};
+
+TEST(Loader, BadFilesFailWithFileLineAndHint) {
+  const std::vector<BadCase> cases = {
+      {"unknown_key.json", 4, {"unknown key \"albdo\"", "did you mean \"albedo\""}},
+      {"unknown_top_key.json", 6, {"\"rendr\"", "did you mean \"render\""}},
+      {"wrong_type.json", 5, {"\"radius\"", "must be a number", "string"}},
+      {"short_vector.json", 4, {"\"look_at\"", "3 numbers"}},
+      {"unknown_material.json", 9, {"unknown material \"whte\"", "did you mean \"white\""}},
+      {"bad_object_type.json", 5, {"unknown object type \"spere\"", "did you mean \"sphere\""}},
+      {"negative_radius.json", 5, {"\"radius\"", "> 0"}},
+      {"infinite_number.json", 5, {"1e999"}},
+      {"trailing_comma.json", 5, {"syntax error"}},
+      {"truncated.json", 4, {"syntax error", "end of input"}},
+      {"missing_mesh.json", 6, {"does_not_exist.obj", "not found"}},
+      {"absurd_width.json", 3, {"\"width\"", "1000000", "1..16384"}},
+      {"bad_ior.json", 4, {"\"ior\""}},
+      {"bad_vfov.json", 3, {"\"vfov\""}},
+      {"duplicate_key.json", 4, {"duplicate key \"white\"", "line 3"}},
+      {"no_objects.json", 3, {"no objects"}},
+      {"sphere_nonuniform.json", 5, {"non-uniformly"}},
+      {"bad_index.obj", 7, {"vertex 9", "4 vertices"}},
+      {"bad_relative_index.obj", 5, {"vertex -4", "before this line"}},
+      {"nan_vertex.obj", 4, {"non-finite", "nan"}},
+      {"bad_index.gltf", 0, {"index 7", "out of range"}},
+      {"view_past_buffer.gltf", 0, {"past the end"}},
+      {"does_not_exist.json", 0, {"cannot open", "No such file"}},
+  };
+  for (const BadCase& c : cases) {
+    SCOPED_TRACE(c.file);
+    const std::string msg = load_error(bad(c.file));
+    const std::string prefix =
+        bad(c.file) + (c.line > 0 ? ":" + std::to_string(c.line) + ": " : std::string(": "));
+    EXPECT_EQ(msg.rfind(prefix, 0), 0u) << msg;
+    for (const char* w : c.words) EXPECT_NE(msg.find(w), std::string::npos) << msg;
+    EXPECT_NE(msg.find("; nothing was rendered"), std::string::npos) << msg;
+  }
+}
+
+TEST(Loader, MeshErrorsNameTheReferencingScene) {
+  const std::string dir = test::data_dir() + "/bad/";
+  try {
+    load_scene_from_json(R"({"materials": {"m": {}},
+      "objects": [{"type": "mesh", "file": "nan_vertex.obj", "material": "m"}]})",
+                         dir + "inline.json");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("nan_vertex.obj:4:"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("inline.json:2"), std::string::npos) << msg;
+  }
+}
+
+TEST(Loader, RepairsWithWarnings) {
+  const Scene clamped = load_scene(bad("albedo_clamped.json"));
+  EXPECT_TRUE(has_warning(clamped, "albedo_clamped.json:4: \"albedo\""))
+      << clamped.diagnostics.warnings[0];
+  EXPECT_EQ(clamped.materials[clamped.find_material("bright")].material.albedo.x, 1.0f);
+
+  const Scene zero = load_scene(bad("zero_area.obj"));
+  EXPECT_TRUE(has_warning(zero, "2 zero-area triangle(s)"));
+  EXPECT_TRUE(has_warning(zero, "no light in file"));
+  // One good triangle plus the two of the default light.
+  EXPECT_EQ(zero.mesh.indices.size(), 3u);
+  EXPECT_EQ(zero.objects[0].count, 1u);
+  EXPECT_EQ(zero.objects[1].first, 1u);
+
+  const Scene mtl = load_scene(bad("missing_mtl.obj"));
+  EXPECT_TRUE(has_warning(mtl, "missing_mtl.obj:1: material library \"nowhere.mtl\" not found"));
+}
+
+TEST(Loader, ValidateScene) {
+  Scene s = builtin_default_scene();
+  s.settings.width = s.settings.height = 16384;
+  s.mesh.positions[0].x = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(validate_scene(s), InputError);
+
+  Scene dark = builtin_default_scene();
+  for (NamedMaterial& m : dark.materials) m.material.emission = vec3(0.0f);
+  validate_scene(dark);
+  EXPECT_TRUE(has_warning(dark, "scene has no light; it will render black"));
+
+  Scene bad_index = builtin_default_scene();
+  bad_index.mesh.indices[3].y = 100000;
+  EXPECT_THROW(validate_scene(bad_index), InputError);
+
+  Scene bad_material = builtin_default_scene();
+  bad_material.mesh.materials[0] = 99;
+  EXPECT_THROW(validate_scene(bad_material), InputError);
+}
+
+TEST(Loader, ImageTooLargeForMemory) {
+  Scene s = builtin_default_scene();
+  s.settings.width = s.settings.height = 16384;  // 16 GiB at 64 bytes a pixel
+  const double memory = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGESIZE));
+  if (memory >= 32.0 * double(1ull << 30)) GTEST_SKIP() << "this machine has 32 GiB or more";
+  try {
+    validate_scene(s);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("image of 16384x16384 needs 16 GiB"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(Loader, ZeroLengthNormalsAreDropped) {
+  const std::string path = testing::TempDir() + "zero_normals.obj";
+  std::ofstream(path) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 0\nf 1//1 2//1 3//1\n";
+  const Scene s = load_scene(path);
+  EXPECT_TRUE(has_warning(s, "zero-length vertex normals"));
+  for (const uvec3& t : s.mesh.indices)
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(glm::length(s.mesh.normals[t[k]]), 1.0f, 1e-5f);
+}
+
+// Every file of assimp's glTF 2 test set, most of them broken on purpose, must load or throw
+// InputError: never crash, hang or read out of bounds.
+TEST(Loader, AssimpGltfSweep) {
+  const fs::path root = "/usr/share/assimp/models/glTF2";
+  if (!fs::is_directory(root))
+    GTEST_SKIP() << root << " is missing (apt install assimp-testmodels)";
+  int loaded = 0, rejected = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(root)) {
+    const std::string ext = entry.path().extension().string();
+    if (ext != ".gltf" && ext != ".glb") continue;
+    SCOPED_TRACE(entry.path().string());
+    try {
+      const Scene s = load_scene(entry.path().string());
+      EXPECT_GT(s.mesh.indices.size(), 0u);
+      ++loaded;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(entry.path().filename().string()), std::string::npos);
+      ++rejected;
+    }
+  }
+  EXPECT_GT(loaded, 0);
+  EXPECT_GT(rejected, 0);
+  // The files that exist to be broken in a specific way.
+  EXPECT_NE(load_error((root / "RecursiveNodes/RecursiveNodes.gltf").string()).find("cycle"),
+            std::string::npos);
+  EXPECT_NE(
+      load_error((root / "IndexOutOfRange/IndexOutOfRange.gltf").string()).find("out of range"),
+      std::string::npos);
+  EXPECT_NE(load_error((root / "BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb").string())
+                .find("non-finite"),
+            std::string::npos);
+}
+
+TEST(Loader, RealMeshes) {
+  int found = 0;
+  for (const char* path : {"/usr/share/doc/python3-tinyobjloader/examples/cornell_box.obj",
+                           "/usr/share/glmark2/models/bunny.obj"}) {
+    if (!fs::exists(path)) continue;
+    SCOPED_TRACE(path);
+    ++found;
+    const Scene s = load_scene(path);
+    EXPECT_GT(s.mesh.indices.size(), 0u);
+    EXPECT_GE(emissive_materials(s), 1u);
+  }
+  if (found == 0) GTEST_SKIP() << "neither python3-tinyobjloader nor glmark2-data is installed";
+}

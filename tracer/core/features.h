@@ -1,0 +1,26 @@
+// Scene feature flags. A scene records which it needs; shared code takes a compile-time mask F of
+// the features it must support, so the CUDA backend can instantiate kernels that leave out lens
+// sampling, refraction or sphere tests for scenes that have none. kAllFeatures is the general case.
+#pragma once
+
+#include "core/hd.h"
+
+namespace tracer {
+
+enum SceneFeature : uint32_t {
+  kFeatureDepthOfField = 1u << 0,
+  kFeatureDielectric = 1u << 1,
+  kFeatureSubsurface = 1u << 2,
+  kFeatureTextures = 1u << 3,
+  kFeatureEmissiveMeshes = 1u << 4,
+  kFeatureSpheres = 1u << 5,
+  kFeatureMirror = 1u << 6,
+  kFeatureAbsorption = 1u << 7,
+  kFeatureShadingNormals = 1u << 8,
+};
+
+constexpr uint32_t kAllFeatures = 0xffffffffu;
+// Materials other than Lambertian diffuse.
+constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption;
+
+}  // namespace tracer

@@ -1,0 +1,408 @@
+// Host side of the CUDA backend: device memory, the per-bounce wavefront schedule, the megakernel,
+// --kernel auto's timing of both designs, and per-stage statistics from CUDA events.
+#include "cuda/cuda_renderer.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "cuda/device_buffer.h"
+#include "cuda/kernels.h"
+
+namespace tracer {
+
+namespace {
+enum Stage { kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kStageCount };
+}
+
+struct CudaRenderer::Impl {
+  int device = 0;
+  cudaDeviceProp prop{};
+  cudaStream_t stream = nullptr;
+
+  // Scene.
+  DeviceBuffer<BvhNode> nodes;
+  DeviceBuffer<uint32_t> prim_indices;
+  DeviceBuffer<TriangleVerts> tri_verts;
+  DeviceBuffer<TriangleShading> tri_shading;
+  DeviceBuffer<Sphere> spheres;
+  DeviceBuffer<Material> materials;
+  DeviceBuffer<Light> lights;
+  DeviceBuffer<float> light_cdf;
+  SceneView view;
+  uint32_t features = 0;
+
+  IntegratorSettings cfg;
+  GpuOptions opts;
+  bool has_scene = false;
+
+  // Film and counters.
+  DeviceBuffer<float4> film;
+  DeviceBuffer<unsigned long long> counters;  // shadow, non-finite, megakernel extension
+  uint32_t samples = 0;
+  uint64_t nonfinite = 0;
+
+  // Wavefront pool.
+  DeviceBuffer<float4> ray_o, ray_d, throughput, radiance, hit, shadow_o, shadow_d, shadow_c;
+  DeviceBuffer<float4> cached_hits;
+  DeviceBuffer<uint8_t> alive;
+  DeviceBuffer<uint32_t> queue, sorted, sort_keys, sort_bins, alive_counts, count;
+  DeviceBuffer<uint8_t> cub_temp;
+  bool cache_valid = false;
+
+  // --kernel auto: time both designs on the first samples and keep the faster.
+  KernelMode chosen = KernelMode::kAuto;
+  double auto_ms[2] = {0, 0};  // wavefront, megakernel
+  int auto_step = 0;
+
+  std::vector<cudaEvent_t> events;
+
+  ~Impl() {
+    for (cudaEvent_t e : events) cudaEventDestroy(e);
+    if (stream) cudaStreamDestroy(stream);
+  }
+
+  uint32_t n() const { return cfg.width * cfg.height; }
+  uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
+  FilmView film_view() { return FilmView{film.get(), n()}; }
+
+  WavefrontState wavefront() {
+    WavefrontState w;
+    w.n = n();
+    w.ray_o = ray_o.get();
+    w.ray_d = ray_d.get();
+    w.throughput = throughput.get();
+    w.radiance = radiance.get();
+    w.hit = hit.get();
+    w.shadow_o = shadow_o.get();
+    w.shadow_d = shadow_d.get();
+    w.shadow_c = shadow_c.get();
+    w.alive = alive.get();
+    w.sort_keys = sort_keys.get();
+    w.sort_bins = sort_bins.get();
+    w.counters = counters.get();
+    w.alive_counts = alive_counts.get();
+    return w;
+  }
+
+  bool cache_allowed(std::string* why) const {
+    if (!opts.first_bounce_cache) {
+      if (why) *why = "first-bounce cache off";
+      return false;
+    }
+    if (cfg.jitter) {
+      if (why) *why = "first-bounce cache disabled: the camera jitters samples within pixels";
+      return false;
+    }
+    if (view.camera.lens_radius > 0.0f) {
+      if (why) *why = "first-bounce cache disabled: depth of field moves camera rays";
+      return false;
+    }
+    return true;
+  }
+
+  void allocate() {
+    const uint32_t count_pixels = n();
+    film.resize(count_pixels);
+    for (auto* b : {&ray_o, &ray_d, &throughput, &radiance, &hit, &shadow_o, &shadow_d, &shadow_c})
+      b->resize(count_pixels);
+    alive.resize(count_pixels);
+    queue.resize(count_pixels);
+    sorted.resize(count_pixels);
+    sort_keys.resize(count_pixels);
+    sort_bins.resize(16);
+    alive_counts.resize(cfg.max_depth + 2);
+    count.resize(1);
+    cub_temp.resize(std::max<size_t>(1, compaction_temp_bytes(count_pixels)));
+    counters.resize(4);
+    cached_hits.resize(0);
+    cache_valid = false;
+    samples = 0;
+    nonfinite = 0;
+  }
+
+  // Records an event after the work of `stage` when timing.
+  std::vector<std::pair<cudaEvent_t, int>> marks;
+  void mark(bool timed, int stage) {
+    if (!timed) return;
+    if (marks.size() >= events.size()) {
+      cudaEvent_t e;
+      TRACER_CUDA_CHECK(cudaEventCreate(&e));
+      events.push_back(e);
+    }
+    cudaEvent_t e = events[marks.size()];
+    TRACER_CUDA_CHECK(cudaEventRecord(e, stream));
+    marks.push_back({e, stage});
+  }
+  void collect(StageTimes& t) {
+    if (marks.size() < 2) return;
+    TRACER_CUDA_CHECK(cudaEventSynchronize(marks.back().first));
+    double* slot[kStageCount] = {&t.generate, &t.intersect, &t.sort, &t.shade,
+                                 &t.shadow,   &t.compact,   &t.megakernel};
+    for (size_t i = 1; i < marks.size(); ++i) {
+      float ms = 0.0f;
+      TRACER_CUDA_CHECK(cudaEventElapsedTime(&ms, marks[i - 1].first, marks[i].first));
+      *slot[marks[i].second] += ms;
+    }
+    marks.clear();
+  }
+
+  void megakernel_wave(uint32_t sample, bool first, bool timed) {
+    mark(timed, kMega);  // start
+    launch_megakernel(spec(), view, cfg, sample, first, film_view(), counters.get(), stream);
+    mark(timed, kMega);
+  }
+
+  // One sample per pixel through the wavefront; returns paths entering each bounce when asked.
+  void wavefront_wave(uint32_t sample, bool first, bool timed) {
+    const uint32_t sp = spec();
+    WavefrontState w = wavefront();
+    TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
+    mark(timed, kGenerate);
+    launch_generate(sp, view, cfg, sample, w, stream);
+    mark(timed, kGenerate);
+    const bool use_cache = cache_allowed(nullptr);
+    if (use_cache && cached_hits.size() != n()) {
+      cached_hits.resize(n());
+      cache_valid = false;
+    }
+    for (uint32_t b = 0; b < cfg.max_depth; ++b) {
+      const bool compacted = opts.compaction && b > 0;
+      const uint32_t* q = compacted ? queue.get() : nullptr;
+      const uint32_t* c = compacted ? count.get() : nullptr;
+      if (b == 0 && use_cache && cache_valid) {
+        launch_copy_hits(cached_hits.get(), w.hit, n(), stream);
+      } else {
+        launch_intersect(sp, view, w, q, c, stream);
+        if (b == 0 && use_cache) {
+          launch_copy_hits(w.hit, cached_hits.get(), n(), stream);
+          cache_valid = true;
+        }
+      }
+      mark(timed, kIntersect);
+      if (opts.sort_materials) {
+        launch_sort_by_material(view, w, q, c, sorted.get(), stream);
+        // The sorted queue holds every queued slot, so its length is the same count.
+        if (!q) {
+          TRACER_CUDA_CHECK(cudaMemcpyAsync(count.get(), &w.n, sizeof(uint32_t),
+                                            cudaMemcpyHostToDevice, stream));
+          c = count.get();
+        }
+        q = sorted.get();
+        mark(timed, kSort);
+      }
+      launch_shade(sp, view, cfg, sample, b, w, q, c, stream);
+      mark(timed, kShade);
+      launch_shadow(sp, view, w, q, c, first, film_view(), stream);
+      mark(timed, kShadow);
+      if (b + 1 == cfg.max_depth) break;
+      if (opts.compaction) {
+        launch_compact(w, queue.get(), count.get(), cub_temp.get(), cub_temp.bytes(), stream);
+        mark(timed, kCompact);
+      }
+      // Deep settings: stop once every path has ended (checked every 8 bounces).
+      if (b >= 7 && (b + 1) % 8 == 0) {
+        uint32_t left = 0;
+        TRACER_CUDA_CHECK(cudaMemcpyAsync(&left, w.alive_counts + b + 1, sizeof(uint32_t),
+                                          cudaMemcpyDeviceToHost, stream));
+        TRACER_CUDA_CHECK(cudaStreamSynchronize(stream));
+        if (left == 0) break;
+      }
+    }
+  }
+};
+
+CudaRenderer::CudaRenderer(int device) : impl_(std::make_unique<Impl>()) {
+  impl_->device = device;
+  TRACER_CUDA_CHECK(cudaSetDevice(device));
+  TRACER_CUDA_CHECK(cudaGetDeviceProperties(&impl_->prop, device));
+  TRACER_CUDA_CHECK(cudaStreamCreateWithFlags(&impl_->stream, cudaStreamNonBlocking));
+}
+
+CudaRenderer::~CudaRenderer() = default;
+
+std::string CudaRenderer::device_name() const {
+  const auto& p = impl_->prop;
+  return std::string(p.name) + " (sm_" + std::to_string(p.major) + std::to_string(p.minor) + ", " +
+         std::to_string(p.multiProcessorCount) + " SMs)";
+}
+
+void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) {
+  Impl& m = *impl_;
+  m.nodes.upload(scene.nodes());
+  m.prim_indices.upload(scene.prim_indices());
+  m.tri_verts.upload(scene.tri_verts());
+  m.tri_shading.upload(scene.tri_shading());
+  m.spheres.upload(scene.spheres());
+  m.materials.upload(scene.materials());
+  m.lights.upload(scene.lights());
+  m.light_cdf.upload(scene.light_cdf());
+  m.view = scene.view();
+  m.view.nodes = m.nodes.get();
+  m.view.prim_indices = m.prim_indices.get();
+  m.view.tri_verts = m.tri_verts.get();
+  m.view.tri_shading = m.tri_shading.get();
+  m.view.spheres = m.spheres.get();
+  m.view.materials = m.materials.get();
+  m.view.lights = m.lights.get();
+  m.view.light_cdf = m.light_cdf.get();
+  m.features = scene.features();
+  m.has_scene = true;
+  set_settings(cfg);
+}
+
+void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
+  Impl& m = *impl_;
+  m.cfg = cfg;
+  m.view.camera.width = cfg.width;
+  m.view.camera.height = cfg.height;
+  m.view.camera.aspect = float(cfg.width) / float(cfg.height);
+  m.allocate();
+  reset();
+}
+
+void CudaRenderer::reset() {
+  // O(1): the next sample overwrites the accumulator instead of adding to it.
+  impl_->samples = 0;
+  impl_->nonfinite = 0;
+  impl_->cache_valid = false;
+}
+
+void CudaRenderer::set_gpu_options(const GpuOptions& o) {
+  impl_->opts = o;
+  impl_->chosen = o.kernel;
+  impl_->auto_step = 0;
+  impl_->auto_ms[0] = impl_->auto_ms[1] = 0.0;
+  impl_->cache_valid = false;
+}
+
+uint32_t CudaRenderer::samples_done() const { return impl_->samples; }
+uint64_t CudaRenderer::nonfinite_total() const { return impl_->nonfinite; }
+
+std::string CudaRenderer::chosen_kernel() const {
+  switch (impl_->chosen) {
+    case KernelMode::kWavefront: return "wavefront";
+    case KernelMode::kMegakernel: return "megakernel";
+    case KernelMode::kAuto: return "auto (not decided yet)";
+  }
+  return "";
+}
+
+size_t CudaRenderer::path_state_bytes_per_pixel() const {
+  // 8 float4 arrays, alive flag, queue + sorted queue + sort key, cached hit.
+  return 8 * sizeof(float4) + 1 + 3 * sizeof(uint32_t) + sizeof(float4);
+}
+
+size_t CudaRenderer::scene_bytes() const {
+  const Impl& m = *impl_;
+  return m.nodes.bytes() + m.prim_indices.bytes() + m.tri_verts.bytes() + m.tri_shading.bytes() +
+         m.spheres.bytes() + m.materials.bytes() + m.lights.bytes() + m.light_cdf.bytes();
+}
+
+FrameStats CudaRenderer::render(uint32_t spp) {
+  Impl& m = *impl_;
+  if (!m.has_scene) throw std::logic_error("CudaRenderer::render: no scene set");
+  const auto start = std::chrono::steady_clock::now();
+  FrameStats st;
+  st.spp_added = spp;
+  st.specialization = spec_name(m.spec());
+  m.cache_allowed(&st.note);
+  m.counters.zero_async(m.stream);
+  uint64_t extension_wavefront = 0;
+  for (uint32_t k = 0; k < spp; ++k) {
+    const uint32_t sample = m.samples + k;
+    const bool first = sample == 0;
+    KernelMode mode = m.chosen;
+    bool calibrating = false;
+    if (mode == KernelMode::kAuto) {
+      // Steps 0/1 warm both designs up, 2/3 time them; then keep the faster.
+      mode = (m.auto_step % 2 == 0) ? KernelMode::kMegakernel : KernelMode::kWavefront;
+      calibrating = m.auto_step >= 2;
+    }
+    const bool timed = k == 0 || calibrating;
+    if (mode == KernelMode::kMegakernel) {
+      m.megakernel_wave(sample, first, timed);
+    } else {
+      m.wavefront_wave(sample, first, timed);
+    }
+    if (timed) {
+      StageTimes t;
+      m.collect(t);
+      const double wave_ms = t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact +
+                             t.megakernel;
+      if (k == 0) st.stages = t;
+      if (calibrating) m.auto_ms[mode == KernelMode::kWavefront ? 0 : 1] = wave_ms;
+      if (k == 0 && mode == KernelMode::kWavefront) {
+        std::vector<uint32_t> alive;
+        m.alive_counts.download(alive);
+        alive[0] = m.n();
+        while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
+        st.alive_per_bounce = alive;
+      }
+    }
+    if (mode == KernelMode::kWavefront) {
+      // Extension rays: every path alive after bounce b traces one more segment.
+      std::vector<uint32_t> alive;
+      if (!timed || k != 0) m.alive_counts.download(alive);
+      else alive = st.alive_per_bounce;
+      for (size_t b = 1; b < alive.size(); ++b) extension_wavefront += alive[b];
+    }
+    if (m.chosen == KernelMode::kAuto && ++m.auto_step == 4) {
+      m.chosen = m.auto_ms[0] <= m.auto_ms[1] ? KernelMode::kWavefront : KernelMode::kMegakernel;
+    }
+    st.kernel = mode == KernelMode::kWavefront ? "wavefront" : "megakernel";
+  }
+  unsigned long long c[4] = {0, 0, 0, 0};
+  TRACER_CUDA_CHECK(cudaMemcpyAsync(c, m.counters.get(), sizeof(c), cudaMemcpyDeviceToHost,
+                                    m.stream));
+  TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
+  st.rays.camera = uint64_t(m.n()) * spp;
+  st.rays.shadow = c[0];
+  st.rays.extension = c[2] + extension_wavefront;
+  st.nonfinite = c[1];
+  m.nonfinite += c[1];
+  m.samples += spp;
+  if (m.chosen != KernelMode::kAuto && m.opts.kernel == KernelMode::kAuto) {
+    st.note += std::string(st.note.empty() ? "" : "; ") + "kernel auto chose " + chosen_kernel() +
+               " (" + std::to_string(m.auto_ms[0]) + " ms wavefront vs " +
+               std::to_string(m.auto_ms[1]) + " ms megakernel per sample)";
+  }
+  st.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return st;
+}
+
+ImageRGB CudaRenderer::image() const {
+  Impl& m = *impl_;
+  ImageRGB img;
+  img.width = int(m.cfg.width);
+  img.height = int(m.cfg.height);
+  img.pixels.assign(size_t(m.n()) * 3, 0.0f);
+  if (m.samples == 0) return img;
+  DeviceBuffer<float> rgb(size_t(m.n()) * 3);
+  launch_resolve(m.film_view(), 1.0f / float(m.samples), rgb.get(), m.stream);
+  TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
+  std::vector<float> host;
+  rgb.download(host);
+  img.pixels = std::move(host);
+  return img;
+}
+
+std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not) {
+  int count = 0;
+  const cudaError_t err = cudaGetDeviceCount(&count);
+  if (err != cudaSuccess || count == 0) {
+    if (why_not)
+      *why_not = err != cudaSuccess ? std::string("no CUDA device (") + cudaGetErrorName(err) +
+                                          ": " + cudaGetErrorString(err) + ")"
+                                    : "no CUDA device found";
+    cudaGetLastError();  // clear the sticky error of the failed query
+    return nullptr;
+  }
+  try {
+    return std::make_unique<CudaRenderer>(0);
+  } catch (const std::exception& e) {
+    if (why_not) *why_not = e.what();
+    return nullptr;
+  }
+}
+
+}  // namespace tracer

@@ -1,0 +1,41 @@
+// The CUDA backend: the scene in device memory, a float4 progressive accumulator with an O(1)
+// reset, and either the wavefront (with optional compaction, material sorting and first-bounce
+// cache) or the megakernel, each specialised on the scene's features.
+#pragma once
+
+#include <memory>
+
+#include "integrator/renderer.h"
+
+namespace tracer {
+
+class CudaRenderer final : public Renderer {
+ public:
+  explicit CudaRenderer(int device);
+  ~CudaRenderer() override;
+  std::string backend_name() const override { return "cuda"; }
+  std::string device_name() const override;
+  void set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) override;
+  void set_settings(const IntegratorSettings& cfg) override;
+  void reset() override;
+  FrameStats render(uint32_t spp) override;
+  uint32_t samples_done() const override;
+  uint64_t nonfinite_total() const override;
+  ImageRGB image() const override;
+  void set_gpu_options(const GpuOptions& o) override;
+
+  // Device bytes per pixel of path state and per triangle of BVH + triangles, for reports.
+  size_t path_state_bytes_per_pixel() const;
+  size_t scene_bytes() const;
+  // The design --kernel auto chose (after its first frames), or the forced one.
+  std::string chosen_kernel() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// nullptr with the reason when no usable device exists.
+std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not);
+
+}  // namespace tracer

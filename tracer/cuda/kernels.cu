@@ -1,0 +1,379 @@
+// CUDA kernels: the megakernel (one thread runs a whole path) and the wavefront stages (one
+// kernel per stage per bounce over a structure-of-arrays path pool), all built from the shared
+// per-path stage functions and specialised at compile time on the scene's features.
+#include <cub/device/device_select.cuh>
+#include <thrust/iterator/counting_iterator.h>
+
+#include "cuda/cuda_check.h"
+#include "cuda/kernels.h"
+
+namespace tracer {
+namespace {
+
+constexpr int kBlock = 256;
+
+template <uint32_t Spec>
+constexpr uint32_t features_of() {
+  return kFeatureEmissiveMeshes | kFeatureShadingNormals |
+         ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
+         ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
+         ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u);
+}
+
+__device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 L, bool first,
+                                            unsigned long long* nonfinite) {
+  if (!is_finite(L)) {  // counted and reported, never added
+    atomicAdd(nonfinite, 1ull);
+    L = vec3(0.0f);
+  }
+  const float4 old = first ? make_float4(0, 0, 0, 0) : film.accum[pixel];
+  film.accum[pixel] = make_float4(old.x + L.x, old.y + L.y, old.z + L.z, 0.0f);
+}
+
+// One atomic per warp for a per-thread count (warp-aggregated over the active lanes).
+__device__ __forceinline__ void warp_add(unsigned long long* target, uint32_t value) {
+  const unsigned mask = __activemask();
+  const uint32_t sum = __reduce_add_sync(mask, value);
+  if ((threadIdx.x & 31) == uint32_t(__ffs(mask) - 1)) atomicAdd(target, (unsigned long long)sum);
+}
+
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) megakernel(SceneView s, IntegratorSettings cfg,
+                                                     uint32_t sample, bool first, FilmView film,
+                                                     unsigned long long* counters) {
+  const uint32_t pixel = blockIdx.x * blockDim.x + threadIdx.x;
+  if (pixel >= film.n) return;
+  RayCounts rc;
+  const vec3 L = trace_path<features_of<Spec>()>(s, cfg, pixel, sample, &rc);
+  add_to_film(film, pixel, L, first, &counters[1]);
+  warp_add(&counters[2], uint32_t(rc.extension));
+  warp_add(&counters[0], uint32_t(rc.shadow));
+}
+
+__device__ __forceinline__ void store_state(const WavefrontState& w, uint32_t id,
+                                            const PathState& st) {
+  w.ray_o[id] = make_float4(st.ray.o.x, st.ray.o.y, st.ray.o.z, st.prev_pdf);
+  w.ray_d[id] = make_float4(st.ray.d.x, st.ray.d.y, st.ray.d.z,
+                            __uint_as_float(st.depth | (st.flags << 16)));
+  w.throughput[id] = make_float4(st.throughput.x, st.throughput.y, st.throughput.z, 0.0f);
+  w.radiance[id] = make_float4(st.radiance.x, st.radiance.y, st.radiance.z, 0.0f);
+}
+
+__device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_t id,
+                                                uint32_t sample) {
+  PathState st;
+  const float4 o = w.ray_o[id], d = w.ray_d[id], t = w.throughput[id], r = w.radiance[id];
+  st.ray.o = vec3(o.x, o.y, o.z);
+  st.ray.d = vec3(d.x, d.y, d.z);
+  st.ray.tmax = kInfinity;
+  st.ray.pad = 0.0f;
+  st.prev_pdf = o.w;
+  const uint32_t bits = __float_as_uint(d.w);
+  st.depth = bits & 0xffffu;
+  st.flags = bits >> 16;
+  st.throughput = vec3(t.x, t.y, t.z);
+  st.radiance = vec3(r.x, r.y, r.z);
+  st.pixel = id;
+  st.sample = sample;
+  st.pad = 0;
+  return st;
+}
+
+// The path a queue slot refers to, or kInvalid when the slot is empty or the path is done.
+__device__ __forceinline__ uint32_t queued_path(const WavefrontState& w, const uint32_t* queue,
+                                                const uint32_t* count) {
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= (queue ? *count : w.n)) return kInvalid;
+  const uint32_t id = queue ? queue[i] : i;
+  return w.alive[id] == 1 ? id : kInvalid;
+}
+
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) generate_kernel(SceneView s, IntegratorSettings cfg,
+                                                          uint32_t sample, WavefrontState w) {
+  const uint32_t id = blockIdx.x * blockDim.x + threadIdx.x;
+  if (id >= w.n) return;
+  PathState st;
+  generate_path<features_of<Spec>()>(s, cfg, id, sample, st);
+  store_state(w, id, st);
+  w.alive[id] = 1;
+}
+
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, WavefrontState w,
+                                                           const uint32_t* queue,
+                                                           const uint32_t* count) {
+  const uint32_t id = queued_path(w, queue, count);
+  if (id == kInvalid) return;
+  const float4 o = w.ray_o[id], d = w.ray_d[id];
+  Ray ray;
+  ray.o = vec3(o.x, o.y, o.z);
+  ray.d = vec3(d.x, d.y, d.z);
+  ray.tmax = kInfinity;
+  ray.pad = 0.0f;
+  const Hit h = intersect_closest<features_of<Spec>()>(s, ray);
+  w.hit[id] = make_float4(h.t, __uint_as_float(h.prim), h.u, h.v);
+}
+
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSettings cfg,
+                                                       uint32_t sample, uint32_t bounce,
+                                                       WavefrontState w, const uint32_t* queue,
+                                                       const uint32_t* count) {
+  const uint32_t id = queued_path(w, queue, count);
+  bool go_on = false, shadow_valid = false;
+  if (id != kInvalid) {
+    PathState st = load_state(w, id, sample);
+    const float4 h4 = w.hit[id];
+    Hit hit;
+    hit.t = h4.x;
+    hit.prim = __float_as_uint(h4.y);
+    hit.u = h4.z;
+    hit.v = h4.w;
+    ShadowRequest sr;
+    go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
+    store_state(w, id, st);
+    shadow_valid = sr.valid;
+    if (sr.valid) {
+      w.shadow_o[id] = make_float4(sr.ray.o.x, sr.ray.o.y, sr.ray.o.z, sr.ray.tmax);
+      w.shadow_d[id] = make_float4(sr.ray.d.x, sr.ray.d.y, sr.ray.d.z,
+                                   __uint_as_float(sr.target_prim));
+      w.shadow_c[id] = make_float4(sr.contribution.x, sr.contribution.y, sr.contribution.z, 1.0f);
+    } else {
+      w.shadow_c[id].w = 0.0f;
+    }
+    w.alive[id] = go_on ? 1 : 2;
+  }
+  // Warp-aggregated statistics: shadow rays traced and paths entering the next bounce.
+  const unsigned ballot_shadow = __ballot_sync(0xffffffffu, shadow_valid);
+  const unsigned ballot_alive = __ballot_sync(0xffffffffu, go_on);
+  if ((threadIdx.x & 31) == 0) {
+    if (ballot_shadow) atomicAdd(&w.counters[0], (unsigned long long)__popc(ballot_shadow));
+    if (ballot_alive) atomicAdd(&w.alive_counts[bounce + 1], uint32_t(__popc(ballot_alive)));
+  }
+}
+
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontState w,
+                                                        const uint32_t* queue,
+                                                        const uint32_t* count, bool first,
+                                                        FilmView film) {
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= (queue ? *count : w.n)) return;
+  const uint32_t id = queue ? queue[i] : i;
+  const uint8_t state = w.alive[id];
+  if (state == 0) return;
+  const float4 c = w.shadow_c[id];
+  float4 r = w.radiance[id];
+  if (c.w != 0.0f) {
+    const float4 o = w.shadow_o[id], d = w.shadow_d[id];
+    Ray ray;
+    ray.o = vec3(o.x, o.y, o.z);
+    ray.tmax = o.w;
+    ray.d = vec3(d.x, d.y, d.z);
+    ray.pad = 0.0f;
+    if (!intersect_any<features_of<Spec>()>(s, ray, __float_as_uint(d.w))) {
+      r.x += c.x;
+      r.y += c.y;
+      r.z += c.z;
+      if (state == 1) w.radiance[id] = r;
+    }
+  }
+  if (state == 2) {  // the path ended in this bounce: its sample is complete
+    add_to_film(film, id, vec3(r.x, r.y, r.z), first, &w.counters[1]);
+    w.alive[id] = 0;
+  }
+}
+
+__global__ void sort_keys_kernel(SceneView s, WavefrontState w, const uint32_t* queue,
+                                 const uint32_t* count) {
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= (queue ? *count : w.n)) return;
+  const uint32_t id = queue ? queue[i] : i;
+  uint32_t key = 7;  // dead paths last
+  if (w.alive[id] == 1) {
+    const uint32_t prim = __float_as_uint(w.hit[id].y);
+    if (prim == kInvalid) {
+      key = 6;  // escaped
+    } else {
+      const uint32_t mat = prim < s.tri_count ? s.tri_shading[prim].material
+                                              : s.spheres[prim - s.tri_count].material;
+      key = uint32_t(s.materials[mat].type);
+    }
+  }
+  w.sort_keys[i] = key;
+  // Warp-aggregated histogram: one atomic per distinct key in the warp.
+  const unsigned peers = __match_any_sync(__activemask(), key);
+  if ((threadIdx.x & 31) == __ffs(peers) - 1) atomicAdd(&w.sort_bins[key], __popc(peers));
+}
+
+__global__ void sort_scatter_kernel(WavefrontState w, const uint32_t* queue, const uint32_t* count,
+                                    uint32_t* sorted) {
+  __shared__ uint32_t offsets[8];
+  if (threadIdx.x == 0) {
+    // Each block needs the exclusive prefix of the bins; bins[8..15] hold running cursors.
+    uint32_t acc = 0;
+    for (int k = 0; k < 8; ++k) {
+      offsets[k] = acc;
+      acc += w.sort_bins[k];
+    }
+  }
+  __syncthreads();
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= (queue ? *count : w.n)) return;
+  const uint32_t id = queue ? queue[i] : i;
+  const uint32_t key = w.sort_keys[i];
+  const unsigned peers = __match_any_sync(__activemask(), key);
+  const int leader = __ffs(peers) - 1;
+  uint32_t base = 0;
+  if ((threadIdx.x & 31) == leader) base = atomicAdd(&w.sort_bins[8 + key], __popc(peers));
+  base = __shfl_sync(peers, base, leader);
+  const uint32_t rank = __popc(peers & ((1u << (threadIdx.x & 31)) - 1));
+  sorted[offsets[key] + base + rank] = id;
+}
+
+struct IsAlive {
+  const uint8_t* alive;
+  __host__ __device__ bool operator()(uint32_t id) const { return alive[id] == 1; }
+};
+
+__global__ void resolve_kernel(FilmView film, float inv, float* rgb) {
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= film.n) return;
+  const float4 a = film.accum[i];
+  rgb[3 * i + 0] = a.x * inv;
+  rgb[3 * i + 1] = a.y * inv;
+  rgb[3 * i + 2] = a.z * inv;
+}
+
+__global__ void copy_kernel(const float4* from, float4* to, uint32_t n) {
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) to[i] = from[i];
+}
+
+uint32_t blocks(uint32_t n) { return (n + kBlock - 1) / kBlock; }
+
+}  // namespace
+
+uint32_t spec_for_features(uint32_t f) {
+  return ((f & kFeatureSpheres) ? kSpecSpheres : 0u) |
+         ((f & kFeatureDepthOfField) ? kSpecDepthOfField : 0u) |
+         ((f & kFeatureSpecular) ? kSpecSpecular : 0u);
+}
+
+const char* spec_name(uint32_t spec) {
+  static const char* kNames[8] = {
+      "triangles, pinhole, diffuse only",      "spheres+triangles, pinhole, diffuse only",
+      "triangles, thin lens, diffuse only",    "spheres+triangles, thin lens, diffuse only",
+      "triangles, pinhole, specular",          "spheres+triangles, pinhole, specular",
+      "triangles, thin lens, specular",        "general (all features)"};
+  return kNames[spec & 7];
+}
+
+// Runs F<Spec> for the runtime value spec; only the bits in `relevant` select a variant, so a
+// kernel that ignores a feature is compiled once for it.
+#define TRACER_SPEC_SWITCH(spec, relevant, CALL)            \
+  switch ((spec) & (relevant)) {                            \
+    case 0: CALL(0); break;                                 \
+    case 1: CALL(1); break;                                 \
+    case 2: CALL(2); break;                                 \
+    case 3: CALL(3); break;                                 \
+    case 4: CALL(4); break;                                 \
+    case 5: CALL(5); break;                                 \
+    case 6: CALL(6); break;                                 \
+    default: CALL(7); break;                                \
+  }
+
+void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
+                       uint32_t sample, bool first, FilmView film, unsigned long long* counters,
+                       cudaStream_t stream) {
+#define CALL(S) megakernel<S><<<blocks(film.n), kBlock, 0, stream>>>(s, cfg, sample, first, film, counters)
+  TRACER_SPEC_SWITCH(spec, 7u, CALL)
+#undef CALL
+  TRACER_CUDA_CHECK_LAUNCH("megakernel");
+}
+
+void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
+                     uint32_t sample, const WavefrontState& w, cudaStream_t stream) {
+#define CALL(S) generate_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, w)
+  switch (spec & kSpecDepthOfField) {
+    case 0: CALL(0); break;
+    default: CALL(kSpecDepthOfField); break;
+  }
+#undef CALL
+  TRACER_CUDA_CHECK_LAUNCH("generate_kernel");
+}
+
+void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w,
+                      const uint32_t* queue, const uint32_t* count, cudaStream_t stream) {
+#define CALL(S) intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count)
+  switch (spec & kSpecSpheres) {
+    case 0: CALL(0); break;
+    default: CALL(kSpecSpheres); break;
+  }
+#undef CALL
+  TRACER_CUDA_CHECK_LAUNCH("intersect_kernel");
+}
+
+void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
+                  uint32_t sample, uint32_t bounce, const WavefrontState& w,
+                  const uint32_t* queue, const uint32_t* count, cudaStream_t stream) {
+#define CALL(S) \
+  shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count)
+  switch (spec & (kSpecSpheres | kSpecSpecular)) {
+    case 0: CALL(0); break;
+    case kSpecSpheres: CALL(kSpecSpheres); break;
+    case kSpecSpecular: CALL(kSpecSpecular); break;
+    default: CALL(kSpecSpheres | kSpecSpecular); break;
+  }
+#undef CALL
+  TRACER_CUDA_CHECK_LAUNCH("shade_kernel");
+}
+
+void launch_shadow(uint32_t spec, const SceneView& s, const WavefrontState& w,
+                   const uint32_t* queue, const uint32_t* count, bool first, FilmView film,
+                   cudaStream_t stream) {
+#define CALL(S) \
+  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count, first, film)
+  switch (spec & kSpecSpheres) {
+    case 0: CALL(0); break;
+    default: CALL(kSpecSpheres); break;
+  }
+#undef CALL
+  TRACER_CUDA_CHECK_LAUNCH("shadow_kernel");
+}
+
+void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,
+                             const uint32_t* count, uint32_t* sorted, cudaStream_t stream) {
+  TRACER_CUDA_CHECK(cudaMemsetAsync(w.sort_bins, 0, 16 * sizeof(uint32_t), stream));
+  sort_keys_kernel<<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count);
+  TRACER_CUDA_CHECK_LAUNCH("sort_keys_kernel");
+  sort_scatter_kernel<<<blocks(w.n), kBlock, 0, stream>>>(w, queue, count, sorted);
+  TRACER_CUDA_CHECK_LAUNCH("sort_scatter_kernel");
+}
+
+size_t compaction_temp_bytes(uint32_t n) {
+  size_t bytes = 0;
+  TRACER_CUDA_CHECK(cub::DeviceSelect::If(nullptr, bytes, thrust::counting_iterator<uint32_t>(0),
+                                          (uint32_t*)nullptr, (uint32_t*)nullptr, n,
+                                          IsAlive{nullptr}));
+  return bytes;
+}
+
+void launch_compact(const WavefrontState& w, uint32_t* out_queue, uint32_t* out_count,
+                    void* temp, size_t temp_bytes, cudaStream_t stream) {
+  TRACER_CUDA_CHECK(cub::DeviceSelect::If(temp, temp_bytes, thrust::counting_iterator<uint32_t>(0),
+                                          out_queue, out_count, w.n, IsAlive{w.alive}, stream));
+}
+
+void launch_copy_hits(const float4* from, float4* to, uint32_t n, cudaStream_t stream) {
+  copy_kernel<<<blocks(n), kBlock, 0, stream>>>(from, to, n);
+  TRACER_CUDA_CHECK_LAUNCH("copy_kernel");
+}
+
+void launch_resolve(FilmView film, float inv_samples, float* rgb_out, cudaStream_t stream) {
+  resolve_kernel<<<blocks(film.n), kBlock, 0, stream>>>(film, inv_samples, rgb_out);
+  TRACER_CUDA_CHECK_LAUNCH("resolve_kernel");
+}
+
+}  // namespace tracer

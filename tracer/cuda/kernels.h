@@ -1,0 +1,68 @@
+// Host-callable launchers for the CUDA kernels (defined in kernels.cu). Each takes a
+// specialisation index `spec` (bits: 1 spheres, 2 depth of field, 4 specular materials) and runs
+// the kernel compiled for exactly those features; kGeneralSpec runs the one for all features.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include "integrator/path.h"
+
+namespace tracer {
+
+constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4;
+constexpr uint32_t kGeneralSpec = 7;
+
+uint32_t spec_for_features(uint32_t scene_features);
+const char* spec_name(uint32_t spec);  // e.g. "triangles, pinhole, diffuse only"
+
+// Structure-of-arrays path pool of `n` paths; path id == pixel index.
+struct WavefrontState {
+  uint32_t n = 0;
+  float4* ray_o = nullptr;       // origin, prev_pdf
+  float4* ray_d = nullptr;       // direction, depth | flags << 16 (as bits)
+  float4* throughput = nullptr;  // xyz
+  float4* radiance = nullptr;    // xyz
+  float4* hit = nullptr;         // t, prim (bits), u, v
+  float4* shadow_o = nullptr;    // origin, tmax
+  float4* shadow_d = nullptr;    // direction, target prim (bits)
+  float4* shadow_c = nullptr;    // contribution, valid (1 or 0)
+  uint8_t* alive = nullptr;      // 1 alive, 2 ended this bounce (radiance not yet added), 0 done
+  uint32_t* sort_keys = nullptr;
+  uint32_t* sort_bins = nullptr;       // 8 counters
+  unsigned long long* counters = nullptr;  // [0] shadow rays, [1] non-finite samples
+  uint32_t* alive_counts = nullptr;    // paths entering each bounce, [max_depth + 1]
+};
+
+struct FilmView {
+  float4* accum = nullptr;  // running sum per pixel
+  uint32_t n = 0;
+};
+
+void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
+                       uint32_t sample, bool first, FilmView film, unsigned long long* counters,
+                       cudaStream_t stream);
+
+void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
+                     uint32_t sample, const WavefrontState& w, cudaStream_t stream);
+// queue == nullptr: every path (dead ones are skipped); count: device pointer to queue length.
+void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w,
+                      const uint32_t* queue, const uint32_t* count, cudaStream_t stream);
+void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
+                  uint32_t sample, uint32_t bounce, const WavefrontState& w,
+                  const uint32_t* queue, const uint32_t* count, cudaStream_t stream);
+void launch_shadow(uint32_t spec, const SceneView& s, const WavefrontState& w,
+                   const uint32_t* queue, const uint32_t* count, bool first, FilmView film,
+                   cudaStream_t stream);
+// Counting sort of the queue by the material type at each path's hit (Cycles-style).
+void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,
+                             const uint32_t* count, uint32_t* sorted, cudaStream_t stream);
+// CUB select: ids of paths with alive == 1, in id order, and their number.
+size_t compaction_temp_bytes(uint32_t n);
+void launch_compact(const WavefrontState& w, uint32_t* out_queue, uint32_t* out_count,
+                    void* temp, size_t temp_bytes, cudaStream_t stream);
+// Copies the first-bounce hits out of / into the cache.
+void launch_copy_hits(const float4* from, float4* to, uint32_t n, cudaStream_t stream);
+// Mean radiance (sum / samples) as float RGB.
+void launch_resolve(FilmView film, float inv_samples, float* rgb_out, cudaStream_t stream);
+
+}  // namespace tracer
