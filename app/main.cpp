@@ -12,9 +12,11 @@ int main(int argc, char** argv) {
   auto* render = app.add_subcommand("render", "Render a scene headless to PNG or EXR");
   auto* info = app.add_subcommand("info", "Print statistics and needed features of a scene");
   auto* compare = app.add_subcommand("compare", "Compare two images (RMSE, relMSE, means)");
+  auto* bench = app.add_subcommand("bench", "Time the backends and GPU designs on a scene");
   const app::Runner run_render = app::add_render_command(*render);
   const app::Runner run_info = app::add_info_command(*info);
   const app::Runner run_compare = app::add_compare_command(*compare);
+  const app::Runner run_bench = app::add_bench_command(*bench);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -30,6 +32,7 @@ int main(int argc, char** argv) {
   if (*render) return run_render();
   if (*info) return run_info();
   if (*compare) return run_compare();
+  if (*bench) return run_bench();
   // No subcommand: the workbench window does not exist yet, so render the default scene.
   std::cerr << "pathtracer: no subcommand; rendering the built-in Cornell box to out/default.png "
                "(see `pathtracer --help`)\n";

@@ -386,6 +386,29 @@ ImageRGB CudaRenderer::image() const {
   return img;
 }
 
+double measure_copy_bandwidth_gbs() {
+  const size_t bytes = size_t(1) << 30;
+  DeviceBuffer<uint8_t> a(bytes), b(bytes);
+  TRACER_CUDA_CHECK(cudaMemset(a.get(), 1, bytes));
+  cudaEvent_t e0, e1;
+  TRACER_CUDA_CHECK(cudaEventCreate(&e0));
+  TRACER_CUDA_CHECK(cudaEventCreate(&e1));
+  for (int i = 0; i < 2; ++i)  // warm-up
+    TRACER_CUDA_CHECK(cudaMemcpy(b.get(), a.get(), bytes, cudaMemcpyDeviceToDevice));
+  constexpr int kReps = 10;
+  TRACER_CUDA_CHECK(cudaEventRecord(e0));
+  for (int i = 0; i < kReps; ++i)
+    TRACER_CUDA_CHECK(cudaMemcpyAsync(i % 2 ? a.get() : b.get(), i % 2 ? b.get() : a.get(), bytes,
+                                      cudaMemcpyDeviceToDevice));
+  TRACER_CUDA_CHECK(cudaEventRecord(e1));
+  TRACER_CUDA_CHECK(cudaEventSynchronize(e1));
+  float ms = 0.0f;
+  TRACER_CUDA_CHECK(cudaEventElapsedTime(&ms, e0, e1));
+  cudaEventDestroy(e0);
+  cudaEventDestroy(e1);
+  return 2.0 * double(bytes) * kReps / (ms * 1e-3) / 1e9;
+}
+
 std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not) {
   int count = 0;
   const cudaError_t err = cudaGetDeviceCount(&count);

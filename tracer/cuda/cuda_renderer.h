@@ -35,6 +35,10 @@ class CudaRenderer final : public Renderer {
   std::unique_ptr<Impl> impl_;
 };
 
+// Device-to-device copy bandwidth in GB/s (bytes read + bytes written, 1 GiB buffers): the
+// ceiling the wavefront's memory traffic is measured against.
+double measure_copy_bandwidth_gbs();
+
 // nullptr with the reason when no usable device exists.
 std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not);
 

@@ -1,0 +1,295 @@
+// `pathtracer bench`: speed figures measured side by side in one run. On the GPU it times the
+// megakernel and the wavefront with each switch (compaction, material sorting, specialisation,
+// first-bounce cache), with per-stage times, paths alive per bounce, bytes moved per segment and
+// the achieved bandwidth against the device's measured copy bandwidth; it also times the CPU
+// backend on the same scene so the CPU/GPU ratio comes from one run.
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "cpu/cpu_backend.h"
+#include "image/image.h"
+#include "scene/compiled_scene.h"
+#include "scene/loader.h"
+#if defined(TRACER_CUDA_BACKEND)
+#include "cuda/cuda_renderer.h"
+#endif
+
+namespace app {
+namespace {
+
+struct BenchOptions {
+  std::string scene;
+  int width = 1920, height = 1080, max_depth = 8, spp = 16, cpu_spp = 1;
+  std::string backend = "auto";
+  std::string json_out;
+  bool jitter_off_configs = true;
+};
+
+struct Config {
+  std::string name;
+  tracer::GpuOptions gpu;
+  bool jitter = true;
+};
+
+struct Result {
+  std::string name, kernel, specialization, note;
+  double ms_per_spp = 0, segments_per_s = 0, rays_per_s = 0;
+  tracer::RayCounts rays;  // per sample
+  tracer::StageTimes stages;
+  std::vector<uint32_t> alive;
+};
+
+// Bytes each wavefront stage reads and writes per path it processes (see kernels.cu's layout);
+// scene data (BVH, triangles, materials) is left out: it is small and mostly cache-resident.
+struct StageBytes {
+  double generate = 65, intersect = 53, sort = 45, shade = 198, shadow = 85;
+};
+
+Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
+                  tracer::IntegratorSettings cfg, const Config& c, int spp) {
+  cfg.jitter = c.jitter;
+  r.set_gpu_options(c.gpu);
+  r.set_scene(cs, cfg);
+  // Warm-up (module load, --kernel auto's calibration), then one timed sample at a time.
+  r.render(c.gpu.kernel == tracer::KernelMode::kAuto ? 4 : 2);
+  std::vector<double> ms;
+  Result res;
+  res.name = c.name;
+  tracer::RayCounts total;
+  for (int i = 0; i < spp; ++i) {
+    const tracer::FrameStats st = r.render(1);
+    ms.push_back(st.ms);
+    total.camera += st.rays.camera;
+    total.extension += st.rays.extension;
+    total.shadow += st.rays.shadow;
+    if (i == 0) {
+      res.stages = st.stages;
+      res.alive = st.alive_per_bounce;
+      res.kernel = st.kernel;
+      res.specialization = st.specialization;
+      res.note = st.note;
+    }
+  }
+  std::sort(ms.begin(), ms.end());
+  res.ms_per_spp = ms[ms.size() / 2];
+  res.rays.camera = total.camera / spp;
+  res.rays.extension = total.extension / spp;
+  res.rays.shadow = total.shadow / spp;
+  const double s = res.ms_per_spp * 1e-3;
+  res.segments_per_s = double(res.rays.camera + res.rays.extension) / s;
+  res.rays_per_s = double(res.rays.camera + res.rays.extension + res.rays.shadow) / s;
+  return res;
+}
+
+nlohmann::json to_json(const Result& r) {
+  return {{"config", r.name},
+          {"kernel", r.kernel},
+          {"specialization", r.specialization},
+          {"ms_per_spp", r.ms_per_spp},
+          {"M_segments_per_s", r.segments_per_s / 1e6},
+          {"M_rays_per_s", r.rays_per_s / 1e6},
+          {"rays_per_spp", {{"camera", r.rays.camera}, {"extension", r.rays.extension},
+                            {"shadow", r.rays.shadow}}},
+          {"stage_ms", {{"generate", r.stages.generate}, {"intersect", r.stages.intersect},
+                        {"sort", r.stages.sort}, {"shade", r.stages.shade},
+                        {"shadow", r.stages.shadow}, {"compact", r.stages.compact},
+                        {"megakernel", r.stages.megakernel}}},
+          {"alive_per_bounce", r.alive},
+          {"note", r.note}};
+}
+
+int run_bench(const BenchOptions& o) {
+  tracer::Scene scene;
+  try {
+    scene = o.scene.empty() ? tracer::builtin_default_scene() : tracer::load_scene(o.scene);
+  } catch (const tracer::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  tracer::RenderSettings rs = scene.settings;
+  rs.width = o.width;
+  rs.height = o.height;
+  rs.max_depth = o.max_depth;
+  scene.settings = rs;
+  try {
+    tracer::validate_scene(scene);
+  } catch (const tracer::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  const tracer::CompiledScene cs(scene, rs.width, rs.height);
+  const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(rs);
+  nlohmann::json out;
+  out["scene"] = o.scene.empty() ? "<built-in>" : o.scene;
+  out["settings"] = {{"width", rs.width}, {"height", rs.height}, {"max_depth", rs.max_depth},
+                     {"nee", rs.nee}, {"mis", rs.mis}, {"russian_roulette", rs.russian_roulette},
+                     {"spp_timed", o.spp}};
+  out["triangles"] = cs.view().tri_count;
+  out["features"] = tracer::describe_features(cs.features());
+  std::printf("scene %s: %u triangles, %u spheres, features: %s\n",
+              out["scene"].get<std::string>().c_str(), cs.view().tri_count,
+              cs.view().sphere_count, tracer::describe_features(cs.features()).c_str());
+  std::printf("settings: %dx%d, max depth %d, NEE %s, MIS %s, roulette %s (from depth %d)\n",
+              rs.width, rs.height, rs.max_depth, rs.nee ? "on" : "off", rs.mis ? "on" : "off",
+              rs.russian_roulette ? "on" : "off", rs.rr_start_depth);
+
+  std::vector<Result> results;
+  double gpu_best = 0.0;
+#if defined(TRACER_CUDA_BACKEND)
+  std::string why;
+  std::unique_ptr<tracer::Renderer> gpu;
+  if (o.backend != "cpu") gpu = tracer::make_cuda_renderer(&why);
+  if (!gpu && o.backend == "cuda") {
+    std::cerr << "error: --backend cuda: " << why << "\n";
+    return kExitInputError;
+  }
+  if (gpu) {
+    const double copy_gbs = tracer::measure_copy_bandwidth_gbs();
+    std::printf("device: %s; measured copy bandwidth %.0f GB/s (read + write)\n",
+                gpu->device_name().c_str(), copy_gbs);
+    out["device"] = gpu->device_name();
+    out["copy_bandwidth_GBps"] = copy_gbs;
+    auto* cuda = static_cast<tracer::CudaRenderer*>(gpu.get());
+    std::vector<Config> configs;
+    auto add = [&](const std::string& name, tracer::KernelMode k, bool compaction, bool sort,
+                   bool specialize, bool jitter = true) {
+      Config c;
+      c.name = name;
+      c.gpu.kernel = k;
+      c.gpu.compaction = compaction;
+      c.gpu.sort_materials = sort;
+      c.gpu.specialize = specialize;
+      c.gpu.first_bounce_cache = !jitter;
+      c.jitter = jitter;
+      configs.push_back(c);
+    };
+    using K = tracer::KernelMode;
+    add("megakernel, general", K::kMegakernel, false, false, false);
+    add("megakernel, specialized", K::kMegakernel, false, false, true);
+    add("wavefront, general", K::kWavefront, false, false, false);
+    add("wavefront", K::kWavefront, false, false, true);
+    add("wavefront+compaction", K::kWavefront, true, false, true);
+    add("wavefront+compaction+sorting", K::kWavefront, true, true, true);
+    add("wavefront+sorting", K::kWavefront, false, true, true);
+    if (o.jitter_off_configs && !(cs.features() & tracer::kFeatureDepthOfField)) {
+      add("wavefront+compaction, no jitter", K::kWavefront, true, false, true, false);
+      Config c = configs.back();
+      c.name = "wavefront+compaction+cache, no jitter";
+      c.gpu.first_bounce_cache = true;
+      configs.push_back(c);
+      configs[configs.size() - 2].gpu.first_bounce_cache = false;
+    }
+    add("auto", K::kAuto, true, false, true);
+    for (const Config& c : configs) results.push_back(run_config(*gpu, cs, cfg, c, o.spp));
+    for (const auto& r : results) gpu_best = std::max(gpu_best, r.segments_per_s);
+    out["path_state_bytes_per_pixel"] = cuda->path_state_bytes_per_pixel();
+    out["scene_device_bytes"] = cuda->scene_bytes();
+    out["bvh_bytes_per_triangle"] =
+        cs.view().tri_count ? double(cs.nodes().size() * sizeof(tracer::BvhNode)) /
+                                  cs.view().tri_count
+                            : 0.0;
+
+    std::printf("\n%-40s %-10s %9s %11s %10s %8s %8s %8s\n", "configuration", "kernel",
+                "ms/spp", "Mseg/s", "Mrays/s", "ext/spp", "shd/spp", "");
+    for (const auto& r : results) {
+      std::printf("%-40s %-10s %9.3f %11.0f %10.0f %7.2fM %7.2fM\n", r.name.c_str(),
+                  r.kernel.c_str(), r.ms_per_spp, r.segments_per_s / 1e6, r.rays_per_s / 1e6,
+                  r.rays.extension / 1e6, r.rays.shadow / 1e6);
+    }
+    std::printf("specialization for this scene: %s\n", results[1].specialization.c_str());
+    if (!results.back().note.empty()) std::printf("auto: %s\n", results.back().note.c_str());
+
+    // Stage breakdown and bandwidth of the wavefront with compaction.
+    const StageBytes sb;
+    for (const auto& r : results) {
+      if (r.kernel != "wavefront" || r.alive.empty()) continue;
+      double processed = 0;  // path-bounces shaded
+      for (uint32_t a : r.alive) processed += a;
+      const double n = double(rs.width) * rs.height;
+      const double bounces = double(r.alive.size());
+      auto gbs = [](double bytes, double ms) { return ms > 0 ? bytes / (ms * 1e-3) / 1e9 : 0.0; };
+      const double total = r.stages.generate + r.stages.intersect + r.stages.sort +
+                           r.stages.shade + r.stages.shadow + r.stages.compact;
+      std::printf("\n[%s] stages (ms per spp, share, GB/s against %.0f copy):\n", r.name.c_str(),
+                  out["copy_bandwidth_GBps"].get<double>());
+      auto row = [&](const char* name, double ms, double bytes) {
+        const double g = gbs(bytes, ms);
+        std::printf("  %-10s %8.3f ms %5.1f%%  %7.0f GB/s (%4.0f%%)\n", name, ms,
+                    total > 0 ? 100.0 * ms / total : 0.0, g,
+                    100.0 * g / out["copy_bandwidth_GBps"].get<double>());
+      };
+      const double scan = r.name.find("compaction") != std::string::npos ? processed : n * bounces;
+      row("generate", r.stages.generate, sb.generate * n);
+      row("intersect", r.stages.intersect, sb.intersect * processed + (scan - processed));
+      if (r.stages.sort > 0) row("sort", r.stages.sort, sb.sort * processed);
+      row("shade", r.stages.shade, sb.shade * processed + (scan - processed));
+      row("shadow", r.stages.shadow, sb.shadow * processed + (scan - processed));
+      if (r.stages.compact > 0) {
+        row("compact", r.stages.compact, (n + 4.0 * processed));
+        std::printf("  compaction: %.1f us per bounce, %.1f%% of the frame\n",
+                    1000.0 * r.stages.compact / std::max(1.0, bounces - 1),
+                    100.0 * r.stages.compact / total);
+      }
+      std::printf("  bytes per segment (state traffic): %.0f\n",
+                  (sb.generate * n + (sb.intersect + sb.shade + sb.shadow) * processed +
+                   (r.stages.sort > 0 ? sb.sort * processed : 0.0)) /
+                      processed);
+      std::printf("  paths alive per bounce:");
+      for (uint32_t a : r.alive) std::printf(" %u", a);
+      std::printf("\n");
+    }
+    std::printf("\npath state: %zu bytes per pixel; BVH: %.1f bytes per triangle\n",
+                cuda->path_state_bytes_per_pixel(), out["bvh_bytes_per_triangle"].get<double>());
+  } else if (o.backend != "cpu") {
+    std::printf("no GPU: %s\n", why.c_str());
+  }
+#endif
+  // The CPU backend on the same scene, for the CPU/GPU ratio.
+  if (o.backend != "cuda" && o.cpu_spp > 0) {
+    tracer::CpuRenderer cpu;
+    Config c;
+    c.name = "cpu (" + cpu.device_name() + ")";
+    const Result r = run_config(cpu, cs, cfg, c, o.cpu_spp);
+    results.push_back(r);
+    std::printf("%-40s %-10s %9.3f %11.1f %10.1f\n", r.name.c_str(), "cpu", r.ms_per_spp,
+                r.segments_per_s / 1e6, r.rays_per_s / 1e6);
+    if (gpu_best > 0)
+      std::printf("GPU (fastest) / CPU: %.0fx in path segments per second\n",
+                  gpu_best / r.segments_per_s);
+  }
+  nlohmann::json arr = nlohmann::json::array();
+  for (const auto& r : results) arr.push_back(to_json(r));
+  out["results"] = arr;
+  if (!o.json_out.empty()) {
+    try {
+      tracer::write_text_atomic(o.json_out, out.dump(2) + "\n");
+    } catch (const std::exception& e) {
+      std::cerr << "error: " << e.what() << "\n";
+      return kExitInputError;
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+
+Runner add_bench_command(CLI::App& cmd) {
+  auto o = std::make_shared<BenchOptions>();
+  cmd.add_option("scene", o->scene, "Scene file; default: built-in Cornell box")
+      ->check(CLI::ExistingFile);
+  cmd.add_option("--width", o->width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd.add_option("--height", o->height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd.add_option("--max-depth", o->max_depth, "Maximum path segments")->check(CLI::Range(1, 1024))->capture_default_str();
+  cmd.add_option("--spp", o->spp, "Timed samples per GPU configuration (median reported)")
+      ->check(CLI::Range(1, 100000))->capture_default_str();
+  cmd.add_option("--cpu-spp", o->cpu_spp, "Timed samples for the CPU backend (0: skip)")
+      ->check(CLI::Range(0, 100000))->capture_default_str();
+  cmd.add_option("--backend", o->backend, "auto, cpu or cuda")->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+  cmd.add_option("--json", o->json_out, "Also write the figures to this JSON file");
+  return [o] { return run_bench(*o); };
+}
+
+}  // namespace app

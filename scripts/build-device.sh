@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Builds the headless binaries for the lent GPU machine (sm_90 + PTX) into .devbuild/ and gathers
+# them with the Debian shared libraries they need into .devbuild/dist (carried to the device).
+# The CUDA runtime is linked statically; the device only needs its driver.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/setup.sh >/dev/null
+BUILD=.devbuild/build
+DIST=.devbuild/dist
+if [ ! -f "$BUILD/build.ninja" ]; then
+  cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 \
+    -DCMAKE_CUDA_COMPILER=/usr/local/cuda/bin/nvcc \
+    -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_CUDA_COMPILER_LAUNCHER=ccache >/dev/null
+fi
+cmake --build "$BUILD" --target pathtracer cuda_test
+rm -rf "$DIST"
+mkdir -p "$DIST/lib"
+cp "$BUILD/pathtracer" "$BUILD/tests/cuda_test" "$DIST/"
+# Ship every library that is not part of the C/C++ runtime every Linux has.
+for bin in "$DIST/pathtracer" "$DIST/cuda_test"; do
+  ldd "$bin" | awk '/=> \//{print $3}' | while read -r lib; do
+    case "$(basename "$lib")" in
+      libc.so*|libm.so*|libstdc++.so*|libgcc_s.so*|libpthread.so*|libdl.so*|librt.so*|ld-linux*) ;;
+      *) [ -e "$DIST/lib/$(basename "$lib")" ] || cp -L "$lib" "$DIST/lib/" ;;
+    esac
+  done
+done
+cp /usr/share/glmark2/models/bunny.obj "$DIST/"  # for assets/scenes/cornell_bunnies.json
+du -sh "$DIST"
+ls "$DIST/lib"

@@ -1,0 +1,202 @@
+// GPU tests (ctest label `gpu`): the CUDA backend renders what the CPU backend renders. With the
+// same seed both trace the same paths, so most pixels agree to rounding; with different seeds the
+// images agree statistically (4x4-block z-test against CPU variances). Compaction, material
+// sorting, the first-bounce cache, specialisation and the megakernel never change the image.
+// Every test skips, saying why, when no CUDA device is present.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "cuda/cuda_renderer.h"
+#include "scene/loader.h"
+#include "scene_builders.h"
+#include "test_util.h"
+
+namespace {
+using namespace test;
+
+std::unique_ptr<Renderer> gpu_or_skip_reason(std::string* why) {
+  return make_cuda_renderer(why);
+}
+
+#define REQUIRE_GPU(r)                                                   \
+  std::string why_no_gpu;                                                \
+  auto r = gpu_or_skip_reason(&why_no_gpu);                              \
+  if (!r) GTEST_SKIP() << "no CUDA device, GPU test skipped: " << why_no_gpu
+
+struct BlockZ {
+  double chi2_per_dof, limit;
+};
+
+// 4x4-block z statistics of `img` against CPU stats, where `img` is the mean of `spp` samples of
+// the same estimator (so its variance is the CPU's per-sample variance over spp).
+BlockZ block_z(const ImageRGB& img, uint32_t spp, const PixelStats& ref) {
+  constexpr int k = 4;
+  double z2 = 0;
+  size_t n = 0;
+  for (int by = 0; by + k <= ref.height; by += k)
+    for (int bx = 0; bx + k <= ref.width; bx += k)
+      for (int c = 0; c < 3; ++c) {
+        double ma = 0, mb = 0, v = 0;
+        for (int y = by; y < by + k; ++y)
+          for (int x = bx; x < bx + k; ++x) {
+            const size_t i = size_t(y) * ref.width + x;
+            ma += img.pixels[3 * i + c];
+            mb += ref.mean[i][c];
+            v += ref.var[i][c] * (1.0 / spp + 1.0 / ref.spp);
+          }
+        const double d = (ma - mb) / (k * k);
+        z2 += d * d / std::max(v / (k * k * k * k), 1e-12);
+        ++n;
+      }
+  return {z2 / n, 1.0 + 5.0 * std::sqrt(2.0 / n)};
+}
+
+// Fraction of pixel values that agree to a relative 1e-3 (same seed: same paths).
+double identical_fraction(const ImageRGB& a, const ImageRGB& b) {
+  size_t same = 0;
+  for (size_t i = 0; i < a.pixels.size(); ++i)
+    if (std::abs(a.pixels[i] - b.pixels[i]) <= 1e-3f * (1.0f + std::abs(b.pixels[i]))) ++same;
+  return double(same) / a.pixels.size();
+}
+
+ImageRGB render_gpu(Renderer& r, const Scene& s, const RenderSettings& rs, uint32_t spp,
+                    const GpuOptions& o, FrameStats* stats = nullptr) {
+  const CompiledScene cs(s, rs.width, rs.height);
+  r.set_gpu_options(o);
+  r.set_scene(cs, make_integrator_settings(rs));
+  const FrameStats st = r.render(spp);
+  if (stats) *stats = st;
+  EXPECT_EQ(r.samples_done(), spp);
+  return r.image();
+}
+
+const char* kScenes[] = {"cornell_box.json", "cornell_spheres.json", "depth_of_field.json",
+                         "obj_scene.json",   "gltf_scene.gltf",      "cornell_closed.json"};
+
+TEST(Gpu, MatchesCpuOnEveryAsset) {
+  REQUIRE_GPU(gpu);
+  std::printf("device: %s\n", gpu->device_name().c_str());
+  for (const char* name : kScenes) {
+    const Scene s = load_scene(source_dir() + "/assets/scenes/" + name);
+    RenderSettings rs = s.settings;
+    rs.width = 64;
+    rs.height = 64;
+    rs.seed = 5;
+    const PixelStats cpu = render_pixel_stats(s, rs, 256);
+    for (KernelMode mode : {KernelMode::kWavefront, KernelMode::kMegakernel}) {
+      GpuOptions o;
+      o.kernel = mode;
+      const ImageRGB same_seed = render_gpu(*gpu, s, rs, 256, o);
+      ImageRGB cpu_img = make_image(rs.width, rs.height);
+      for (size_t i = 0; i < cpu.mean.size(); ++i) cpu_img.set(int(i % rs.width), int(i / rs.width), cpu.mean[i]);
+      const double same = identical_fraction(same_seed, cpu_img);
+      RenderSettings other = rs;
+      other.seed = 77;
+      const ImageRGB indep = render_gpu(*gpu, s, other, 1024, o);
+      const BlockZ z = block_z(indep, 1024, cpu);
+      std::printf("%-22s %-10s same-seed identical %.4f, independent chi2/dof %.3f (limit %.3f)\n",
+                  name, mode == KernelMode::kWavefront ? "wavefront" : "megakernel", same,
+                  z.chi2_per_dof, z.limit);
+      EXPECT_GT(same, 0.9) << name;
+      EXPECT_LT(z.chi2_per_dof, z.limit) << name;
+    }
+  }
+}
+
+TEST(Gpu, SwitchesNeverChangeTheImage) {
+  REQUIRE_GPU(gpu);
+  const Scene s = load_scene(source_dir() + "/assets/scenes/cornell_spheres.json");
+  RenderSettings rs = s.settings;
+  rs.width = 96;
+  rs.height = 64;
+  GpuOptions plain;
+  plain.kernel = KernelMode::kWavefront;
+  plain.compaction = false;
+  plain.sort_materials = false;
+  plain.specialize = false;
+  FrameStats base_stats;
+  const ImageRGB base = render_gpu(*gpu, s, rs, 64, plain, &base_stats);
+  struct Variant {
+    const char* name;
+    GpuOptions o;
+  };
+  std::vector<Variant> variants;
+  GpuOptions o = plain;
+  o.compaction = true;
+  variants.push_back({"compaction", o});
+  o.sort_materials = true;
+  variants.push_back({"compaction+sorting", o});
+  o.specialize = true;
+  variants.push_back({"compaction+sorting+specialized", o});
+  GpuOptions sort_only = plain;
+  sort_only.sort_materials = true;
+  variants.push_back({"sorting without compaction", sort_only});
+  GpuOptions mega = plain;
+  mega.kernel = KernelMode::kMegakernel;
+  variants.push_back({"megakernel", mega});
+  mega.specialize = true;
+  variants.push_back({"megakernel specialized", mega});
+  for (const auto& v : variants) {
+    FrameStats st;
+    const ImageRGB img = render_gpu(*gpu, s, rs, 64, v.o, &st);
+    const double same = identical_fraction(img, base);
+    std::printf("%-32s identical %.4f\n", v.name, same);
+    EXPECT_GT(same, 0.97) << v.name;
+    if (v.o.kernel == KernelMode::kWavefront && !base_stats.alive_per_bounce.empty())
+      EXPECT_EQ(st.alive_per_bounce, base_stats.alive_per_bounce) << v.name;
+  }
+}
+
+TEST(Gpu, FirstBounceCacheNeedsAFixedCamera) {
+  REQUIRE_GPU(gpu);
+  const Scene s = builtin_default_scene();
+  RenderSettings rs = s.settings;
+  rs.width = 64;
+  rs.height = 64;
+  rs.jitter = false;
+  GpuOptions on, off;
+  on.kernel = off.kernel = KernelMode::kWavefront;
+  off.first_bounce_cache = false;
+  FrameStats st;
+  const ImageRGB a = render_gpu(*gpu, s, rs, 32, on, &st);
+  EXPECT_EQ(st.note.find("disabled"), std::string::npos) << st.note;
+  const ImageRGB b = render_gpu(*gpu, s, rs, 32, off);
+  EXPECT_GT(identical_fraction(a, b), 0.999);
+  rs.jitter = true;
+  render_gpu(*gpu, s, rs, 4, on, &st);
+  EXPECT_NE(st.note.find("jitter"), std::string::npos) << "the reason must be reported";
+}
+
+TEST(Gpu, ResetIsComplete) {
+  REQUIRE_GPU(gpu);
+  const Scene s = builtin_default_scene();
+  RenderSettings rs = s.settings;
+  rs.width = 48;
+  rs.height = 32;
+  const CompiledScene cs(s, rs.width, rs.height);
+  gpu->set_scene(cs, make_integrator_settings(rs));
+  gpu->render(8);
+  const ImageRGB a = gpu->image();
+  gpu->render(8);
+  gpu->reset();
+  EXPECT_EQ(gpu->samples_done(), 0u);
+  gpu->render(8);
+  EXPECT_EQ(identical_fraction(gpu->image(), a), 1.0);
+}
+
+TEST(Gpu, KernelAutoChoosesAndSaysWhich) {
+  REQUIRE_GPU(gpu);
+  const Scene s = builtin_default_scene();
+  RenderSettings rs = s.settings;
+  rs.width = 256;
+  rs.height = 256;
+  const CompiledScene cs(s, rs.width, rs.height);
+  gpu->set_gpu_options(GpuOptions{});
+  gpu->set_scene(cs, make_integrator_settings(rs));
+  const FrameStats st = gpu->render(8);
+  EXPECT_NE(st.note.find("kernel auto chose"), std::string::npos) << st.note;
+  std::printf("%s\n", st.note.c_str());
+}
+
+}  // namespace
