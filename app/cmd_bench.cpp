@@ -26,6 +26,7 @@ struct BenchOptions {
   std::string backend = "auto";
   std::string json_out;
   bool jitter_off_configs = true;
+  std::string nee = "on";
 };
 
 struct Config {
@@ -94,6 +95,7 @@ nlohmann::json to_json(const Result& r) {
           {"rays_per_spp", {{"camera", r.rays.camera}, {"extension", r.rays.extension},
                             {"shadow", r.rays.shadow}}},
           {"stage_ms", {{"generate", r.stages.generate}, {"intersect", r.stages.intersect},
+                        {"intersect_camera_rays", r.stages.intersect_first},
                         {"sort", r.stages.sort}, {"shade", r.stages.shade},
                         {"shadow", r.stages.shadow}, {"compact", r.stages.compact},
                         {"megakernel", r.stages.megakernel}}},
@@ -113,6 +115,7 @@ int run_bench(const BenchOptions& o) {
   rs.width = o.width;
   rs.height = o.height;
   rs.max_depth = o.max_depth;
+  rs.nee = o.nee == "on";
   scene.settings = rs;
   try {
     tracer::validate_scene(scene);
@@ -227,6 +230,10 @@ int run_bench(const BenchOptions& o) {
       if (r.stages.sort > 0) row("sort", r.stages.sort, sb.sort * processed);
       row("shade", r.stages.shade, sb.shade * processed + (scan - processed));
       row("shadow", r.stages.shadow, sb.shadow * processed + (scan - processed));
+      const double bounce_ms = r.stages.intersect - r.stages.intersect_first;
+      std::printf("  intersect: camera rays %.0f Mrays/s, bounce rays %.0f Mrays/s\n",
+                  n / (r.stages.intersect_first * 1e-3) / 1e6,
+                  (processed - n) / (bounce_ms * 1e-3) / 1e6);
       if (r.stages.compact > 0) {
         row("compact", r.stages.compact, (n + 4.0 * processed));
         std::printf("  compaction: %.1f us per bounce, %.1f%% of the frame\n",
@@ -289,6 +296,8 @@ Runner add_bench_command(CLI::App& cmd) {
       ->check(CLI::Range(0, 100000))->capture_default_str();
   cmd.add_option("--backend", o->backend, "auto, cpu or cuda")->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   cmd.add_option("--json", o->json_out, "Also write the figures to this JSON file");
+  cmd.add_option("--nee", o->nee, "Next-event estimation: on or off")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   return [o] { return run_bench(*o); };
 }
 

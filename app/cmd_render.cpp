@@ -28,7 +28,22 @@ struct RenderOptions {
   float exposure = 0.0f;
   std::string tonemap = "none";
   bool quiet = false;
+  // GPU switches (ignored by the CPU backend).
+  std::string kernel = "auto";
+  std::string compaction = "on", sort = "off", cache = "on", specialize = "on", jitter;
 };
+
+tracer::GpuOptions gpu_options(const RenderOptions& o) {
+  tracer::GpuOptions g;
+  g.kernel = o.kernel == "wavefront"    ? tracer::KernelMode::kWavefront
+             : o.kernel == "megakernel" ? tracer::KernelMode::kMegakernel
+                                        : tracer::KernelMode::kAuto;
+  g.compaction = o.compaction == "on";
+  g.sort_materials = o.sort == "on";
+  g.first_bounce_cache = o.cache == "on";
+  g.specialize = o.specialize == "on";
+  return g;
+}
 
 std::string fmt_seconds(double s) {
   char buf[32];
@@ -65,6 +80,7 @@ int run_render(const RenderOptions& o) {
   apply_switch(o.nee, rs.nee);
   apply_switch(o.mis, rs.mis);
   apply_switch(o.rr, rs.russian_roulette);
+  apply_switch(o.jitter, rs.jitter);
   scene.settings = rs;
   try {
     tracer::validate_scene(scene);  // the command line may have made the image too large
@@ -93,6 +109,7 @@ int run_render(const RenderOptions& o) {
 
   const tracer::CompiledScene compiled(scene, rs.width, rs.height);
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(rs);
+  renderer->set_gpu_options(gpu_options(o));
   renderer->set_scene(compiled, cfg);
   const double setup_s = std::chrono::duration<double>(clock::now() - t_start).count();
 
@@ -105,12 +122,19 @@ int run_render(const RenderOptions& o) {
   uint32_t pass = 1;
   tracer::RayCounts rays;
   double render_s = 0.0;
+  std::string last_note, last_kernel, last_spec;
   for (;;) {
     const uint32_t done = renderer->samples_done();
     if (!timed && done >= target) break;
     if (timed && render_s >= rs.time_limit_s) break;
     uint32_t n = timed ? pass : std::min(pass, target - done);
     const tracer::FrameStats fs = renderer->render(n);
+    if (!fs.note.empty() && fs.note != last_note && !o.quiet) {
+      std::cerr << (tty ? "\n" : "") << "note: " << fs.note << "\n";
+      last_note = fs.note;
+    }
+    last_kernel = fs.kernel;
+    last_spec = fs.specialization;
     rays.camera += fs.rays.camera;
     rays.extension += fs.rays.extension;
     rays.shadow += fs.rays.shadow;
@@ -147,7 +171,14 @@ int run_render(const RenderOptions& o) {
                      {"max_depth", rs.max_depth}, {"nee", rs.nee},
                      {"mis", rs.mis},             {"russian_roulette", rs.russian_roulette},
                      {"rr_start_depth", rs.rr_start_depth}, {"seed", rs.seed},
-                     {"exposure", o.exposure},    {"tonemap", tracer::tone_map_name(op)}};
+                     {"exposure", o.exposure},    {"tonemap", tracer::tone_map_name(op)},
+                     {"jitter", rs.jitter}};
+    if (renderer->backend_name() == "cuda") {
+      j["gpu"] = {{"kernel_option", o.kernel}, {"kernel", last_kernel},
+                  {"specialization", last_spec}, {"compaction", o.compaction},
+                  {"sort", o.sort}, {"first_bounce_cache", o.cache},
+                  {"specialize", o.specialize}, {"note", last_note}};
+    }
     j["spp"] = spp_done;
     j["wall_time_s"] = render_s;
     j["setup_time_s"] = setup_s;
@@ -201,7 +232,20 @@ Runner add_render_command(CLI::App& cmd) {
       ->check(CLI::Range(-20.0, 20.0));
   cmd.add_option("--tonemap", o->tonemap, "PNG tone mapping: none, reinhard or aces")
       ->check(CLI::IsMember({"none", "reinhard", "aces"}));
+  cmd.add_option("--jitter", o->jitter, "Jitter samples inside pixels: on or off")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd.add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
+  const char* gpu = "GPU (CUDA backend)";
+  cmd.add_option("--kernel", o->kernel, "auto (time both, keep the faster), wavefront or megakernel")
+      ->check(CLI::IsMember({"auto", "wavefront", "megakernel"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--compaction", o->compaction, "Compact live path indices after each bounce")
+      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--sort", o->sort, "Sort paths by material before shading")
+      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--cache", o->cache, "First-bounce cache (needs --jitter off and no depth of field)")
+      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--specialize", o->specialize, "Kernels compiled for the scene's features only")
+      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   return [o] { return run_render(*o); };
 }
 

@@ -5,10 +5,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh >/dev/null
-BUILD=.devbuild/build
-DIST=.devbuild/dist
+# VARIANT=name EXTRA_CUDA_FLAGS=... builds an experimental variant into .devbuild/dist-name.
+BUILD=.devbuild/build${VARIANT:+-$VARIANT}
+DIST=.devbuild/dist${VARIANT:+-$VARIANT}
 if [ ! -f "$BUILD/build.ninja" ]; then
   cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 \
+    -DCMAKE_CUDA_FLAGS="${EXTRA_CUDA_FLAGS:-}" \
     -DCMAKE_CUDA_COMPILER=/usr/local/cuda/bin/nvcc \
     -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_CUDA_COMPILER_LAUNCHER=ccache >/dev/null
 fi

@@ -271,13 +271,24 @@ struct LightScene {
     return uint32_t(materials.size() - 1);
   }
   void triangle(vec3 a, vec3 b, vec3 c, uint32_t mat) {
-    tris.push_back({a, b, c});
+    TriangleVerts t{};
+    t.v0 = a;
+    t.v1 = b;
+    t.v2 = c;
+    tris.push_back(t);
     TriangleShading s{};
     s.material = mat;
     s.light = kInvalid;
     shading.push_back(s);
   }
-  void sphere(vec3 c, float r, uint32_t mat) { spheres.push_back({c, r, mat, kInvalid}); }
+  void sphere(vec3 c, float r, uint32_t mat) {
+    Sphere sp{};
+    sp.center = c;
+    sp.radius = r;
+    sp.material = mat;
+    sp.light = kInvalid;
+    spheres.push_back(sp);
+  }
 
   // Lights in primitive order (triangles, then spheres), chosen by luminance x area, as the host
   // scene compiler does; the test only needs the CDF to match the powers.

@@ -21,16 +21,54 @@ struct Hit {
   TRACER_HD bool valid() const { return prim != kInvalid; }
 };
 
-struct TriangleVerts {
-  vec3 v0, v1, v2;
+// 48 bytes so that a triangle is three aligned 16-byte loads on the GPU.
+struct alignas(16) TriangleVerts {
+  vec3 v0;
+  float pad0;
+  vec3 v1;
+  float pad1;
+  vec3 v2;
+  float pad2;
 };
 
-struct Sphere {
+TRACER_HD TRACER_INLINE TriangleVerts load_triangle(const TriangleVerts* tris, uint32_t i) {
+#if defined(__CUDA_ARCH__)
+  const float4* p = reinterpret_cast<const float4*>(tris + i);
+  const float4 a = __ldg(p), b = __ldg(p + 1), c = __ldg(p + 2);
+  TriangleVerts t;
+  t.v0 = vec3(a.x, a.y, a.z);
+  t.v1 = vec3(b.x, b.y, b.z);
+  t.v2 = vec3(c.x, c.y, c.z);
+  t.pad0 = t.pad1 = t.pad2 = 0.0f;
+  return t;
+#else
+  return tris[i];
+#endif
+}
+
+struct alignas(16) Sphere {
   vec3 center;
   float radius;
   uint32_t material;
   uint32_t light;  // index into the light list, kInvalid when not emissive
+  uint32_t pad[2];
 };
+
+TRACER_HD TRACER_INLINE Sphere load_sphere(const Sphere* spheres, uint32_t i) {
+#if defined(__CUDA_ARCH__)
+  const float4* p = reinterpret_cast<const float4*>(spheres + i);
+  const float4 a = __ldg(p), b = __ldg(p + 1);
+  Sphere s;
+  s.center = vec3(a.x, a.y, a.z);
+  s.radius = a.w;
+  s.material = __float_as_uint(b.x);
+  s.light = __float_as_uint(b.y);
+  s.pad[0] = s.pad[1] = 0;
+  return s;
+#else
+  return spheres[i];
+#endif
+}
 
 // Per-ray constants of the watertight test: the axis permutation and shear that map the ray
 // direction to +z.

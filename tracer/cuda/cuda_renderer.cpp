@@ -11,7 +11,9 @@
 namespace tracer {
 
 namespace {
-enum Stage { kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kStageCount };
+enum Stage {
+  kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kIntersectFirst, kStageCount
+};
 }
 
 struct CudaRenderer::Impl {
@@ -136,19 +138,21 @@ struct CudaRenderer::Impl {
   void collect(StageTimes& t) {
     if (marks.size() < 2) return;
     TRACER_CUDA_CHECK(cudaEventSynchronize(marks.back().first));
-    double* slot[kStageCount] = {&t.generate, &t.intersect, &t.sort, &t.shade,
-                                 &t.shadow,   &t.compact,   &t.megakernel};
+    double* slot[kStageCount] = {&t.generate, &t.intersect,  &t.sort,      &t.shade,
+                                 &t.shadow,   &t.compact,    &t.megakernel, &t.intersect_first};
     for (size_t i = 1; i < marks.size(); ++i) {
       float ms = 0.0f;
       TRACER_CUDA_CHECK(cudaEventElapsedTime(&ms, marks[i - 1].first, marks[i].first));
       *slot[marks[i].second] += ms;
+      if (marks[i].second == kIntersectFirst) t.intersect += ms;
     }
     marks.clear();
   }
 
   void megakernel_wave(uint32_t sample, bool first, bool timed) {
     mark(timed, kMega);  // start
-    launch_megakernel(spec(), view, cfg, sample, first, film_view(), counters.get(), stream);
+    launch_megakernel(spec(), view, cfg, sample, first, film_view(), counters.get(), count.get(),
+                      stream);
     mark(timed, kMega);
   }
 
@@ -178,7 +182,7 @@ struct CudaRenderer::Impl {
           cache_valid = true;
         }
       }
-      mark(timed, kIntersect);
+      mark(timed, b == 0 ? kIntersectFirst : kIntersect);
       if (opts.sort_materials) {
         launch_sort_by_material(view, w, q, c, sorted.get(), stream);
         // The sorted queue holds every queued slot, so its length is the same count.
@@ -308,6 +312,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   m.cache_allowed(&st.note);
   m.counters.zero_async(m.stream);
   uint64_t extension_wavefront = 0;
+  uint32_t wavefront_samples = 0;
   for (uint32_t k = 0; k < spp; ++k) {
     const uint32_t sample = m.samples + k;
     const bool first = sample == 0;
@@ -340,6 +345,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
       }
     }
     if (mode == KernelMode::kWavefront) {
+      ++wavefront_samples;
       // Extension rays: every path alive after bounce b traces one more segment.
       std::vector<uint32_t> alive;
       if (!timed || k != 0) m.alive_counts.download(alive);
@@ -357,7 +363,13 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
   st.rays.camera = uint64_t(m.n()) * spp;
   st.rays.shadow = c[0];
-  st.rays.extension = c[2] + extension_wavefront;
+  // counters[2] holds the megakernel's segments, camera rays included.
+  uint64_t mega_samples = 0;
+  st.rays.extension = extension_wavefront;
+  if (c[2] > 0) {
+    mega_samples = spp - wavefront_samples;
+    st.rays.extension += c[2] - uint64_t(m.n()) * mega_samples;
+  }
   st.nonfinite = c[1];
   m.nonfinite += c[1];
   m.samples += spp;

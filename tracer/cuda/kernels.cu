@@ -4,6 +4,8 @@
 #include <cub/device/device_select.cuh>
 #include <thrust/iterator/counting_iterator.h>
 
+#include <algorithm>
+
 #include "cuda/cuda_check.h"
 #include "cuda/kernels.h"
 
@@ -11,6 +13,10 @@ namespace tracer {
 namespace {
 
 constexpr int kBlock = 256;
+// Minimum resident blocks per SM asked of the compiler for the megakernel (caps its registers).
+#ifndef TRACER_MEGA_MIN_BLOCKS
+#define TRACER_MEGA_MIN_BLOCKS 4  // 64 registers: measured fastest on an H200 (PERFORMANCE.md)
+#endif
 
 template <uint32_t Spec>
 constexpr uint32_t features_of() {
@@ -37,17 +43,48 @@ __device__ __forceinline__ void warp_add(unsigned long long* target, uint32_t va
   if ((threadIdx.x & 31) == uint32_t(__ffs(mask) - 1)) atomicAdd(target, (unsigned long long)sum);
 }
 
+// Persistent megakernel with path regeneration: each thread runs whole paths, and a thread
+// whose path ends takes the next pixel from a global counter (one atomic per warp), so warps stay
+// full while path lengths differ (Aila & Laine 2009's persistent threads, Novak et al. 2010's
+// path regeneration). Every pixel gets exactly one sample per launch.
 template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock) megakernel(SceneView s, IntegratorSettings cfg,
+__global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(SceneView s, IntegratorSettings cfg,
                                                      uint32_t sample, bool first, FilmView film,
-                                                     unsigned long long* counters) {
-  const uint32_t pixel = blockIdx.x * blockDim.x + threadIdx.x;
-  if (pixel >= film.n) return;
-  RayCounts rc;
-  const vec3 L = trace_path<features_of<Spec>()>(s, cfg, pixel, sample, &rc);
-  add_to_film(film, pixel, L, first, &counters[1]);
-  warp_add(&counters[2], uint32_t(rc.extension));
-  warp_add(&counters[0], uint32_t(rc.shadow));
+                                                     unsigned long long* counters,
+                                                     uint32_t* next_pixel) {
+  constexpr uint32_t F = features_of<Spec>();
+  const uint32_t lane = threadIdx.x & 31;
+  PathState st;
+  bool alive = false;
+  uint32_t segments = 0, shadows = 0;
+  for (;;) {
+    const unsigned active = __activemask();
+    const unsigned need = __ballot_sync(active, !alive);
+    if (!alive) {
+      const int leader = __ffs(need) - 1;
+      uint32_t base = 0;
+      if (int(lane) == leader) base = atomicAdd(next_pixel, uint32_t(__popc(need)));
+      base = __shfl_sync(need, base, leader);
+      const uint32_t pixel = base + __popc(need & ((1u << lane) - 1u));
+      if (pixel >= film.n) break;
+      generate_path<F>(s, cfg, pixel, sample, st);
+      alive = true;
+    }
+    const Hit hit = intersect_closest<F>(s, st.ray);
+    ++segments;
+    ShadowRequest sr;
+    const bool go_on = shade_path<F>(s, cfg, st, hit, sr);
+    if (sr.valid) {
+      ++shadows;
+      if (!intersect_any<F>(s, sr.ray, sr.target_prim)) st.radiance += sr.contribution;
+    }
+    if (!go_on) {
+      add_to_film(film, st.pixel, st.radiance, first, &counters[1]);
+      alive = false;
+    }
+  }
+  warp_add(&counters[2], segments);
+  warp_add(&counters[0], shadows);
 }
 
 __device__ __forceinline__ void store_state(const WavefrontState& w, uint32_t id,
@@ -284,10 +321,27 @@ const char* spec_name(uint32_t spec) {
     default: CALL(7); break;                                \
   }
 
+// Enough resident blocks to fill every multiprocessor once (persistent threads).
+template <typename Kernel>
+uint32_t persistent_blocks(Kernel kernel, uint32_t n) {
+  static int sms = 0;
+  if (sms == 0) {
+    int dev = 0;
+    TRACER_CUDA_CHECK(cudaGetDevice(&dev));
+    TRACER_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, dev));
+  }
+  int per_sm = 0;
+  TRACER_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kernel, kBlock, 0));
+  return std::min<uint32_t>(uint32_t(std::max(1, per_sm) * sms), blocks(n));
+}
+
 void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                        uint32_t sample, bool first, FilmView film, unsigned long long* counters,
-                       cudaStream_t stream) {
-#define CALL(S) megakernel<S><<<blocks(film.n), kBlock, 0, stream>>>(s, cfg, sample, first, film, counters)
+                       uint32_t* next_pixel, cudaStream_t stream) {
+  TRACER_CUDA_CHECK(cudaMemsetAsync(next_pixel, 0, sizeof(uint32_t), stream));
+#define CALL(S)                                                                       \
+  megakernel<S><<<persistent_blocks(megakernel<S>, film.n), kBlock, 0, stream>>>(     \
+      s, cfg, sample, first, film, counters, next_pixel)
   TRACER_SPEC_SWITCH(spec, 7u, CALL)
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("megakernel");

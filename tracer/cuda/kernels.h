@@ -38,9 +38,10 @@ struct FilmView {
   uint32_t n = 0;
 };
 
+// counters[2] receives the path segments traced (camera rays included); next_pixel is scratch.
 void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                        uint32_t sample, bool first, FilmView film, unsigned long long* counters,
-                       cudaStream_t stream);
+                       uint32_t* next_pixel, cudaStream_t stream);
 
 void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                      uint32_t sample, const WavefrontState& w, cudaStream_t stream);

@@ -58,7 +58,7 @@ TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref
   ls.prim = light.prim;
   uint32_t material;
   if (!(F & kFeatureSpheres) || light.prim < s.tri_count) {
-    const TriangleVerts& tv = s.tri_verts[light.prim];
+    const TriangleVerts tv = load_triangle(s.tri_verts, light.prim);
     const vec2 b = sample_uniform_triangle(u);
     ls.p = b.x * tv.v0 + b.y * tv.v1 + (1.0f - b.x - b.y) * tv.v2;
     ls.n = glm::normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));

@@ -25,6 +25,7 @@ struct GpuOptions {
 // Milliseconds spent per wavefront stage in one call of render() (zero for the megakernel).
 struct StageTimes {
   double generate = 0, intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
+  double intersect_first = 0;  // the camera rays' share of `intersect`
   double megakernel = 0;
 };
 

@@ -18,7 +18,7 @@ enum MaterialFlags : uint32_t {
   kMaterialTwoSidedEmission = 1u << 1,  // emit from both faces, not only the front face
 };
 
-struct Material {
+struct alignas(16) Material {
   vec3 albedo = vec3(0.8f);
   MaterialType type = MaterialType::kDiffuse;
   vec3 emission = vec3(0.0f);  // emitted radiance (colour x strength already multiplied)

@@ -83,7 +83,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   }
   spheres_.reserve(scene.spheres.size());
   for (const auto& sd : scene.spheres) {
-    Sphere s;
+    Sphere s{};
     s.center = sd.center;
     s.radius = sd.radius;
     s.material = sd.material;

@@ -51,19 +51,19 @@ TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
   uint32_t stack[kBvhStackSize];
   int sp = 0;
   uint32_t node_index = 0;
-  if (intersect_aabb(s.nodes[0].lo, s.nodes[0].hi, ray.o, inv_d, tmax) == kInfinity) return hit;
+  BvhNode node = load_node(s.nodes, 0);
+  if (intersect_aabb(node.lo, node.hi, ray.o, inv_d, tmax) == kInfinity) return hit;
   for (;;) {
-    const BvhNode& node = s.nodes[node_index];
     if (node.is_leaf()) {
       for (uint32_t i = 0; i < node.count; ++i) {
         const uint32_t prim = s.prim_indices[node.left_first + i];
         float t, b1 = 0.0f, b2 = 0.0f;
         bool h;
         if (!(F & kFeatureSpheres) || prim < s.tri_count) {
-          const TriangleVerts& tv = s.tri_verts[prim];
+          const TriangleVerts tv = load_triangle(s.tri_verts, prim);
           h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
         } else {
-          const Sphere& sp_ = s.spheres[prim - s.tri_count];
+          const Sphere sp_ = load_sphere(s.spheres, prim - s.tri_count);
           h = intersect_sphere(ray, sp_.center, sp_.radius, tmax, t);
         }
         if (h) {
@@ -76,25 +76,28 @@ TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
       }
       if (sp == 0) break;
       node_index = stack[--sp];
+      node = load_node(s.nodes, node_index);
       continue;
     }
     const uint32_t c0 = node.left_first, c1 = node.left_first + 1;
-    float d0 = intersect_aabb(s.nodes[c0].lo, s.nodes[c0].hi, ray.o, inv_d, tmax);
-    float d1 = intersect_aabb(s.nodes[c1].lo, s.nodes[c1].hi, ray.o, inv_d, tmax);
-    uint32_t near = c0, far = c1;
-    if (d1 < d0) {
+    const BvhNode n0 = load_node(s.nodes, c0), n1 = load_node(s.nodes, c1);
+    float d0 = intersect_aabb(n0.lo, n0.hi, ray.o, inv_d, tmax);
+    float d1 = intersect_aabb(n1.lo, n1.hi, ray.o, inv_d, tmax);
+    const bool swap = d1 < d0;
+    const uint32_t near = swap ? c1 : c0, far = swap ? c0 : c1;
+    if (swap) {
       const float td = d0;
       d0 = d1;
       d1 = td;
-      near = c1;
-      far = c0;
     }
     if (d0 == kInfinity) {
       if (sp == 0) break;
       node_index = stack[--sp];
+      node = load_node(s.nodes, node_index);
       continue;
     }
     node_index = near;
+    node = swap ? n1 : n0;
     if (d1 != kInfinity) stack[sp++] = far;
   }
   return hit;
@@ -111,7 +114,7 @@ TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t
   int sp = 0;
   stack[sp++] = 0;
   while (sp > 0) {
-    const BvhNode& node = s.nodes[stack[--sp]];
+    const BvhNode node = load_node(s.nodes, stack[--sp]);
     if (intersect_aabb(node.lo, node.hi, ray.o, inv_d, ray.tmax) == kInfinity) continue;
     if (node.is_leaf()) {
       for (uint32_t i = 0; i < node.count; ++i) {
@@ -119,10 +122,10 @@ TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t
         if (prim == skip) continue;
         float t, b1, b2;
         if (!(F & kFeatureSpheres) || prim < s.tri_count) {
-          const TriangleVerts& tv = s.tri_verts[prim];
+          const TriangleVerts tv = load_triangle(s.tri_verts, prim);
           if (intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, ray.tmax, t, b1, b2)) return true;
         } else {
-          const Sphere& sph = s.spheres[prim - s.tri_count];
+          const Sphere sph = load_sphere(s.spheres, prim - s.tri_count);
           if (intersect_sphere(ray, sph.center, sph.radius, ray.tmax, t)) return true;
         }
       }
@@ -148,7 +151,7 @@ template <uint32_t F = kAllFeatures>
 TRACER_HD inline SurfaceHit make_surface_hit(const SceneView& s, const Ray& ray, const Hit& hit) {
   SurfaceHit sh;
   if (!(F & kFeatureSpheres) || hit.prim < s.tri_count) {
-    const TriangleVerts& tv = s.tri_verts[hit.prim];
+    const TriangleVerts tv = load_triangle(s.tri_verts, hit.prim);
     const TriangleShading& ts = s.tri_shading[hit.prim];
     const float b0 = 1.0f - hit.u - hit.v;
     // Barycentric interpolation is more accurate than o + t d (pbrt-v4 sec. 6.8.5).
