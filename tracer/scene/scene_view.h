@@ -40,9 +40,51 @@ struct SceneView {
   Camera camera;
 };
 
-// Nearest hit along the ray in (0, ray.tmax). F without kFeatureSpheres: the scene has none.
-template <uint32_t F = kAllFeatures>
-TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
+// True when `pred` holds for every active lane of the warp (on the CPU: for this thread).
+TRACER_HD TRACER_INLINE bool warp_all(bool pred) {
+#if defined(__CUDA_ARCH__)
+  return __all_sync(__activemask(), pred);
+#else
+  return pred;
+#endif
+}
+
+// Tests the primitives of one leaf; returns true when an any-hit query may stop.
+template <uint32_t F, bool kAnyHit>
+TRACER_HD TRACER_INLINE bool intersect_leaf(const SceneView& s, const Ray& ray,
+                                            const RayTriSetup& setup, const BvhNode& leaf,
+                                            uint32_t skip, float& tmax, Hit& hit) {
+  for (uint32_t i = 0; i < leaf.count; ++i) {
+    const uint32_t prim = s.prim_indices[leaf.left_first + i];
+    if (kAnyHit && prim == skip) continue;
+    float t, b1 = 0.0f, b2 = 0.0f;
+    bool h;
+    if (!(F & kFeatureSpheres) || prim < s.tri_count) {
+      const TriangleVerts tv = load_triangle(s.tri_verts, prim);
+      h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
+    } else {
+      const Sphere sph = load_sphere(s.spheres, prim - s.tri_count);
+      h = intersect_sphere(ray, sph.center, sph.radius, tmax, t);
+    }
+    if (h) {
+      tmax = t;
+      hit.t = t;
+      hit.prim = prim;
+      hit.u = b1;
+      hit.v = b2;
+      if (kAnyHit) return true;
+    }
+  }
+  return false;
+}
+
+// BVH traversal in the "while-while" form with postponed leaves of Aila & Laine, "Understanding
+// the Efficiency of Ray Traversal on GPUs" (HPG 2009): a lane that reaches a leaf parks it and
+// keeps descending inner nodes until every lane of the warp holds a leaf, then all test their
+// leaves together. This keeps the lanes of a warp on the same kind of work. Children are visited
+// near-first. kAnyHit stops at the first hit in (0, ray.tmax) and ignores primitive `skip`.
+template <uint32_t F, bool kAnyHit>
+TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip) {
   Hit hit;
   if (s.node_count == 0) return hit;
   const RayTriSetup setup(ray.d);
@@ -50,91 +92,64 @@ TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
   float tmax = ray.tmax;
   uint32_t stack[kBvhStackSize];
   int sp = 0;
-  uint32_t node_index = 0;
   BvhNode node = load_node(s.nodes, 0);
-  if (intersect_aabb(node.lo, node.hi, ray.o, inv_d, tmax) == kInfinity) return hit;
-  for (;;) {
-    if (node.is_leaf()) {
-      for (uint32_t i = 0; i < node.count; ++i) {
-        const uint32_t prim = s.prim_indices[node.left_first + i];
-        float t, b1 = 0.0f, b2 = 0.0f;
-        bool h;
-        if (!(F & kFeatureSpheres) || prim < s.tri_count) {
-          const TriangleVerts tv = load_triangle(s.tri_verts, prim);
-          h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
-        } else {
-          const Sphere sp_ = load_sphere(s.spheres, prim - s.tri_count);
-          h = intersect_sphere(ray, sp_.center, sp_.radius, tmax, t);
-        }
-        if (h) {
-          tmax = t;
-          hit.t = t;
-          hit.prim = prim;
-          hit.u = b1;
-          hit.v = b2;
-        }
+  bool have_node = intersect_aabb(node.lo, node.hi, ray.o, inv_d, tmax) != kInfinity;
+  BvhNode leaf;
+  bool have_leaf = false;
+  while (have_node || have_leaf) {
+    // Descend inner nodes; park the first leaf found and go on until the whole warp has one.
+    while (have_node && !node.is_leaf()) {
+      const uint32_t c0 = node.left_first, c1 = node.left_first + 1;
+      const BvhNode n0 = load_node(s.nodes, c0), n1 = load_node(s.nodes, c1);
+      const float d0 = intersect_aabb(n0.lo, n0.hi, ray.o, inv_d, tmax);
+      const float d1 = intersect_aabb(n1.lo, n1.hi, ray.o, inv_d, tmax);
+      const bool swap = d1 < d0;
+      if ((swap ? d1 : d0) == kInfinity) {
+        have_node = sp > 0;
+        if (have_node) node = load_node(s.nodes, stack[--sp]);
+      } else {
+        if ((swap ? d0 : d1) != kInfinity) stack[sp++] = swap ? c0 : c1;
+        node = swap ? n1 : n0;
       }
-      if (sp == 0) break;
-      node_index = stack[--sp];
-      node = load_node(s.nodes, node_index);
-      continue;
+      if (have_node && node.is_leaf() && !have_leaf) {
+        leaf = node;
+        have_leaf = true;
+        have_node = sp > 0;
+        if (have_node) node = load_node(s.nodes, stack[--sp]);
+      }
+      if (warp_all(have_leaf)) break;
     }
-    const uint32_t c0 = node.left_first, c1 = node.left_first + 1;
-    const BvhNode n0 = load_node(s.nodes, c0), n1 = load_node(s.nodes, c1);
-    float d0 = intersect_aabb(n0.lo, n0.hi, ray.o, inv_d, tmax);
-    float d1 = intersect_aabb(n1.lo, n1.hi, ray.o, inv_d, tmax);
-    const bool swap = d1 < d0;
-    const uint32_t near = swap ? c1 : c0, far = swap ? c0 : c1;
-    if (swap) {
-      const float td = d0;
-      d0 = d1;
-      d1 = td;
+    if (!have_leaf && have_node && node.is_leaf()) {
+      leaf = node;
+      have_leaf = true;
+      have_node = sp > 0;
+      if (have_node) node = load_node(s.nodes, stack[--sp]);
     }
-    if (d0 == kInfinity) {
-      if (sp == 0) break;
-      node_index = stack[--sp];
-      node = load_node(s.nodes, node_index);
-      continue;
+    // Test the parked leaf, then any leaf that is next in line.
+    while (have_leaf) {
+      if (intersect_leaf<F, kAnyHit>(s, ray, setup, leaf, skip, tmax, hit)) return hit;
+      have_leaf = have_node && node.is_leaf();
+      if (have_leaf) {
+        leaf = node;
+        have_node = sp > 0;
+        if (have_node) node = load_node(s.nodes, stack[--sp]);
+      }
     }
-    node_index = near;
-    node = swap ? n1 : n0;
-    if (d1 != kInfinity) stack[sp++] = far;
   }
   return hit;
+}
+
+// Nearest hit along the ray in (0, ray.tmax). F without kFeatureSpheres: the scene has none.
+template <uint32_t F = kAllFeatures>
+TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
+  return traverse<F, false>(s, ray, kInvalid);
 }
 
 // True when anything blocks the ray in (0, ray.tmax), ignoring primitive `skip` (the light the
 // shadow ray aims at, so that reaching it is never mistaken for being blocked).
 template <uint32_t F = kAllFeatures>
 TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t skip) {
-  if (s.node_count == 0) return false;
-  const RayTriSetup setup(ray.d);
-  const vec3 inv_d = 1.0f / ray.d;  // infinities are handled by intersect_aabb
-  uint32_t stack[kBvhStackSize];
-  int sp = 0;
-  stack[sp++] = 0;
-  while (sp > 0) {
-    const BvhNode node = load_node(s.nodes, stack[--sp]);
-    if (intersect_aabb(node.lo, node.hi, ray.o, inv_d, ray.tmax) == kInfinity) continue;
-    if (node.is_leaf()) {
-      for (uint32_t i = 0; i < node.count; ++i) {
-        const uint32_t prim = s.prim_indices[node.left_first + i];
-        if (prim == skip) continue;
-        float t, b1, b2;
-        if (!(F & kFeatureSpheres) || prim < s.tri_count) {
-          const TriangleVerts tv = load_triangle(s.tri_verts, prim);
-          if (intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, ray.tmax, t, b1, b2)) return true;
-        } else {
-          const Sphere sph = load_sphere(s.spheres, prim - s.tri_count);
-          if (intersect_sphere(ray, sph.center, sph.radius, ray.tmax, t)) return true;
-        }
-      }
-    } else {
-      stack[sp++] = node.left_first + 1;
-      stack[sp++] = node.left_first;
-    }
-  }
-  return false;
+  return traverse<F, true>(s, ray, skip).valid();
 }
 
 // Everything the shading stage needs to know about a hit point.
