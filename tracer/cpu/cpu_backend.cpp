@@ -23,13 +23,15 @@ void CpuRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings
 
 void CpuRenderer::set_settings(const IntegratorSettings& cfg) {
   cfg_ = cfg;
-  sum_.assign(size_t(cfg.width) * cfg.height * 3, 0.0);
+  const size_t n = size_t(cfg.width) * cfg.height * 3;
+  for (auto* b : {&sum_even_, &sum_odd_, &pass_even_, &pass_odd_}) b->assign(n, 0.0);
   samples_ = 0;
   nonfinite_ = 0;
 }
 
 void CpuRenderer::reset() {
-  std::fill(sum_.begin(), sum_.end(), 0.0);
+  std::fill(sum_even_.begin(), sum_even_.end(), 0.0);
+  std::fill(sum_odd_.begin(), sum_odd_.end(), 0.0);
   samples_ = 0;
   nonfinite_ = 0;
 }
@@ -49,18 +51,25 @@ FrameStats CpuRenderer::render(uint32_t spp) {
     for (uint32_t y; (y = next_row.fetch_add(1)) < h;) {
       for (uint32_t x = 0; x < w; ++x) {
         const uint32_t pixel = y * w + x;
-        double* acc = &sum_[size_t(pixel) * 3];
+        double acc[2][3] = {{0, 0, 0}, {0, 0, 0}};
         for (uint32_t s = 0; s < spp; ++s) {
-          const vec3 L = trace_path(view, cfg_, pixel, first_sample + s, &rc);
+          const uint32_t sample = first_sample + s;
+          const vec3 L = trace_path(view, cfg_, pixel, sample, &rc);
           if (!is_finite(L)) {
             ++nonfinite;  // counted and reported, never added
             continue;
           }
-          acc[0] += L.x;
-          acc[1] += L.y;
-          acc[2] += L.z;
+          double* a = acc[sample & 1];
+          a[0] += L.x;
+          a[1] += L.y;
+          a[2] += L.z;
+        }
+        for (int c = 0; c < 3; ++c) {
+          pass_even_[size_t(pixel) * 3 + c] = acc[0][c];
+          pass_odd_[size_t(pixel) * 3 + c] = acc[1][c];
         }
       }
+      if (cancel_ && cancel_->load(std::memory_order_relaxed)) break;
     }
     counts[t] = rc;
     bad[t] = nonfinite;
@@ -71,6 +80,16 @@ FrameStats CpuRenderer::render(uint32_t spp) {
   for (auto& th : pool) th.join();
 
   FrameStats st;
+  st.kernel = "cpu";
+  if (cancel_ && cancel_->load()) {  // abandoned: the accumulator is unchanged
+    st.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                .count();
+    return st;
+  }
+  for (size_t i = 0; i < sum_even_.size(); ++i) {
+    sum_even_[i] += pass_even_[i];
+    sum_odd_[i] += pass_odd_[i];
+  }
   st.spp_added = spp;
   for (int t = 0; t < threads_; ++t) {
     st.rays.camera += counts[t].camera;
@@ -88,10 +107,27 @@ ImageRGB CpuRenderer::image() const {
   ImageRGB img;
   img.width = int(cfg_.width);
   img.height = int(cfg_.height);
-  img.pixels.resize(sum_.size());
+  img.pixels.resize(sum_even_.size());
   const double inv = samples_ > 0 ? 1.0 / samples_ : 0.0;
-  for (size_t i = 0; i < sum_.size(); ++i) img.pixels[i] = float(sum_[i] * inv);
+  for (size_t i = 0; i < sum_even_.size(); ++i)
+    img.pixels[i] = float((sum_even_[i] + sum_odd_[i]) * inv);
   return img;
+}
+
+void CpuRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
+  const uint32_t n_even = (samples_ + 1) / 2, n_odd = samples_ / 2;
+  const std::vector<double>* sums[2] = {&sum_even_, &sum_odd_};
+  ImageRGB* outs[2] = {even, odd};
+  const uint32_t counts[2] = {n_even, n_odd};
+  for (int k = 0; k < 2; ++k) {
+    if (!outs[k]) continue;
+    ImageRGB& img = *outs[k];
+    img.width = int(cfg_.width);
+    img.height = int(cfg_.height);
+    img.pixels.resize(sums[k]->size());
+    const double inv = counts[k] > 0 ? 1.0 / counts[k] : 0.0;
+    for (size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = float((*sums[k])[i] * inv);
+  }
 }
 
 }  // namespace tracer

@@ -2,6 +2,7 @@
 // are summed by one thread in sample order, so the image is the same for any thread count.
 #pragma once
 
+#include <atomic>
 #include <vector>
 
 #include "integrator/renderer.h"
@@ -20,13 +21,19 @@ class CpuRenderer final : public Renderer {
   uint32_t samples_done() const override { return samples_; }
   uint64_t nonfinite_total() const override { return nonfinite_; }
   ImageRGB image() const override;
+  void half_images(ImageRGB* even, ImageRGB* odd) const override;
   int threads() const { return threads_; }
+  // When set, render() checks the flag between rows and abandons the pass (adding nothing and
+  // returning spp_added = 0) once it is true: edits in the workbench never wait for a pass.
+  void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }
 
  private:
   int threads_;
   const CompiledScene* scene_ = nullptr;
   IntegratorSettings cfg_;
-  std::vector<double> sum_;  // 3 per pixel
+  std::vector<double> sum_even_, sum_odd_;    // 3 per pixel: samples 0, 2, 4... and 1, 3, 5...
+  std::vector<double> pass_even_, pass_odd_;  // this call's sums, added when it completes
+  const std::atomic<bool>* cancel_ = nullptr;
   uint32_t samples_ = 0;
   uint64_t nonfinite_ = 0;
 };

@@ -37,8 +37,8 @@ struct CudaRenderer::Impl {
   GpuOptions opts;
   bool has_scene = false;
 
-  // Film and counters.
-  DeviceBuffer<float4> film;
+  // Films for the even and the odd samples, and counters.
+  DeviceBuffer<float4> film[2];
   DeviceBuffer<unsigned long long> counters;  // shadow, non-finite, megakernel extension
   uint32_t samples = 0;
   uint64_t nonfinite = 0;
@@ -65,7 +65,7 @@ struct CudaRenderer::Impl {
 
   uint32_t n() const { return cfg.width * cfg.height; }
   uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
-  FilmView film_view() { return FilmView{film.get(), n()}; }
+  FilmView film_view(uint32_t sample) { return FilmView{film[sample & 1].get(), n()}; }
 
   WavefrontState wavefront() {
     WavefrontState w;
@@ -104,7 +104,8 @@ struct CudaRenderer::Impl {
 
   void allocate() {
     const uint32_t count_pixels = n();
-    film.resize(count_pixels);
+    film[0].resize(count_pixels);
+    film[1].resize(count_pixels);
     for (auto* b : {&ray_o, &ray_d, &throughput, &radiance, &hit, &shadow_o, &shadow_d, &shadow_c})
       b->resize(count_pixels);
     alive.resize(count_pixels);
@@ -151,8 +152,8 @@ struct CudaRenderer::Impl {
 
   void megakernel_wave(uint32_t sample, bool first, bool timed) {
     mark(timed, kMega);  // start
-    launch_megakernel(spec(), view, cfg, sample, first, film_view(), counters.get(), count.get(),
-                      stream);
+    launch_megakernel(spec(), view, cfg, sample, first, film_view(sample), counters.get(),
+                      count.get(), stream);
     mark(timed, kMega);
   }
 
@@ -196,7 +197,7 @@ struct CudaRenderer::Impl {
       }
       launch_shade(sp, view, cfg, sample, b, w, q, c, stream);
       mark(timed, kShade);
-      launch_shadow(sp, view, w, q, c, first, film_view(), stream);
+      launch_shadow(sp, view, w, q, c, first, film_view(sample), stream);
       mark(timed, kShadow);
       if (b + 1 == cfg.max_depth) break;
       if (opts.compaction) {
@@ -315,7 +316,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   uint32_t wavefront_samples = 0;
   for (uint32_t k = 0; k < spp; ++k) {
     const uint32_t sample = m.samples + k;
-    const bool first = sample == 0;
+    const bool first = sample < 2;  // the first sample of each of the two films
     KernelMode mode = m.chosen;
     bool calibrating = false;
     if (mode == KernelMode::kAuto) {
@@ -390,7 +391,10 @@ ImageRGB CudaRenderer::image() const {
   img.pixels.assign(size_t(m.n()) * 3, 0.0f);
   if (m.samples == 0) return img;
   DeviceBuffer<float> rgb(size_t(m.n()) * 3);
-  launch_resolve(m.film_view(), 1.0f / float(m.samples), rgb.get(), m.stream);
+  const float inv = 1.0f / float(m.samples);
+  // Before the second sample the odd film holds stale memory: read film 0 twice instead.
+  const float4* b = m.samples > 1 ? m.film[1].get() : m.film[0].get();
+  launch_resolve(m.film[0].get(), inv, b, m.samples > 1 ? inv : 0.0f, m.n(), rgb.get(), m.stream);
   TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
   std::vector<float> host;
   rgb.download(host);
@@ -419,6 +423,47 @@ double measure_copy_bandwidth_gbs() {
   cudaEventDestroy(e0);
   cudaEventDestroy(e1);
   return 2.0 * double(bytes) * kReps / (ms * 1e-3) / 1e9;
+}
+
+void CudaRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
+  Impl& m = *impl_;
+  const uint32_t counts[2] = {(m.samples + 1) / 2, m.samples / 2};
+  ImageRGB* outs[2] = {even, odd};
+  DeviceBuffer<float> rgb(size_t(m.n()) * 3);
+  for (int k = 0; k < 2; ++k) {
+    if (!outs[k]) continue;
+    outs[k]->width = int(m.cfg.width);
+    outs[k]->height = int(m.cfg.height);
+    outs[k]->pixels.assign(size_t(m.n()) * 3, 0.0f);
+    if (counts[k] == 0) continue;
+    launch_resolve(m.film[k].get(), 1.0f / float(counts[k]), m.film[k].get(), 0.0f, m.n(),
+                   rgb.get(), m.stream);
+    TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
+    rgb.download(outs[k]->pixels);
+  }
+}
+
+void CudaRenderer::display_to_device(void* rgba8, float exposure_scale, ToneMap op) const {
+  Impl& m = *impl_;
+  const float inv = m.samples > 0 ? 1.0f / float(m.samples) : 0.0f;
+  // With one sample the odd film holds stale data; weight it out by pointing both at film 0.
+  const float4* b = m.samples > 1 ? m.film[1].get() : nullptr;
+  if (!b) {
+    launch_display(m.film[0].get(), m.film[0].get(), 0.5f * inv, m.n(), exposure_scale, int(op),
+                   static_cast<uint32_t*>(rgba8), m.stream);
+  } else {
+    launch_display(m.film[0].get(), b, inv, m.n(), exposure_scale, int(op),
+                   static_cast<uint32_t*>(rgba8), m.stream);
+  }
+  TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
+}
+
+void CudaRenderer::display_rgba8(std::vector<uint32_t>& out, float exposure_scale,
+                                 ToneMap op) const {
+  DeviceBuffer<uint32_t> dev(impl_->n());
+  if (impl_->samples == 0) TRACER_CUDA_CHECK(cudaMemset(dev.get(), 0, dev.bytes()));
+  else display_to_device(dev.get(), exposure_scale, op);
+  dev.download(out);
 }
 
 std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not) {

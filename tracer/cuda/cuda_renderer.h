@@ -23,6 +23,10 @@ class CudaRenderer final : public Renderer {
   uint64_t nonfinite_total() const override;
   ImageRGB image() const override;
   void set_gpu_options(const GpuOptions& o) override;
+  void half_images(ImageRGB* even, ImageRGB* odd) const override;
+  void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const override;
+  // Writes the display image (RGBA8) into device memory, e.g. a mapped OpenGL pixel buffer.
+  void display_to_device(void* rgba8, float exposure_scale, ToneMap op) const;
 
   // Device bytes per pixel of path state and per triangle of BVH + triangles, for reports.
   size_t path_state_bytes_per_pixel() const;

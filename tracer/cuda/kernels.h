@@ -33,6 +33,7 @@ struct WavefrontState {
   uint32_t* alive_counts = nullptr;    // paths entering each bounce, [max_depth + 1]
 };
 
+// One of the two accumulators (even and odd samples); a launch writes the one of its sample.
 struct FilmView {
   float4* accum = nullptr;  // running sum per pixel
   uint32_t n = 0;
@@ -63,7 +64,11 @@ void launch_compact(const WavefrontState& w, uint32_t* out_queue, uint32_t* out_
                     void* temp, size_t temp_bytes, cudaStream_t stream);
 // Copies the first-bounce hits out of / into the cache.
 void launch_copy_hits(const float4* from, float4* to, uint32_t n, cudaStream_t stream);
-// Mean radiance (sum / samples) as float RGB.
-void launch_resolve(FilmView film, float inv_samples, float* rgb_out, cudaStream_t stream);
+// Mean radiance as float RGB from the two accumulators: a * wa + b * wb per pixel.
+void launch_resolve(const float4* a, float wa, const float4* b, float wb, uint32_t n,
+                    float* rgb_out, cudaStream_t stream);
+// The display image (exposure, tone map, sRGB) as RGBA8 into `rgba` (e.g. a mapped GL buffer).
+void launch_display(const float4* a, const float4* b, float inv_samples, uint32_t n,
+                    float exposure_scale, int tone_map, uint32_t* rgba, cudaStream_t stream);
 
 }  // namespace tracer

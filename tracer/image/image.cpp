@@ -60,67 +60,20 @@ bool parse_tone_map(const std::string& name, ToneMap* op) {
   return false;
 }
 
-namespace {
-
-// Written so that NaN fails every comparison and lands on 0, as does -Inf; +Inf is treated as a
-// bad sample too (0) rather than as white, so that it is visible as a dark speck, not hidden.
-float clamp01(float v) {
-  if (!(v > 0.0f) || !std::isfinite(v)) return 0.0f;
-  return v < 1.0f ? v : 1.0f;
-}
-
-float reinhard(float c) {
-  return c / (1.0f + c);
-}
-
-// Narkowicz, "ACES Filmic Tone Mapping Curve" (2016): a rational fit to the ACES RRT+ODT.
-float aces_narkowicz(float x) {
-  constexpr float kA = 2.51f, kB = 0.03f, kC = 2.43f, kD = 0.59f, kE = 0.14f;
-  return (x * (kA * x + kB)) / (x * (kC * x + kD) + kE);
-}
-
-}  // namespace
-
 vec3 tone_map(vec3 linear, ToneMap op) {
-  vec3 out;
-  for (int c = 0; c < 3; ++c) {
-    float v = linear[c];
-    // Bad and negative values go to 0 before the operator, so neither curve sees them.
-    if (!(v > 0.0f) || !std::isfinite(v)) {
-      out[c] = 0.0f;
-      continue;
-    }
-    switch (op) {
-      case ToneMap::kNone:
-        break;
-      case ToneMap::kReinhard:
-        v = reinhard(v);
-        break;
-      case ToneMap::kAces:
-        v = aces_narkowicz(v);
-        break;
-    }
-    out[c] = clamp01(v);
-  }
-  return out;
+  return vec3(tone_map_channel(linear.x, op), tone_map_channel(linear.y, op),
+              tone_map_channel(linear.z, op));
 }
 
-// IEC 61966-2-1 sRGB OETF: linear segment below 0.0031308, then a 1/2.4 power with offset.
-float linear_to_srgb(float linear01) {
-  const float v = clamp01(linear01);
-  if (v <= 0.0031308f) return 12.92f * v;
-  return 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
-}
+float linear_to_srgb(float linear01) { return srgb_encode(linear01); }
 
 // The inverse (EOTF); the 0.04045 threshold is 12.92 * 0.0031308.
 float srgb_to_linear(float encoded01) {
-  const float v = clamp01(encoded01);
+  const float v = display_clamp01(encoded01);
   if (v <= 0.04045f) return v / 12.92f;
   return std::pow((v + 0.055f) / 1.055f, 2.4f);
 }
 
-uint8_t to_srgb8(float linear01) {
-  return static_cast<uint8_t>(linear_to_srgb(linear01) * 255.0f + 0.5f);
-}
+uint8_t to_srgb8(float linear01) { return srgb8(linear01); }
 
 }  // namespace tracer

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/hd.h"
+#include "image/display.h"
 
 namespace tracer {
 
@@ -25,7 +26,6 @@ ImageRGB make_image(int width, int height, vec3 fill = vec3(0.0f));
 
 // ---- Display transform ------------------------------------------------------------------------
 
-enum class ToneMap { kNone, kReinhard, kAces };  // kNone = clamp to [0, 1]
 
 const char* tone_map_name(ToneMap op);  // "none", "reinhard", "aces"
 // Accepts the names above (case-insensitive); returns false and leaves *op alone otherwise.
@@ -53,6 +53,10 @@ float srgb_to_linear(float encoded01);
 // empty image or any I/O failure, after removing the temporary file.
 void write_image(const std::string& path, const ImageRGB& img, float exposure_stops = 0.0f,
                  ToneMap op = ToneMap::kNone);
+// Writes 8-bit RGBA pixels (e.g. a window screenshot) as PNG, atomically. bottom_up: the first
+// row in memory is the bottom of the image (OpenGL's glReadPixels order).
+void write_png_rgba8(const std::string& path, int width, int height, const uint8_t* rgba,
+                     bool bottom_up);
 // Writes any text file atomically the same way (the JSON sidecar, saved scenes).
 void write_text_atomic(const std::string& path, const std::string& text);
 

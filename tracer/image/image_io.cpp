@@ -377,6 +377,18 @@ void write_image(const std::string& path, const ImageRGB& img, float exposure_st
   write_bytes_atomic(path, bytes.data(), bytes.size());
 }
 
+void write_png_rgba8(const std::string& path, int width, int height, const uint8_t* rgba,
+                     bool bottom_up) {
+  std::vector<unsigned char> png;
+  const int stride = 4 * width;
+  const unsigned char* first = rgba + (bottom_up ? size_t(height - 1) * stride : 0);
+  if (!stbi_write_png_to_func(append_bytes, &png, width, height, 4, first,
+                              bottom_up ? -stride : stride)) {
+    fail(path, "PNG encoding failed", kNotSaved);
+  }
+  write_bytes_atomic(path, png.data(), png.size());
+}
+
 void write_text_atomic(const std::string& path, const std::string& text) {
   write_bytes_atomic(path, text.data(), text.size());
 }

@@ -56,9 +56,17 @@ class Renderer {
   virtual uint64_t nonfinite_total() const = 0;
   // The mean radiance per pixel so far.
   virtual ImageRGB image() const = 0;
+  // Means of the even-numbered and of the odd-numbered samples: two independent estimates whose
+  // difference measures the remaining noise (relMSE between half buffers).
+  virtual void half_images(ImageRGB* even, ImageRGB* odd) const = 0;
+  // The display image, exposure and tone map applied, as RGBA8 rows top first.
+  virtual void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const;
   // GPU-only switches; the CPU backend ignores them.
   virtual void set_gpu_options(const GpuOptions&) {}
 };
+
+// relMSE (pbrt's MRSE) between the two half-buffer estimates; their mean's error is about half.
+double half_buffer_relmse(const Renderer& r);
 
 enum class BackendChoice { kAuto, kCpu, kCuda };
 

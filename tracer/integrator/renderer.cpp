@@ -1,0 +1,29 @@
+// Backend-independent helpers of the Renderer interface: the host display transform and the
+// half-buffer noise estimate.
+#include "integrator/renderer.h"
+
+namespace tracer {
+
+void Renderer::display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const {
+  const ImageRGB img = image();
+  out.resize(size_t(img.width) * img.height);
+  for (size_t i = 0; i < out.size(); ++i) {
+    const vec3 c(img.pixels[3 * i], img.pixels[3 * i + 1], img.pixels[3 * i + 2]);
+    out[i] = tracer::display_rgba8(c, exposure_scale, op);
+  }
+}
+
+double half_buffer_relmse(const Renderer& r) {
+  if (r.samples_done() < 2) return -1.0;
+  ImageRGB a, b;
+  r.half_images(&a, &b);
+  double sum = 0.0;
+  for (size_t i = 0; i < a.pixels.size(); ++i) {
+    const double d = double(a.pixels[i]) - b.pixels[i];
+    const double m = 0.5 * (double(a.pixels[i]) + b.pixels[i]) + 0.01;
+    if (d == d) sum += d * d / (m * m);
+  }
+  return a.pixels.empty() ? -1.0 : sum / double(a.pixels.size());
+}
+
+}  // namespace tracer
