@@ -13,6 +13,7 @@ Runner add_render_command(CLI::App& app);
 Runner add_info_command(CLI::App& app);
 Runner add_compare_command(CLI::App& app);
 Runner add_bench_command(CLI::App& app);
+Runner add_gui_command(CLI::App& app);
 
 // Exit codes: 0 success, 1 bad input or failed render, 2 bad command line.
 constexpr int kExitInputError = 1;

@@ -1,6 +1,9 @@
-// Entry point of `pathtracer`: dispatches to the subcommands. With no arguments it renders the
-// built-in Cornell box headless to out/default.png.
+// Entry point of `pathtracer`: dispatches to the subcommands. With no arguments it opens the
+// workbench window on the built-in Cornell box, or renders it headless when there is no display.
 #include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
 #include <iostream>
 
 #include "commands.h"
@@ -13,10 +16,12 @@ int main(int argc, char** argv) {
   auto* info = app.add_subcommand("info", "Print statistics and needed features of a scene");
   auto* compare = app.add_subcommand("compare", "Compare two images (RMSE, relMSE, means)");
   auto* bench = app.add_subcommand("bench", "Time the backends and GPU designs on a scene");
+  auto* gui = app.add_subcommand("gui", "Open the workbench window (the default with no arguments)");
   const app::Runner run_render = app::add_render_command(*render);
   const app::Runner run_info = app::add_info_command(*info);
   const app::Runner run_compare = app::add_compare_command(*compare);
   const app::Runner run_bench = app::add_bench_command(*bench);
+  const app::Runner run_gui = app::add_gui_command(*gui);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -33,17 +38,29 @@ int main(int argc, char** argv) {
   if (*info) return run_info();
   if (*compare) return run_compare();
   if (*bench) return run_bench();
-  // No subcommand: the workbench window does not exist yet, so render the default scene.
-  std::cerr << "pathtracer: no subcommand; rendering the built-in Cornell box to out/default.png "
-               "(see `pathtracer --help`)\n";
-  const char* args[] = {"pathtracer", "render", "--out", "out/default.png"};
+  if (*gui) return run_gui();
+  // No subcommand: the workbench window on the built-in scene when there is a display, else a
+  // headless render of it.
+  const bool display = std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY");
+  std::vector<std::string> args = {"pathtracer"};
+  if (display) {
+    args.push_back("gui");
+  } else {
+    std::cerr << "pathtracer: no display; rendering the built-in Cornell box to out/default.png "
+                 "(see `pathtracer --help`)\n";
+    args.insert(args.end(), {"render", "--out", "out/default.png"});
+  }
   CLI::App again{"pathtracer"};
   auto* r2 = again.add_subcommand("render");
-  const app::Runner run2 = app::add_render_command(*r2);
+  auto* g2 = again.add_subcommand("gui");
+  const app::Runner run_r2 = app::add_render_command(*r2);
+  const app::Runner run_g2 = app::add_gui_command(*g2);
+  std::vector<char*> argv2;
+  for (auto& a : args) argv2.push_back(a.data());
   try {
-    again.parse(4, const_cast<char**>(args));
+    again.parse(int(argv2.size()), argv2.data());
   } catch (const CLI::ParseError& e) {
     return again.exit(e);
   }
-  return run2();
+  return display ? run_g2() : run_r2();
 }

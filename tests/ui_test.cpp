@@ -1,0 +1,143 @@
+// The workbench model without a window: edits by name, what resets the accumulator and what does
+// not, re-convergence after an edit, export, scene saving that reloads every edit, navigation and
+// picking.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "image/image.h"
+#include "scene/loader.h"
+#include "test_util.h"
+#include "ui/workbench.h"
+
+namespace {
+
+std::string tmpdir() {
+  static std::string dir = [] {
+    char tmpl[] = "/tmp/pathtracer_ui_XXXXXX";
+    return std::string(mkdtemp(tmpl));
+  }();
+  return dir;
+}
+
+// Runs UI frames until the accumulator reaches the target (bounded in time).
+void converge(ui::Workbench& wb) {
+  const auto start = std::chrono::steady_clock::now();
+  while (!wb.converged() && std::chrono::steady_clock::now() - start < std::chrono::seconds(60)) {
+    wb.update();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(wb.converged()) << "did not converge within a minute";
+}
+
+std::unique_ptr<ui::Workbench> small_cornell(uint32_t spp) {
+  auto wb = std::make_unique<ui::Workbench>(tracer::builtin_default_scene(),
+                                            tracer::BackendChoice::kCpu);
+  std::string err;
+  EXPECT_TRUE(wb->apply("render.width=48", &err)) << err;
+  EXPECT_TRUE(wb->apply("render.height=48", &err)) << err;
+  EXPECT_TRUE(wb->apply("render.spp=" + std::to_string(spp), &err)) << err;
+  return wb;
+}
+
+TEST(Workbench, ApplyRejectsBadEditsWithReasons) {
+  auto wb = small_cornell(4);
+  std::string err;
+  EXPECT_FALSE(wb->apply("camera.vfov=500", &err));
+  EXPECT_NE(err.find("179"), std::string::npos) << err;
+  EXPECT_FALSE(wb->apply("materials.whte.albedo=1,1,1", &err));
+  EXPECT_NE(err.find("did you mean \"white\""), std::string::npos) << err;
+  EXPECT_FALSE(wb->apply("materials.white.albedo=2,0,0", &err));
+  EXPECT_FALSE(wb->apply("camera.fov=40", &err));
+  EXPECT_NE(err.find("did you mean"), std::string::npos) << err;
+  EXPECT_FALSE(wb->apply("no equals sign", &err));
+  EXPECT_FALSE(wb->apply("render.nee=maybe", &err));
+  EXPECT_FALSE(wb->apply("camera.position=1,2", &err));
+  EXPECT_FALSE(wb->apply("materials.white.ior=nan", &err));
+}
+
+TEST(Workbench, EditsResetAndDisplayChangesDoNot) {
+  auto wb = small_cornell(8);
+  converge(*wb);
+  const uint64_t resets = wb->stats().resets;
+  const uint32_t spp = wb->stats().spp;
+  std::string err;
+  ASSERT_TRUE(wb->apply("display.exposure=1.5", &err)) << err;
+  ASSERT_TRUE(wb->apply("display.tonemap=aces", &err)) << err;
+  wb->update();
+  EXPECT_EQ(wb->stats().resets, resets) << "a display edit must not reset";
+  EXPECT_GE(wb->stats().spp, spp);
+  for (const char* edit : {"materials.white.albedo=0.5,0.5,0.5", "camera.vfov=45",
+                           "render.max_depth=4", "render.nee=off"}) {
+    const uint64_t before = wb->stats().resets;
+    ASSERT_TRUE(wb->apply(edit, &err)) << err;
+    EXPECT_FALSE(wb->converged()) << edit << ": the accumulator must restart";
+    wb->update();  // the same frame that applies the edit resets
+    EXPECT_EQ(wb->stats().resets, before + 1) << edit;
+    EXPECT_LT(wb->stats().spp, 8u) << edit;
+  }
+}
+
+TEST(Workbench, ReconvergesToTheEditedSceneAndSavesIt) {
+  auto wb = small_cornell(64);
+  converge(*wb);
+  const std::string before = tmpdir() + "/before.exr", after = tmpdir() + "/after.exr";
+  ASSERT_EQ(wb->export_image(before), "");
+  std::string err;
+  ASSERT_TRUE(wb->apply("materials.red.albedo=0.05,0.05,0.65", &err)) << err;
+  converge(*wb);
+  ASSERT_EQ(wb->export_image(after), "");
+  const std::string saved = tmpdir() + "/edited.json";
+  ASSERT_EQ(wb->save_scene(saved), "");
+  // The saved scene reloads the edit...
+  tracer::Scene s = tracer::load_scene(saved);
+  const uint32_t red = s.find_material("red");
+  ASSERT_NE(red, tracer::kInvalid);
+  EXPECT_NEAR(s.materials[red].material.albedo.z, 0.65f, 1e-6f);
+  EXPECT_EQ(s.settings.width, 48);
+  // ...and a fresh render of it agrees with the workbench's image, not the image before.
+  std::string log;
+  const std::string ref = tmpdir() + "/ref.exr";
+  ASSERT_EQ(test::run_command(test::pathtracer_exe() + " render -q " + saved +
+                                  " --spp 512 --backend cpu --out " + ref, &log), 0) << log;
+  const tracer::ImageRGB r = tracer::read_image(ref);
+  const double e_after = tracer::compare_images(tracer::read_image(after), r).relmse;
+  const double e_before = tracer::compare_images(tracer::read_image(before), r).relmse;
+  EXPECT_LT(e_after, 0.05);
+  EXPECT_GT(e_before, 10 * e_after);
+}
+
+TEST(Workbench, NavigationAndPicking) {
+  auto wb = small_cornell(1);
+  wb->update();
+  const tracer::CameraDesc c0 = wb->scene().camera;
+  wb->orbit(20.0f, 10.0f);
+  const tracer::CameraDesc& c1 = wb->scene().camera;
+  EXPECT_NEAR(glm::length(c1.position - c1.look_at), glm::length(c0.position - c0.look_at), 1e-2f);
+  EXPECT_GT(glm::length(c1.position - c0.position), 1.0f);
+  wb->reset_view();
+  EXPECT_EQ(wb->scene().camera.position, c0.position);
+  wb->update();
+  // The middle of the left edge is the red wall; the centre top is the ceiling or the light.
+  const int left = wb->pick_object(0.05f, 0.5f);
+  ASSERT_GE(left, 0);
+  EXPECT_EQ(wb->scene().objects[size_t(left)].name, "red wall");
+  EXPECT_EQ(wb->pick_object(1.5f, 0.5f), -1);
+  ASSERT_TRUE(wb->focus_at(0.5f, 0.5f));
+  // The back wall is at z = 555 and the camera at z = -800 looking down +z.
+  const float f = wb->scene().camera.focus_distance;
+  EXPECT_GT(f, 800.0f);
+  EXPECT_LT(f, 1400.0f);
+}
+
+TEST(Workbench, BadSceneKeepsTheCurrentOne) {
+  auto wb = small_cornell(1);
+  std::string err;
+  EXPECT_FALSE(wb->load_scene(test::data_dir() + "/bad/unknown_key.json", &err));
+  EXPECT_NE(err.find("unknown_key.json"), std::string::npos) << err;
+  EXPECT_EQ(wb->scene().source, "<built-in>");
+  EXPECT_NE(wb->export_image("/proc/forbidden/x.png"), "");
+}
+
+}  // namespace

@@ -1,0 +1,332 @@
+// ImGui panels of the workbench. Layout: the viewport fills the window left of a fixed-width
+// control column; the column holds one collapsing section per panel.
+#include "ui/panels.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace ui {
+namespace {
+
+constexpr float kColumnWidth = 400.0f;
+// Letter keys: ImGui 1.86's key indices are the platform's, and GLFW's are upper-case ASCII.
+
+bool edit_vec3(const char* label, vec3& v, float speed) {
+  return ImGui::DragFloat3(label, &v.x, speed, 0.0f, 0.0f, "%.3f");
+}
+
+void viewport(Workbench& wb, PanelState& ps, ImVec2 pos, ImVec2 size) {
+  ImGui::SetNextWindowPos(pos);
+  ImGui::SetNextWindowSize(size);
+  ImGui::Begin("Viewport", nullptr,
+               ImGuiWindowFlags_NoTitleBar | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoMove |
+                   ImGuiWindowFlags_NoScrollbar | ImGuiWindowFlags_NoBringToFrontOnFocus);
+  const ImVec2 avail = ImGui::GetContentRegionAvail();
+  const float aspect = float(wb.width()) / float(wb.height());
+  ImVec2 img(avail.x, avail.x / aspect);
+  if (img.y > avail.y) img = ImVec2(avail.y * aspect, avail.y);
+  const ImVec2 cursor = ImGui::GetCursorPos();
+  ImGui::SetCursorPos(ImVec2(cursor.x + 0.5f * (avail.x - img.x), cursor.y + 0.5f * (avail.y - img.y)));
+  const ImVec2 origin = ImGui::GetCursorScreenPos();
+  if (ps.texture) ImGui::Image(ps.texture, img);
+  else ImGui::Dummy(img);
+  const bool hovered = ImGui::IsItemHovered();
+  ImGuiIO& io = ImGui::GetIO();
+  const float u = (io.MousePos.x - origin.x) / img.x, v = (io.MousePos.y - origin.y) / img.y;
+  if (hovered) {
+    // Left drag orbits, right drag pans, the wheel zooms; a click selects, Ctrl+click (or a
+    // middle click) focuses the lens on the surface under the cursor.
+    if (ImGui::IsMouseDragging(ImGuiMouseButton_Left)) {
+      wb.orbit(io.MouseDelta.x * 0.3f, io.MouseDelta.y * 0.3f);
+    } else if (ImGui::IsMouseDragging(ImGuiMouseButton_Right)) {
+      wb.pan(-io.MouseDelta.x / img.x, io.MouseDelta.y / img.y);
+    }
+    if (io.MouseWheel != 0.0f) wb.zoom(std::pow(0.9f, io.MouseWheel));
+    if (ImGui::IsMouseReleased(ImGuiMouseButton_Left) &&
+        ImGui::GetMouseDragDelta(ImGuiMouseButton_Left, 0.0f).x == 0.0f &&
+        ImGui::GetMouseDragDelta(ImGuiMouseButton_Left, 0.0f).y == 0.0f) {
+      if (io.KeyCtrl) {
+        if (wb.focus_at(u, v)) ps.status = "focus set to the surface under the cursor";
+      } else {
+        wb.selected_object = wb.pick_object(u, v);
+      }
+    }
+    if (ImGui::IsMouseClicked(ImGuiMouseButton_Middle) && wb.focus_at(u, v))
+      ps.status = "focus set to the surface under the cursor";
+  }
+  if (!io.WantTextInput) {
+    const float step = 0.02f;
+    float f = 0, r = 0, up = 0;
+    if (ImGui::IsKeyDown('W')) f += step;
+    if (ImGui::IsKeyDown('S') && !io.KeyCtrl) f -= step;
+    if (ImGui::IsKeyDown('D')) r += step;
+    if (ImGui::IsKeyDown('A')) r -= step;
+    if (ImGui::IsKeyDown('E')) up += step;
+    if (ImGui::IsKeyDown('Q')) up -= step;
+    if (f != 0 || r != 0 || up != 0) wb.fly(f, r, up);
+  }
+  // The frame's figures over the image, so they stay visible with the panels hidden.
+  char line[256];
+  std::snprintf(line, sizeof line, "%u spp  %.1f spp/s  %.0f Mrays/s  %s", wb.stats().spp,
+                wb.stats().samples_per_s, wb.stats().mrays_per_s, wb.backend_name().c_str());
+  ImGui::GetWindowDrawList()->AddText(ImVec2(origin.x + 8, origin.y + 8), IM_COL32(255, 255, 0, 255),
+                                      line);
+  ImGui::End();
+}
+
+void scene_panel(Workbench& wb, PanelState& ps) {
+  if (!ImGui::CollapsingHeader("Scene", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  ImGui::TextWrapped("%s", wb.scene().source.c_str());
+  ImGui::InputText("##scenepath", ps.scene_path, sizeof ps.scene_path);
+  ImGui::SameLine();
+  if (ImGui::Button("Load")) {
+    std::string err;
+    ps.status = wb.load_scene(ps.scene_path, &err) ? std::string("loaded ") + ps.scene_path
+                                                    : "error: " + err;
+    if (!err.empty()) wb.messages.push_back("error: " + err);
+  }
+  if (ImGui::BeginListBox("##objects", ImVec2(-1, 120))) {
+    const auto& objects = wb.scene().objects;
+    for (size_t i = 0; i < objects.size(); ++i) {
+      const std::string label = objects[i].name + "  (" + objects[i].kind + ")";
+      if (ImGui::Selectable(label.c_str(), wb.selected_object == int(i))) wb.selected_object = int(i);
+    }
+    ImGui::EndListBox();
+  }
+  if (wb.selected_object >= 0 && wb.selected_object < int(wb.scene().objects.size())) {
+    const auto& o = wb.scene().objects[size_t(wb.selected_object)];
+    const uint32_t mat = o.is_sphere ? wb.scene().spheres[o.first].material
+                                     : (o.count ? wb.scene().mesh.materials[o.first] : 0u);
+    ImGui::Text("selected: %s, material \"%s\"", o.name.c_str(),
+                wb.scene().materials[mat].name.c_str());
+    wb.selected_material = int(mat);
+  }
+}
+
+void material_panel(Workbench& wb) {
+  if (!ImGui::CollapsingHeader("Material", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  auto& mats = wb.scene().materials;
+  if (mats.empty()) return;
+  wb.selected_material = std::clamp(wb.selected_material, 0, int(mats.size()) - 1);
+  if (ImGui::BeginCombo("material", mats[size_t(wb.selected_material)].name.c_str())) {
+    for (size_t i = 0; i < mats.size(); ++i)
+      if (ImGui::Selectable(mats[i].name.c_str(), int(i) == wb.selected_material))
+        wb.selected_material = int(i);
+    ImGui::EndCombo();
+  }
+  tracer::Material& m = mats[size_t(wb.selected_material)].material;
+  bool changed = false;
+  int type = int(m.type);
+  if (ImGui::Combo("type", &type, "diffuse\0mirror\0dielectric\0")) {
+    m.type = tracer::MaterialType(type);
+    changed = true;
+  }
+  changed |= ImGui::ColorEdit3(m.type == tracer::MaterialType::kDiffuse ? "base colour" : "tint",
+                               &m.albedo.x);
+  if (m.type == tracer::MaterialType::kDielectric) {
+    changed |= ImGui::SliderFloat("IOR", &m.ior, 1.01f, 3.0f, "%.3f");
+    bool schlick = m.flags & tracer::kMaterialSchlickFresnel;
+    if (ImGui::Checkbox("Schlick Fresnel (else exact)", &schlick)) {
+      m.flags = schlick ? (m.flags | tracer::kMaterialSchlickFresnel)
+                        : (m.flags & ~tracer::kMaterialSchlickFresnel);
+      changed = true;
+    }
+    changed |= ImGui::DragFloat3("absorption", &m.absorption.x, 0.001f, 0.0f, 1e3f, "%.4f");
+  }
+  float strength = tracer::max_component(m.emission);
+  vec3 colour = strength > 0.0f ? m.emission / strength : vec3(1.0f);
+  bool e = ImGui::ColorEdit3("emission colour", &colour.x);
+  e |= ImGui::DragFloat("emission strength", &strength, 0.05f, 0.0f, 1e6f, "%.3f");
+  if (e) {
+    m.emission = colour * std::max(strength, 0.0f);
+    changed = true;
+  }
+  bool two = m.flags & tracer::kMaterialTwoSidedEmission;
+  if (ImGui::Checkbox("two-sided emission", &two)) {
+    m.flags = two ? (m.flags | tracer::kMaterialTwoSidedEmission)
+                  : (m.flags & ~tracer::kMaterialTwoSidedEmission);
+    changed = true;
+  }
+  m.albedo = glm::clamp(m.albedo, vec3(0.0f), vec3(1.0f));
+  m.absorption = glm::max(m.absorption, vec3(0.0f));
+  if (changed) wb.changed(Edit::kMaterial);
+}
+
+void camera_panel(Workbench& wb) {
+  if (!ImGui::CollapsingHeader("Camera")) return;
+  tracer::CameraDesc& c = wb.scene().camera;
+  bool changed = false;
+  changed |= edit_vec3("position", c.position, 0.01f * glm::length(c.look_at - c.position));
+  changed |= edit_vec3("look at", c.look_at, 0.01f * glm::length(c.look_at - c.position));
+  changed |= ImGui::SliderFloat("vertical FOV", &c.vfov_deg, 5.0f, 120.0f, "%.1f deg");
+  changed |= ImGui::DragFloat("aperture radius", &c.aperture_radius, 0.001f *
+                              glm::length(c.look_at - c.position), 0.0f, 1e6f, "%.4f");
+  changed |= ImGui::DragFloat("focus distance", &c.focus_distance,
+                              0.005f * glm::length(c.look_at - c.position), 0.0f, 1e9f, "%.3f");
+  if (changed) wb.changed(Edit::kCamera);
+  if (ImGui::Button("Reset view (F)")) wb.reset_view();
+  ImGui::TextWrapped(
+      "Viewport: left drag orbits, right drag pans, wheel zooms, W/A/S/D/Q/E fly, click selects, "
+      "Ctrl+click or middle click focuses on the surface under the cursor.");
+}
+
+void render_panel(Workbench& wb, PanelState& ps) {
+  if (!ImGui::CollapsingHeader("Render", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  int backend = wb.backend_name() == "cuda" ? 2 : 1;
+  if (ImGui::Combo("backend", &backend, "auto\0cpu\0cuda\0")) {
+    std::string err;
+    const tracer::BackendChoice b = backend == 0 ? tracer::BackendChoice::kAuto
+                                    : backend == 1 ? tracer::BackendChoice::kCpu
+                                                   : tracer::BackendChoice::kCuda;
+    if (!wb.set_backend(b, &err)) {
+      ps.status = "error: " + err;
+      wb.messages.push_back("error: " + err);
+    }
+  }
+  ImGui::TextDisabled("%s", wb.device_name().c_str());
+  tracer::RenderSettings& rs = wb.settings();
+  bool changed = false;
+  changed |= ImGui::SliderInt("max depth", &rs.max_depth, 1, 64);
+  changed |= ImGui::Checkbox("next-event estimation", &rs.nee);
+  ImGui::SameLine();
+  changed |= ImGui::Checkbox("MIS", &rs.mis);
+  changed |= ImGui::Checkbox("Russian roulette", &rs.russian_roulette);
+  ImGui::SameLine();
+  ImGui::SetNextItemWidth(100);
+  changed |= ImGui::SliderInt("from depth", &rs.rr_start_depth, 1, 16);
+  changed |= ImGui::Checkbox("pixel jitter", &rs.jitter);
+  int size[2] = {rs.width, rs.height};
+  if (ImGui::InputInt2("image size", size, ImGuiInputTextFlags_EnterReturnsTrue)) {
+    rs.width = std::clamp(size[0], 16, 8192);
+    rs.height = std::clamp(size[1], 16, 8192);
+    wb.changed(Edit::kResize);
+  }
+  if (changed) wb.changed(Edit::kSettings);
+  int target = int(wb.target_spp);
+  if (ImGui::InputInt("stop at spp (0: never)", &target)) wb.target_spp = uint32_t(std::max(0, target));
+  float secs = float(wb.target_seconds);
+  if (ImGui::InputFloat("stop after s (0: never)", &secs)) wb.target_seconds = std::max(0.0f, secs);
+  ImGui::Checkbox("auto samples per frame", &wb.auto_samples_per_frame);
+  if (!wb.auto_samples_per_frame) ImGui::SliderInt("samples per frame", &wb.samples_per_frame, 1, 256);
+  ImGui::Checkbox("pause", &wb.paused);
+  ImGui::SameLine();
+  if (ImGui::Button("Reset accumulator (R)")) wb.changed(Edit::kSettings);
+  if (ImGui::TreeNode("GPU")) {
+    tracer::GpuOptions& g = wb.gpu_options();
+    bool gc = false;
+    int kernel = int(g.kernel);
+    if (ImGui::Combo("kernel", &kernel, "auto\0wavefront\0megakernel\0")) {
+      g.kernel = tracer::KernelMode(kernel);
+      gc = true;
+    }
+    gc |= ImGui::Checkbox("stream compaction", &g.compaction);
+    gc |= ImGui::Checkbox("material sorting", &g.sort_materials);
+    gc |= ImGui::Checkbox("first-bounce cache", &g.first_bounce_cache);
+    gc |= ImGui::Checkbox("specialised kernels", &g.specialize);
+    if (gc) wb.changed(Edit::kGpuOptions);
+    ImGui::TreePop();
+  }
+}
+
+void stats_panel(Workbench& wb, const PanelState& ps) {
+  if (!ImGui::CollapsingHeader("Stats", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  const WorkbenchStats& s = wb.stats();
+  ImGui::Text("%u spp%s, %.1f s, %.1f spp/s", s.spp, wb.converged() ? " (done)" : "", s.elapsed_s,
+              s.samples_per_s);
+  ImGui::Text("%.2f ms per frame, %.0f Mrays/s, %.1f UI fps", s.ms_per_frame, s.mrays_per_s,
+              ImGui::GetIO().Framerate);
+  ImGui::Text("NaN/Inf samples rejected: %llu", (unsigned long long)s.nonfinite);
+  if (s.relmse_halves >= 0) ImGui::Text("relMSE between half buffers: %.3g", s.relmse_halves);
+  else ImGui::TextDisabled("relMSE between half buffers: needs more samples");
+  if (s.relmse_reference >= 0) ImGui::Text("relMSE against the reference: %.3g", s.relmse_reference);
+  ImGui::Text("kernel: %s%s", s.last.kernel.c_str(), ps.interop ? " (CUDA/GL interop)" : "");
+  if (!s.last.specialization.empty()) ImGui::TextWrapped("variant: %s", s.last.specialization.c_str());
+  if (!s.last.note.empty()) ImGui::TextWrapped("%s", s.last.note.c_str());
+  const tracer::StageTimes& t = s.last.stages;
+  if (t.intersect > 0 || t.megakernel > 0) {
+    ImGui::Text("ms per sample: gen %.3f  isect %.3f  sort %.3f", t.generate, t.intersect, t.sort);
+    ImGui::Text("  shade %.3f  shadow %.3f  compact %.3f  mega %.3f", t.shade, t.shadow, t.compact,
+                t.megakernel);
+  }
+  if (!s.last.alive_per_bounce.empty()) {
+    std::vector<float> alive(s.last.alive_per_bounce.begin(), s.last.alive_per_bounce.end());
+    ImGui::PlotHistogram("paths alive\nper bounce", alive.data(), int(alive.size()), 0, nullptr,
+                         0.0f, alive[0], ImVec2(0, 60));
+  }
+  if (ImGui::TreeNode("Reference image")) {
+    ImGui::InputText("##ref", const_cast<char*>(ps.reference_path), sizeof ps.reference_path);
+    ImGui::TreePop();
+  }
+}
+
+void display_panel(Workbench& wb) {
+  if (!ImGui::CollapsingHeader("Display", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  DisplaySettings& d = wb.display();
+  bool changed = ImGui::SliderFloat("exposure (stops)", &d.exposure, -8.0f, 8.0f, "%.2f");
+  int op = int(d.tone_map);
+  if (ImGui::Combo("tone map", &op, "none\0Reinhard\0ACES\0")) {
+    d.tone_map = tracer::ToneMap(op);
+    changed = true;
+  }
+  if (changed) wb.changed(Edit::kDisplay);  // never resets the accumulator
+}
+
+void export_panel(Workbench& wb, PanelState& ps) {
+  if (!ImGui::CollapsingHeader("Export", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  ImGui::InputText("image (.png/.exr)", ps.export_path, sizeof ps.export_path);
+  if (ImGui::Button("Export image (Ctrl+S)")) {
+    const std::string err = wb.export_image(ps.export_path);
+    ps.status = err.empty() ? std::string("saved ") + ps.export_path + " (+ .json)" : "error: " + err;
+    if (!err.empty()) wb.messages.push_back("error: " + err);
+  }
+  ImGui::InputText("scene (.json)", ps.save_path, sizeof ps.save_path);
+  if (ImGui::Button("Save scene")) {
+    const std::string err = wb.save_scene(ps.save_path);
+    ps.status = err.empty() ? std::string("saved ") + ps.save_path : "error: " + err;
+    if (!err.empty()) wb.messages.push_back("error: " + err);
+  }
+}
+
+}  // namespace
+
+bool draw_workbench(Workbench& wb, PanelState& ps) {
+  ImGuiIO& io = ImGui::GetIO();
+  if (!io.WantTextInput) {
+    if (ImGui::IsKeyPressed(ImGui::GetKeyIndex(ImGuiKey_Tab)) || ImGui::IsKeyPressed('H')) ps.show_ui = !ps.show_ui;
+    if (ImGui::IsKeyPressed('R')) wb.changed(Edit::kSettings);
+    if (ImGui::IsKeyPressed('F')) wb.reset_view();
+    if (io.KeyCtrl && ImGui::IsKeyPressed('S')) {
+      const std::string err = wb.export_image(ps.export_path);
+      ps.status = err.empty() ? std::string("saved ") + ps.export_path : "error: " + err;
+    }
+  }
+  const ImVec2 display = io.DisplaySize;
+  const float column = ps.show_ui ? kColumnWidth : 0.0f;
+  viewport(wb, ps, ImVec2(0, 0), ImVec2(display.x - column, display.y));
+  if (!ps.show_ui) return false;
+  ImGui::SetNextWindowPos(ImVec2(display.x - column, 0));
+  ImGui::SetNextWindowSize(ImVec2(column, display.y));
+  ImGui::Begin("Workbench", nullptr, ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoMove);
+  scene_panel(wb, ps);
+  material_panel(wb);
+  camera_panel(wb);
+  render_panel(wb, ps);
+  stats_panel(wb, ps);
+  display_panel(wb);
+  export_panel(wb, ps);
+  if (!ps.status.empty()) ImGui::TextWrapped("%s", ps.status.c_str());
+  if (!wb.messages.empty() && ImGui::CollapsingHeader("Messages", ImGuiTreeNodeFlags_DefaultOpen)) {
+    for (auto it = wb.messages.rbegin(); it != wb.messages.rend(); ++it) {
+      const bool error = it->rfind("error", 0) == 0;
+      if (error) ImGui::PushStyleColor(ImGuiCol_Text, IM_COL32(255, 90, 90, 255));
+      ImGui::TextWrapped("%s", it->c_str());
+      if (error) ImGui::PopStyleColor();
+    }
+  }
+  ImGui::TextDisabled("Tab/H hides the panels, R resets, Ctrl+S exports");
+  ImGui::End();
+  return false;
+}
+
+}  // namespace ui

@@ -1,0 +1,150 @@
+// The workbench model behind the window: the scene being edited, the renderer filling the
+// progressive accumulator, what each edit resets, camera navigation, picking, export and scene
+// saving. No GL and no ImGui here, so it is tested without a window.
+#pragma once
+
+#include <atomic>
+#include <cmath>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "integrator/renderer.h"
+#include "scene/compiled_scene.h"
+#include "scene/scene.h"
+
+namespace ui {
+
+using tracer::vec3;
+
+// What an edit touched. Everything but kDisplay changes the expected image and so resets the
+// accumulator in the same frame; kDisplay (exposure, tone map) only changes how it is shown.
+enum class Edit { kDisplay, kCamera, kMaterial, kSettings, kGpuOptions, kResize, kScene };
+
+struct DisplaySettings {
+  float exposure = 0.0f;  // stops
+  tracer::ToneMap tone_map = tracer::ToneMap::kNone;
+  float scale() const { return std::exp2(exposure); }
+};
+
+struct WorkbenchStats {
+  uint32_t spp = 0;
+  double ms_per_frame = 0.0;       // wall time of the last UI frame's rendering
+  double samples_per_s = 0.0;      // samples per pixel per second, recent
+  double mrays_per_s = 0.0;
+  double elapsed_s = 0.0;          // since the last reset
+  uint64_t nonfinite = 0;
+  tracer::FrameStats last;         // stage times, alive per bounce, kernel, notes
+  double relmse_halves = -1.0;     // convergence estimate (half buffers), < 0 when unknown
+  double relmse_reference = -1.0;  // against a loaded reference image, < 0 when none
+  uint64_t resets = 0;             // how many times the accumulator was cleared
+};
+
+class Workbench {
+ public:
+  Workbench(tracer::Scene scene, tracer::BackendChoice backend, int cpu_threads = 0);
+  ~Workbench();
+
+  // --- state the panels edit directly; call changed() afterwards ---------------------------
+  tracer::Scene& scene() { return scene_; }
+  tracer::RenderSettings& settings() { return scene_.settings; }
+  tracer::GpuOptions& gpu_options() { return gpu_; }
+  DisplaySettings& display() { return display_; }
+  int samples_per_frame = 1;      // GPU: samples added per UI frame (adapted when auto)
+  bool auto_samples_per_frame = true;
+  uint32_t target_spp = 0;        // stop here (0: no limit); from the scene's render.spp
+  double target_seconds = 0.0;    // stop after this long (0: no limit)
+  bool paused = false;
+  int selected_object = -1;
+  int selected_material = 0;
+
+  void changed(Edit e);
+
+  // --- per UI frame ------------------------------------------------------------------------
+  // Applies pending edits (resetting in the same frame) and renders this frame's samples.
+  void update();
+  const WorkbenchStats& stats() const { return stats_; }
+  bool converged() const;  // target spp or time reached
+  // The display image as RGBA8 (top row first); false when nothing new since the last call.
+  bool fetch_display(std::vector<uint32_t>& rgba, int& width, int& height);
+  tracer::Renderer* gpu_renderer();  // the CUDA renderer when it is the active backend
+  int width() const { return scene_.settings.width; }
+  int height() const { return scene_.settings.height; }
+  std::string backend_name() const;
+  std::string device_name() const;
+
+  // --- actions -----------------------------------------------------------------------------
+  // "materials.glass.ior=1.7", "camera.vfov=50", "display.exposure=1", "render.nee=off", ...
+  bool apply(const std::string& assignment, std::string* error);
+  static std::vector<std::string> settable_keys();
+  bool set_backend(tracer::BackendChoice b, std::string* error);
+  bool load_scene(const std::string& path, std::string* error);
+  // Writes the current image (PNG tone-mapped with the display settings, or EXR linear) and its
+  // JSON sidecar, atomically. Returns "" or the error.
+  std::string export_image(const std::string& path);
+  std::string save_scene(const std::string& path);  // JSON that reloads every edit
+  bool load_reference(const std::string& path, std::string* error);
+
+  // Camera navigation (orbit about look_at, pan, dolly, fly) and picking in image coordinates
+  // u, v in [0, 1] from the top-left corner.
+  void orbit(float dx_deg, float dy_deg);
+  void pan(float dx, float dy);
+  void zoom(float factor);
+  void fly(float forward, float right, float up);
+  void reset_view();
+  int pick_object(float u, float v) const;   // index into scene().objects, or -1
+  bool focus_at(float u, float v);          // sets focus_distance to the hit under (u, v)
+
+  // Messages for the UI (errors and warnings), newest last.
+  std::vector<std::string> messages;
+
+ private:
+  void rebuild(bool geometry);
+  void start_worker();
+  void stop_worker();
+  void worker_loop();
+  void reset_stats();
+  tracer::Ray camera_ray(float u, float v) const;
+
+  tracer::Scene scene_;
+  tracer::CameraDesc initial_camera_;
+  tracer::GpuOptions gpu_;
+  DisplaySettings display_;
+  tracer::BackendChoice backend_choice_;
+  int cpu_threads_;
+  std::unique_ptr<tracer::Renderer> renderer_;
+  std::shared_ptr<tracer::CompiledScene> compiled_;
+  bool dirty_ = true, geometry_dirty_ = true, display_dirty_ = true;
+  WorkbenchStats stats_;
+  double since_reset_s_ = 0.0;
+  std::unique_ptr<tracer::ImageRGB> reference_;
+  int frames_since_estimate_ = 0;
+
+  // CPU backend: a worker thread renders passes while the UI runs.
+  bool async_ = false;
+  std::thread worker_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::atomic<bool> cancel_{false};
+  bool quit_ = false;
+  bool worker_reset_ = false;
+  std::shared_ptr<tracer::CompiledScene> worker_scene_;
+  tracer::IntegratorSettings worker_cfg_;
+  std::vector<float> published_mean_;
+  int published_w_ = 0, published_h_ = 0;
+  bool published_new_ = false;
+  tracer::FrameStats worker_stats_;
+  uint32_t worker_spp_ = 0;
+  double worker_relmse_ = -1.0;
+  uint64_t worker_nonfinite_ = 0;
+  double worker_render_s_ = 0.0;
+  uint64_t generation_ = 0;
+  bool worker_paused_ = false;  // copies of the public fields, read by the worker under mutex_
+  uint32_t worker_target_spp_ = 0;
+  double worker_target_s_ = 0.0;
+};
+
+}  // namespace ui
