@@ -18,7 +18,7 @@ class GlfwPlatform final : public GuiPlatform {
  public:
   explicit GlfwPlatform(GLFWwindow* w) : window_(w) {}
   ~GlfwPlatform() override {
-    ImGui_ImplOpenGL3_Shutdown();
+    if (ImGui::GetIO().BackendRendererUserData) ImGui_ImplOpenGL3_Shutdown();
     ImGui_ImplGlfw_Shutdown();
     ImGui::DestroyContext();
     glfwDestroyWindow(window_);
@@ -49,7 +49,7 @@ class EglPlatform final : public GuiPlatform {
     last_ = std::chrono::steady_clock::now();
   }
   ~EglPlatform() override {
-    ImGui_ImplOpenGL3_Shutdown();
+    if (ImGui::GetIO().BackendRendererUserData) ImGui_ImplOpenGL3_Shutdown();
     ImGui::DestroyContext();
     eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     eglDestroyContext(display_, context_);
@@ -111,8 +111,12 @@ std::unique_ptr<GuiPlatform> make_glfw_platform(int width, int height, bool vsyn
   glfwSwapInterval(vsync ? 1 : 0);
   init_imgui();
   ImGui_ImplGlfw_InitForOpenGL(window, true);
-  ImGui_ImplOpenGL3_Init("#version 330");
-  return std::make_unique<GlfwPlatform>(window);
+  auto platform = std::make_unique<GlfwPlatform>(window);
+  if (!ImGui_ImplOpenGL3_Init("#version 330")) {
+    *error = "cannot load the OpenGL 3.3 functions (ImGui's loader needs libGL.so.1)";
+    return nullptr;  // the platform's destructor closes the window
+  }
+  return platform;
 }
 
 std::unique_ptr<GuiPlatform> make_egl_platform(int width, int height, std::string* error) {
@@ -161,8 +165,12 @@ std::unique_ptr<GuiPlatform> make_egl_platform(int width, int height, std::strin
   }
   eglSwapInterval(display, 0);
   init_imgui();
-  ImGui_ImplOpenGL3_Init("#version 330");
-  return std::make_unique<EglPlatform>(display, surface, context, width, height);
+  auto platform = std::make_unique<EglPlatform>(display, surface, context, width, height);
+  if (!ImGui_ImplOpenGL3_Init("#version 330")) {
+    *error = "cannot load the OpenGL 3.3 functions (ImGui's loader needs libGL.so.1)";
+    return nullptr;
+  }
+  return platform;
 }
 
 }  // namespace app

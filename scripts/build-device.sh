@@ -27,6 +27,8 @@ for bin in "$DIST/pathtracer" "$DIST/cuda_test"; do
     esac
   done
 done
+# ImGui's OpenGL loader dlopens libGL.so.1 (glvnd), which needs libGLX.so.0.
+for lib in libGL.so.1 libGLX.so.0; do cp -L "/usr/lib/x86_64-linux-gnu/$lib" "$DIST/lib/"; done
 cp /usr/share/glmark2/models/bunny.obj "$DIST/"  # for assets/scenes/cornell_bunnies.json
 du -sh "$DIST"
 ls "$DIST/lib"

@@ -34,12 +34,37 @@ if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
 fi
 
 if [ "$MODE" = all ] || [ "$MODE" = render ]; then
-  echo "== renders (CUDA backend)"
-  for s in cornell_box cornell_spheres depth_of_field; do
-    $DIST/pathtracer render assets/scenes/$s.json --backend cuda --spp 1024 --out "$OUT/$s.png"
+  echo "== renders (CUDA backend); sidecars stay in /tmp (8 files come back at most)"
+  for s in cornell_box cornell_spheres depth_of_field cornell_bunnies; do
+    $DIST/pathtracer render "$(scene $s)" --backend cuda --spp 1024 --out "/tmp/$s.png"
+    cp "/tmp/$s.png" "$OUT/"
   done
-  $DIST/pathtracer render $BUNNIES --backend cuda --spp 256 \
-    --out "$OUT/cornell_bunnies.png"
+fi
+
+if [ "$MODE" = all ] || [ "$MODE" = gui ]; then
+  echo "== workbench: EGL off-screen, CUDA backend, CUDA/GL interop, 1280x720 image"
+  # An edit at frame 300 measures the first image after a reset.
+  printf '300: set materials.white.albedo=0.6,0.6,0.6\n' > /tmp/gui.script
+  export __EGL_VENDOR_LIBRARY_FILENAMES=${__EGL_VENDOR_LIBRARY_FILENAMES:-/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json}
+  $DIST/pathtracer gui --egl --backend cuda --window 1600 --window-height 900 --frames 600 \
+    --set render.width=1280 --set render.height=720 --set render.spp=0 --script /tmp/gui.script \
+    --stats-json "$OUT/gui_stats.jsonl" --screenshot "$OUT/gui_gpu.png" || echo "gui FAILED"
+  python3 - "$OUT/gui_stats.jsonl" <<'PY'
+import json, statistics, sys
+rows = [json.loads(l) for l in open(sys.argv[1])]
+if not rows:
+    sys.exit("no frames")
+reset = next((i for i in range(1, len(rows)) if rows[i]["resets"] != rows[i - 1]["resets"]), None)
+steady = rows[50:reset] if reset else rows[50:]
+fm = statistics.median(r["frame_ms"] for r in steady)
+span = steady[-1]["t"] - steady[0]["t"]
+spps = (steady[-1]["spp"] - steady[0]["spp"]) / span if span > 0 else 0
+print(f"frames {len(rows)}, interop {rows[-1]['interop']}, kernel {rows[-1]['kernel']}")
+print(f"steady state: median frame {fm:.2f} ms ({1000/fm:.0f} UI fps), {spps:.0f} spp/s at 1280x720")
+if reset:
+    r = rows[reset]
+    print(f"edit at frame {reset}: that frame took {r['frame_ms']:.2f} ms and showed {r['spp']} spp")
+PY
 fi
 
 if [ "$MODE" = all ] || [ "$MODE" = bench ]; then

@@ -15,6 +15,6 @@ for k in megakernel intersect_kernel shade_kernel shadow_kernel; do
   [ $k = megakernel ] && mode=megakernel
   $NCU --clock-control none -k regex:$k --launch-skip 3 --launch-count 1 $SECTIONS \
     $DIST/pathtracer render "$SCENE" --backend cuda --kernel $mode --spp 6 --width 1920 \
-    --height 1080 -q --out /tmp/p.png > "$OUT/ncu_$k.txt" 2>&1
-  grep -E "Duration|Achieved Occupancy|Theoretical Occupancy|Registers Per|Issue Slots Busy|No Eligible|Memory Throughput|Compute \(SM\) Throughput|L1/TEX Hit|L2 Hit|Warp Cycles Per Issued|Active Warps Per Scheduler|Eligible Warps|Avg. Active Threads|inst_executed|cycles_elapsed" "$OUT/ncu_$k.txt" | sed "s/^/[$k] /"
+    --height 1080 -q --out /tmp/p.png > "/tmp/ncu_$k.txt" 2>&1
+  grep -E "Duration|Achieved Occupancy|Theoretical Occupancy|Registers Per|Issue Slots Busy|No Eligible|Memory Throughput|Compute \(SM\) Throughput|L1/TEX Hit|L2 Hit|Warp Cycles Per Issued|Active Warps Per Scheduler|Eligible Warps|Avg. Active Threads|inst_executed|cycles_elapsed" "/tmp/ncu_$k.txt" | sed "s/^/[$k] /"
 done
