@@ -127,13 +127,13 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const float u_rr = rng.next_float();
 
   const vec3 wo_world = -st.ray.d;
-  const bool dielectric = type == MaterialType::kDielectric;
-  // Reflectors are two-sided: their frame faces the viewer. A dielectric keeps +z outside.
-  const Frame frame = Frame::from_normal(dielectric || sh.front ? sh.ns : -sh.ns);
+  const bool transmits = bsdf_transmits(type);
+  // Reflectors are two-sided: their frame faces the viewer. Transmitters keep +z outside.
+  const Frame frame = Frame::from_normal(transmits || sh.front ? sh.ns : -sh.ns);
   const vec3 wo = frame.to_local(wo_world);
   const vec3 ng_viewer = sh.front ? sh.ng : -sh.ng;
 
-  if (cfg.nee && type == MaterialType::kDiffuse && s.light_count > 0) {
+  if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
     const LightSample ls = sample_light<F>(s, sh.p, sh.ng, u_pick, u_light);
     if (ls.valid && !is_black(ls.le)) {
       const vec3 to = ls.p - sh.p;
@@ -157,7 +157,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const vec3 wi_world = glm::normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wi_world, sh.ng);
   // A reflector whose shading normal sends the ray under the true surface would leak light.
-  if (!dielectric && side * glm::dot(wo_world, sh.ng) <= 0.0f) return false;
+  if (!transmits && side * glm::dot(wo_world, sh.ng) <= 0.0f) return false;
   st.throughput *= bs.weight;
   st.prev_pdf = bs.pdf;
   st.flags = bs.specular ? (st.flags | kPathPrevSpecular) : (st.flags & ~kPathPrevSpecular);

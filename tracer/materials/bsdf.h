@@ -19,6 +19,24 @@ struct BsdfSample {
   bool valid = false;
 };
 
+// Whether every lobe of the material is a delta distribution: no light sampling and no MIS at
+// its vertices. `type` is the material's type as the caller's feature mask sees it.
+TRACER_HD TRACER_INLINE bool bsdf_is_delta(const Material& m, MaterialType type) {
+  switch (type) {
+    case MaterialType::kDiffuse: return false;
+    case MaterialType::kConductor:
+    case MaterialType::kDielectric: return m.roughness <= 0.0f;
+    case MaterialType::kMirror:
+    case MaterialType::kSubsurface: return true;
+  }
+  return true;
+}
+
+// Materials whose lobes may cross the surface (their frame keeps +z on the outside).
+TRACER_HD TRACER_INLINE bool bsdf_transmits(MaterialType type) {
+  return type == MaterialType::kDielectric || type == MaterialType::kSubsurface;
+}
+
 TRACER_HD TRACER_INLINE float material_fresnel(const Material& m, float cos_i, float eta) {
   return (m.flags & kMaterialSchlickFresnel) ? fresnel_schlick(cos_i, eta)
                                              : fresnel_dielectric(cos_i, eta);
@@ -30,11 +48,9 @@ TRACER_HD TRACER_INLINE vec3 bsdf_eval(const Material& m, vec3 wo, vec3 wi) {
     case MaterialType::kDiffuse:
       if (wo.z <= 0.0f || wi.z <= 0.0f) return vec3(0.0f);
       return m.albedo * kInvPi;
-    case MaterialType::kMirror:
-    case MaterialType::kDielectric:
+    default:
       return vec3(0.0f);
   }
-  return vec3(0.0f);
 }
 
 TRACER_HD TRACER_INLINE float bsdf_pdf(const Material& m, vec3 wo, vec3 wi) {
@@ -42,11 +58,9 @@ TRACER_HD TRACER_INLINE float bsdf_pdf(const Material& m, vec3 wo, vec3 wi) {
     case MaterialType::kDiffuse:
       if (wo.z <= 0.0f) return 0.0f;
       return cosine_hemisphere_pdf(wi.z);
-    case MaterialType::kMirror:
-    case MaterialType::kDielectric:
+    default:
       return 0.0f;
   }
-  return 0.0f;
 }
 
 // u: two uniform numbers for the direction, uc: one for choosing between lobes. Without
@@ -65,6 +79,7 @@ TRACER_HD inline BsdfSample bsdf_sample(const Material& m, vec3 wo, vec2 u, floa
       s.valid = true;
       return s;
     }
+    case MaterialType::kConductor:  // smooth until GGX lands: Fresnel-free tinted reflection
     case MaterialType::kMirror: {
       if (wo.z <= 0.0f) return s;
       s.wi = vec3(-wo.x, -wo.y, wo.z);
@@ -74,6 +89,7 @@ TRACER_HD inline BsdfSample bsdf_sample(const Material& m, vec3 wo, vec2 u, floa
       s.valid = true;
       return s;
     }
+    case MaterialType::kSubsurface:  // the boundary is a smooth dielectric
     case MaterialType::kDielectric: {
       // Sample reflection with probability F and refraction with 1 - F, so the weights are the
       // tint alone: R + T = 1 is conserved exactly (pbrt-v4 sec. 9.5.2).

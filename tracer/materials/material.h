@@ -9,9 +9,14 @@ namespace tracer {
 enum class MaterialType : uint32_t {
   kDiffuse = 0,     // Lambertian, reflectance `albedo`
   kMirror = 1,      // perfect specular reflection tinted by `albedo`
-  kDielectric = 2,  // smooth glass: Fresnel-weighted reflection and refraction, `ior`, Beer-Lambert
+  kDielectric = 2,  // glass: Fresnel reflection and refraction, `ior`, Beer-Lambert `absorption`;
+                    // smooth when `roughness` is 0, GGX microfacets otherwise
+  kConductor = 3,   // metal: Schlick Fresnel with F0 = `albedo`, GGX `roughness` (0: smooth)
+  kSubsurface = 4,  // smooth dielectric boundary (`ior`) around a homogeneous medium that
+                    // scatters (`scattering`) and absorbs (`absorption`) per unit length, with
+                    // Henyey-Greenstein anisotropy `g`; light random-walks inside
 };
-constexpr int kMaterialTypeCount = 3;
+constexpr int kMaterialTypeCount = 5;
 
 enum MaterialFlags : uint32_t {
   kMaterialSchlickFresnel = 1u << 0,    // Schlick's approximation instead of the exact equations
@@ -25,19 +30,25 @@ struct alignas(16) Material {
   float ior = 1.5f;
   vec3 absorption = vec3(0.0f);  // Beer-Lambert coefficient per unit length inside a dielectric
   uint32_t flags = 0;
+  vec3 scattering = vec3(0.0f);  // subsurface: scattering coefficient per unit length
+  float roughness = 0.0f;        // perceptual roughness; the GGX alpha is roughness^2
+  float g = 0.0f;                // subsurface: Henyey-Greenstein mean cosine, (-1, 1)
+  uint32_t pad[3] = {0, 0, 0};
 
   TRACER_HD bool is_emissive() const {
     return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f;
   }
   TRACER_HD bool is_specular() const { return type != MaterialType::kDiffuse; }
 };
-static_assert(sizeof(Material) == 48, "Material is uploaded as plain bytes");
+static_assert(sizeof(Material) == 80, "Material is uploaded as plain bytes");
 
 inline const char* material_type_name(MaterialType t) {
   switch (t) {
     case MaterialType::kDiffuse: return "diffuse";
     case MaterialType::kMirror: return "mirror";
     case MaterialType::kDielectric: return "dielectric";
+    case MaterialType::kConductor: return "conductor";
+    case MaterialType::kSubsurface: return "subsurface";
   }
   return "unknown";
 }
