@@ -21,6 +21,8 @@ enum SceneFeature : uint32_t {
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
 // Materials other than Lambertian diffuse.
-constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption;
+// (Subsurface is grouped with them: its boundary is a dielectric.)
+constexpr uint32_t kFeatureSpecular =
+    kFeatureDielectric | kFeatureMirror | kFeatureAbsorption | kFeatureSubsurface;
 
 }  // namespace tracer

@@ -95,6 +95,8 @@ FrameStats CpuRenderer::render(uint32_t spp) {
     st.rays.camera += counts[t].camera;
     st.rays.extension += counts[t].extension;
     st.rays.shadow += counts[t].shadow;
+    st.rays.walk_capped += counts[t].walk_capped;
+    st.rays.medium_leaks += counts[t].medium_leaks;
     st.nonfinite += bad[t];
   }
   samples_ += spp;

@@ -116,7 +116,7 @@ struct CudaRenderer::Impl {
     alive_counts.resize(cfg.max_depth + 2);
     count.resize(1);
     cub_temp.resize(std::max<size_t>(1, compaction_temp_bytes(count_pixels)));
-    counters.resize(4);
+    counters.resize(8);
     cached_hits.resize(0);
     cache_valid = false;
     samples = 0;
@@ -358,7 +358,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
     }
     st.kernel = mode == KernelMode::kWavefront ? "wavefront" : "megakernel";
   }
-  unsigned long long c[4] = {0, 0, 0, 0};
+  unsigned long long c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   TRACER_CUDA_CHECK(cudaMemcpyAsync(c, m.counters.get(), sizeof(c), cudaMemcpyDeviceToHost,
                                     m.stream));
   TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
@@ -372,6 +372,8 @@ FrameStats CudaRenderer::render(uint32_t spp) {
     st.rays.extension += c[2] - uint64_t(m.n()) * mega_samples;
   }
   st.nonfinite = c[1];
+  st.rays.walk_capped = c[3];
+  st.rays.medium_leaks = c[4];
   m.nonfinite += c[1];
   m.samples += spp;
   if (m.chosen != KernelMode::kAuto && m.opts.kernel == KernelMode::kAuto) {

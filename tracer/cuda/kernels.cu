@@ -71,16 +71,19 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
       generate_path<F>(s, cfg, pixel, sample, st);
       alive = true;
     }
-    const Hit hit = intersect_closest<F>(s, st.ray);
+    const Hit hit = intersect_closest<F>(s, st.ray, st.origin_prim);
     ++segments;
     ShadowRequest sr;
     const bool go_on = shade_path<F>(s, cfg, st, hit, sr);
     if (sr.valid) {
       ++shadows;
-      if (!intersect_any<F>(s, sr.ray, sr.target_prim)) st.radiance += sr.contribution;
+      if (!intersect_any<F>(s, sr.ray, sr.target_prim, sr.origin_prim))
+        st.radiance += sr.contribution;
     }
     if (!go_on) {
       add_to_film(film, st.pixel, st.radiance, first, &counters[1]);
+      if (st.flags & kPathWalkCapped) atomicAdd(&counters[3], 1ull);  // rare: plain atomics
+      if (st.flags & kPathMediumLeak) atomicAdd(&counters[4], 1ull);
       alive = false;
     }
   }
@@ -93,8 +96,10 @@ __device__ __forceinline__ void store_state(const WavefrontState& w, uint32_t id
   w.ray_o[id] = make_float4(st.ray.o.x, st.ray.o.y, st.ray.o.z, st.prev_pdf);
   w.ray_d[id] = make_float4(st.ray.d.x, st.ray.d.y, st.ray.d.z,
                             __uint_as_float(st.depth | (st.flags << 16)));
-  w.throughput[id] = make_float4(st.throughput.x, st.throughput.y, st.throughput.z, 0.0f);
-  w.radiance[id] = make_float4(st.radiance.x, st.radiance.y, st.radiance.z, 0.0f);
+  w.throughput[id] = make_float4(st.throughput.x, st.throughput.y, st.throughput.z,
+                                 __uint_as_float(st.medium));
+  w.radiance[id] = make_float4(st.radiance.x, st.radiance.y, st.radiance.z,
+                               __uint_as_float(st.walk_steps));
 }
 
 __device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_t id,
@@ -113,7 +118,8 @@ __device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_
   st.radiance = vec3(r.x, r.y, r.z);
   st.pixel = id;
   st.sample = sample;
-  st.pad = 0;
+  st.medium = __float_as_uint(t.w);
+  st.walk_steps = __float_as_uint(r.w);
   return st;
 }
 
@@ -135,6 +141,7 @@ __global__ void __launch_bounds__(kBlock) generate_kernel(SceneView s, Integrato
   generate_path<features_of<Spec>()>(s, cfg, id, sample, st);
   store_state(w, id, st);
   w.alive[id] = 1;
+  w.hit[id].y = __uint_as_float(kInvalid);  // camera rays leave from no surface
 }
 
 template <uint32_t Spec>
@@ -149,7 +156,10 @@ __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, Wavefron
   ray.d = vec3(d.x, d.y, d.z);
   ray.tmax = kInfinity;
   ray.pad = 0.0f;
-  const Hit h = intersect_closest<features_of<Spec>()>(s, ray);
+  // hit[id] still holds the hit this ray leaves from: skip that triangle.
+  const uint32_t origin = __float_as_uint(w.hit[id].y);
+  const Hit h = intersect_closest<features_of<Spec>()>(
+      s, ray, origin < s.tri_count ? origin : kInvalid);
   w.hit[id] = make_float4(h.t, __uint_as_float(h.prim), h.u, h.v);
 }
 
@@ -171,6 +181,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     ShadowRequest sr;
     go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
     store_state(w, id, st);
+    if (st.origin_prim == kInvalid) w.hit[id].y = __uint_as_float(kInvalid);  // medium scatter
     shadow_valid = sr.valid;
     if (sr.valid) {
       w.shadow_o[id] = make_float4(sr.ray.o.x, sr.ray.o.y, sr.ray.o.z, sr.ray.tmax);
@@ -210,7 +221,9 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontSt
     ray.tmax = o.w;
     ray.d = vec3(d.x, d.y, d.z);
     ray.pad = 0.0f;
-    if (!intersect_any<features_of<Spec>()>(s, ray, __float_as_uint(d.w))) {
+    const uint32_t origin = __float_as_uint(w.hit[id].y);
+    if (!intersect_any<features_of<Spec>()>(s, ray, __float_as_uint(d.w),
+                                           origin < s.tri_count ? origin : kInvalid)) {
       r.x += c.x;
       r.y += c.y;
       r.z += c.z;
@@ -220,6 +233,9 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontSt
   if (state == 2) {  // the path ended in this bounce: its sample is complete
     add_to_film(film, id, vec3(r.x, r.y, r.z), first, &w.counters[1]);
     w.alive[id] = 0;
+    const uint32_t flags = __float_as_uint(w.ray_d[id].w) >> 16;
+    if (flags & kPathWalkCapped) atomicAdd(&w.counters[3], 1ull);
+    if (flags & kPathMediumLeak) atomicAdd(&w.counters[4], 1ull);
   }
 }
 

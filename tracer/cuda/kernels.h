@@ -29,7 +29,9 @@ struct WavefrontState {
   uint8_t* alive = nullptr;      // 1 alive, 2 ended this bounce (radiance not yet added), 0 done
   uint32_t* sort_keys = nullptr;
   uint32_t* sort_bins = nullptr;       // 8 counters
-  unsigned long long* counters = nullptr;  // [0] shadow rays, [1] non-finite samples
+  // [0] shadow rays, [1] non-finite samples, [2] megakernel segments, [3] random walks capped,
+  // [4] paths that left a medium through an open mesh
+  unsigned long long* counters = nullptr;
   uint32_t* alive_counts = nullptr;    // paths entering each bounce, [max_depth + 1]
 };
 

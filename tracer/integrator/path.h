@@ -6,6 +6,7 @@
 
 #include "core/rng.h"
 #include "integrator/lights.h"
+#include "integrator/medium.h"
 
 namespace tracer {
 
@@ -20,6 +21,9 @@ struct IntegratorSettings {
 
 enum PathFlags : uint32_t {
   kPathPrevSpecular = 1u << 0,  // the last bounce was a delta lobe: no MIS on the next emitter
+  kPathInMedium = 1u << 1,      // inside a subsurface medium (PathState::medium)
+  kPathWalkCapped = 1u << 2,    // ended: the random walk hit kMaxWalkSteps (counted)
+  kPathMediumLeak = 1u << 3,    // ended: left a medium without crossing its boundary (counted)
 };
 
 struct PathState {
@@ -31,7 +35,9 @@ struct PathState {
   float prev_pdf;  // solid-angle pdf of the BSDF sample that produced `ray`
   uint32_t depth;  // segments traced so far, counting `ray`
   uint32_t flags;
-  uint32_t pad;
+  uint32_t medium;       // material of the medium the path is in, when kPathInMedium
+  uint32_t walk_steps;   // scattering events in the current random walk
+  uint32_t origin_prim;  // the triangle `ray` leaves from (skipped by its traversal), or kInvalid
 };
 
 // A shadow ray for next-event estimation: if nothing blocks it, `contribution` is added.
@@ -39,6 +45,7 @@ struct ShadowRequest {
   Ray ray;
   vec3 contribution;
   uint32_t target_prim;  // the light primitive aimed at, ignored by the occlusion test
+  uint32_t origin_prim;  // the triangle it leaves from, also ignored (kInvalid for spheres)
   bool valid;
 };
 
@@ -56,7 +63,9 @@ TRACER_HD inline void generate_path(const SceneView& s, const IntegratorSettings
   st.prev_pdf = 0.0f;
   st.depth = 1;
   st.flags = kPathPrevSpecular;  // emitters seen directly count in full
-  st.pad = 0;
+  st.medium = 0;
+  st.walk_steps = 0;
+  st.origin_prim = kInvalid;
 }
 
 // A ray leaving surface point p (geometric normal ng) in unit direction d, its origin offset to
@@ -94,11 +103,71 @@ template <uint32_t F = kAllFeatures>
 TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& cfg, PathState& st,
                                  const Hit& hit, ShadowRequest& shadow) {
   shadow.valid = false;
+  if ((F & kFeatureSubsurface) && (st.flags & kPathInMedium) && hit.valid()) {
+    const SurfaceHit b = make_surface_hit<F>(s, st.ray, hit);
+    // The walk's last point lay outside the boundary within rounding: the path has in fact left
+    // the medium, and this hit is its boundary seen from outside.
+    if (b.front && b.material == st.medium) st.flags &= ~kPathInMedium;
+  }
+  if ((F & kFeatureSubsurface) && (st.flags & kPathInMedium)) {
+    // Inside a subsurface medium: scatter before the boundary, or reach it attenuated.
+    if (!hit.valid()) {  // the mesh is not closed
+      st.flags |= kPathMediumLeak;
+      return false;
+    }
+    const Material& med = s.materials[st.medium];
+    Pcg32 rng = make_path_rng(st.pixel, st.sample, st.depth + (st.walk_steps + 1u) * 4096u,
+                              cfg.seed);
+    const float u_channel = rng.next_float(), u_distance = rng.next_float();
+    const vec2 u_dir = rng.next_2d();
+    const float u_rr = rng.next_float();
+    MediumEvent ev = sample_medium(med, st.throughput, hit.t, u_channel, u_distance);
+    if (ev.scattered) {
+      // hit.t carries the rounding error of the boundary's triangle (it grows with the
+      // triangle's coordinates), so a scattering point sampled just before it can lie on the
+      // outside. Such an event counts as reaching the boundary (a bias of the order of that
+      // error times sigma_t).
+      const SurfaceHit b = make_surface_hit<F>(s, st.ray, hit);
+      const vec3 outward = b.front ? -b.ng : b.ng;  // the ray leaves through a back face
+      if (glm::dot(st.ray.o + ev.t * st.ray.d - b.p, outward) >= 0.0f) {
+        ev.scattered = false;
+        const vec3 sigma_t = med.scattering + med.absorption;
+        const vec3 tr = glm::exp(-sigma_t * hit.t);
+        const float sum = st.throughput.x + st.throughput.y + st.throughput.z;
+        const vec3 pc = sum > 0.0f ? st.throughput / sum : vec3(1.0f / 3.0f);
+        const float prob = glm::dot(pc, tr);
+        ev.weight = prob > 0.0f ? tr / prob : vec3(0.0f);
+      }
+    }
+    st.throughput *= ev.weight;
+    if (ev.scattered) {
+      if (++st.walk_steps >= kMaxWalkSteps) {
+        st.flags |= kPathWalkCapped;
+        return false;
+      }
+      if (cfg.russian_roulette && st.walk_steps > 16) {  // keeps long walks finite in cost
+        const float q = glm::min(1.0f, max_component(st.throughput));
+        if (u_rr >= q) return false;
+        st.throughput /= q;
+      }
+      st.ray.o = st.ray.o + ev.t * st.ray.d;
+      st.ray.d = sample_hg(st.ray.d, med.g, u_dir);
+      st.origin_prim = kInvalid;  // a point inside the medium, on no surface
+      st.ray.tmax = kInfinity;
+      st.flags |= kPathPrevSpecular;  // nothing inside to sample lights from
+      return !is_black(st.throughput);
+    }
+  }
   if (!hit.valid()) return false;  // escaped: the scene has no environment light
   const SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
   const Material& m = s.materials[sh.material];
   // Without specular features in F, the compiler drops every non-diffuse branch below.
   const MaterialType type = (F & kFeatureSpecular) ? m.type : MaterialType::kDiffuse;
+  if ((F & kFeatureSubsurface) && (st.flags & kPathInMedium) &&
+      (sh.material != st.medium || sh.front)) {
+    st.flags |= kPathMediumLeak;  // overlapping or open geometry: the walk cannot continue
+    return false;
+  }
 
   // Beer-Lambert attenuation along the segment that just ran inside a dielectric.
   if (type == MaterialType::kDielectric && !sh.front && !is_black(m.absorption)) {
@@ -146,6 +215,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
           shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * (w / ls.pdf);
           shadow.ray = spawn_ray_to(sh.p, ng_viewer, ls.p, ls.n);
           shadow.target_prim = ls.prim;
+          shadow.origin_prim = hit.prim < s.tri_count ? hit.prim : kInvalid;
           shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);
         }
       }
@@ -158,10 +228,21 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const float side = glm::dot(wi_world, sh.ng);
   // A reflector whose shading normal sends the ray under the true surface would leak light.
   if (!transmits && side * glm::dot(wo_world, sh.ng) <= 0.0f) return false;
+  if ((F & kFeatureSubsurface) && type == MaterialType::kSubsurface &&
+      side * glm::dot(wo_world, sh.ng) < 0.0f) {
+    if (sh.front) {  // refracted in: the random walk starts
+      st.flags |= kPathInMedium;
+      st.medium = sh.material;
+      st.walk_steps = 0;
+    } else {
+      st.flags &= ~kPathInMedium;
+    }
+  }
   st.throughput *= bs.weight;
   st.prev_pdf = bs.pdf;
   st.flags = bs.specular ? (st.flags | kPathPrevSpecular) : (st.flags & ~kPathPrevSpecular);
   st.ray = spawn_ray(sh.p, sh.ng, wi_world);
+  st.origin_prim = hit.prim < s.tri_count ? hit.prim : kInvalid;
 
   if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
     const float q = glm::min(1.0f, max_component(st.throughput));
@@ -175,7 +256,14 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
 // Rays traced by one path, counted by kind for Mrays/s figures.
 struct RayCounts {
   uint64_t camera = 0, extension = 0, shadow = 0;
+  uint64_t walk_capped = 0, medium_leaks = 0;  // paths ended by a random walk's safety limits
 };
+
+TRACER_HD TRACER_INLINE void count_path_end(const PathState& st, RayCounts* counts) {
+  if (!counts) return;
+  if (st.flags & kPathWalkCapped) counts->walk_capped++;
+  if (st.flags & kPathMediumLeak) counts->medium_leaks++;
+}
 
 // One whole path, all bounces, in one call: the CPU backend and the CUDA megakernel.
 template <uint32_t F = kAllFeatures>
@@ -184,16 +272,18 @@ TRACER_HD inline vec3 trace_path(const SceneView& s, const IntegratorSettings& c
   PathState st;
   generate_path<F>(s, cfg, pixel, sample, st);
   for (;;) {
-    const Hit hit = intersect_closest<F>(s, st.ray);
+    const Hit hit = intersect_closest<F>(s, st.ray, st.origin_prim);
     if (counts) (st.depth == 1 ? counts->camera : counts->extension)++;
     ShadowRequest shadow;
     const bool go_on = shade_path<F>(s, cfg, st, hit, shadow);
     if (shadow.valid) {
       if (counts) counts->shadow++;
-      if (!intersect_any<F>(s, shadow.ray, shadow.target_prim)) st.radiance += shadow.contribution;
+      if (!intersect_any<F>(s, shadow.ray, shadow.target_prim, shadow.origin_prim))
+        st.radiance += shadow.contribution;
     }
     if (!go_on) break;
   }
+  count_path_end(st, counts);
   return st.radiance;
 }
 

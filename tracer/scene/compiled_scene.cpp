@@ -138,7 +138,9 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     if (m.type == MaterialType::kDielectric) features |= kFeatureDielectric;
     if (m.type == MaterialType::kDielectric && max_component(m.absorption) > 0.0f)
       features |= kFeatureAbsorption;
-    if (m.type == MaterialType::kMirror) features |= kFeatureMirror;
+    if (m.type == MaterialType::kMirror || m.type == MaterialType::kConductor)
+      features |= kFeatureMirror;
+    if (m.type == MaterialType::kSubsurface) features |= kFeatureSubsurface;
   }
   if (scene.camera.aperture_radius > 0.0f) features |= kFeatureDepthOfField;
 

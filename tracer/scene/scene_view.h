@@ -53,10 +53,11 @@ TRACER_HD TRACER_INLINE bool warp_all(bool pred) {
 template <uint32_t F, bool kAnyHit>
 TRACER_HD TRACER_INLINE bool intersect_leaf(const SceneView& s, const Ray& ray,
                                             const RayTriSetup& setup, const BvhNode& leaf,
-                                            uint32_t skip, float& tmax, Hit& hit) {
+                                            uint32_t skip, uint32_t skip2, float& tmax,
+                                            Hit& hit) {
   for (uint32_t i = 0; i < leaf.count; ++i) {
     const uint32_t prim = s.prim_indices[leaf.left_first + i];
-    if (kAnyHit && prim == skip) continue;
+    if (prim == skip || prim == skip2) continue;
     float t, b1 = 0.0f, b2 = 0.0f;
     bool h;
     if (!(F & kFeatureSpheres) || prim < s.tri_count) {
@@ -82,9 +83,12 @@ TRACER_HD TRACER_INLINE bool intersect_leaf(const SceneView& s, const Ray& ray,
 // the Efficiency of Ray Traversal on GPUs" (HPG 2009): a lane that reaches a leaf parks it and
 // keeps descending inner nodes until every lane of the warp holds a leaf, then all test their
 // leaves together. This keeps the lanes of a warp on the same kind of work. Children are visited
-// near-first. kAnyHit stops at the first hit in (0, ray.tmax) and ignores primitive `skip`.
+// near-first. kAnyHit stops at the first hit in (0, ray.tmax). Primitives `skip` and `skip2` are
+// ignored: the light a shadow ray aims at, and the triangle a ray leaves from (a ray cannot
+// re-enter the plane it left; this backs up the origin offset where a triangle is much larger
+// than the distances involved).
 template <uint32_t F, bool kAnyHit>
-TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip) {
+TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
   Hit hit;
   if (s.node_count == 0) return hit;
   const RayTriSetup setup(ray.d);
@@ -127,7 +131,7 @@ TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip)
     }
     // Test the parked leaf, then any leaf that is next in line.
     while (have_leaf) {
-      if (intersect_leaf<F, kAnyHit>(s, ray, setup, leaf, skip, tmax, hit)) return hit;
+      if (intersect_leaf<F, kAnyHit>(s, ray, setup, leaf, skip, skip2, tmax, hit)) return hit;
       have_leaf = have_node && node.is_leaf();
       if (have_leaf) {
         leaf = node;
@@ -139,17 +143,20 @@ TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip)
   return hit;
 }
 
-// Nearest hit along the ray in (0, ray.tmax). F without kFeatureSpheres: the scene has none.
+// Nearest hit along the ray in (0, ray.tmax), ignoring primitive `skip` (the triangle the ray
+// leaves from, or kInvalid). F without kFeatureSpheres: the scene has none.
 template <uint32_t F = kAllFeatures>
-TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray) {
-  return traverse<F, false>(s, ray, kInvalid);
+TRACER_HD inline Hit intersect_closest(const SceneView& s, const Ray& ray,
+                                       uint32_t skip = kInvalid) {
+  return traverse<F, false>(s, ray, skip, kInvalid);
 }
 
 // True when anything blocks the ray in (0, ray.tmax), ignoring primitive `skip` (the light the
 // shadow ray aims at, so that reaching it is never mistaken for being blocked).
 template <uint32_t F = kAllFeatures>
-TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t skip) {
-  return traverse<F, true>(s, ray, skip).valid();
+TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t skip,
+                                    uint32_t skip2 = kInvalid) {
+  return traverse<F, true>(s, ray, skip, skip2).valid();
 }
 
 // Everything the shading stage needs to know about a hit point.

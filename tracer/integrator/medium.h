@@ -1,0 +1,82 @@
+// Homogeneous participating media for subsurface scattering: the random walk of Cycles and Arnold
+// inside closed meshes. Free-flight distances are sampled per colour channel with one-sample MIS
+// over the channels (the spectral MIS of Wilkie et al. 2014, as in pbrt-v4's volumetric path
+// tracer), so chromatic media stay unbiased; directions follow the Henyey-Greenstein phase function.
+#pragma once
+
+#include "core/sampling.h"
+#include "materials/material.h"
+
+namespace tracer {
+
+// Walks longer than this stop and are counted (a path that never finds its way out, for example
+// in a medium of albedo 1, must not loop forever).
+constexpr uint32_t kMaxWalkSteps = 1u << 16;
+
+// Henyey-Greenstein phase function, cos_theta between the incoming propagation direction and the
+// outgoing one (g > 0 scatters forward). pbrt-v4 eq. 11.12.
+TRACER_HD TRACER_INLINE float hg_phase(float cos_theta, float g) {
+  const float denom = 1.0f + g * g - 2.0f * g * cos_theta;
+  return (1.0f / (4.0f * kPi)) * (1.0f - g * g) / (denom * safe_sqrt(denom));
+}
+
+// A direction about the propagation direction d distributed as hg_phase (inverse CDF; for |g|
+// near 0 the isotropic case). The sampling weight phase/pdf is exactly 1.
+TRACER_HD TRACER_INLINE vec3 sample_hg(vec3 d, float g, vec2 u) {
+  float cos_t;
+  if (glm::abs(g) < 1e-3f) {
+    cos_t = 1.0f - 2.0f * u.x;
+  } else {
+    const float s = (1.0f - g * g) / (1.0f - g + 2.0f * g * u.x);
+    cos_t = (1.0f + g * g - s * s) / (2.0f * g);
+  }
+  cos_t = glm::clamp(cos_t, -1.0f, 1.0f);
+  const float sin_t = safe_sqrt(1.0f - cos_t * cos_t);
+  const float phi = 2.0f * kPi * u.y;
+  return Frame::from_normal(d).to_world(
+      vec3(sin_t * glm::cos(phi), sin_t * glm::sin(phi), cos_t));
+}
+
+struct MediumEvent {
+  bool scattered;  // true: a scattering event at distance t before the boundary
+  float t;
+  vec3 weight;     // multiplies the path throughput
+};
+
+// Samples the next event along a segment of length t_boundary inside medium m. The channel that
+// drives the distance is chosen in proportion to the path throughput.
+TRACER_HD inline MediumEvent sample_medium(const Material& m, vec3 throughput, float t_boundary,
+                                           float u_channel, float u_distance) {
+  const vec3 sigma_t = m.scattering + m.absorption;
+  const float sum = throughput.x + throughput.y + throughput.z;
+  vec3 p = sum > 0.0f ? throughput / sum : vec3(1.0f / 3.0f);
+  const int c = u_channel < p.x ? 0 : (u_channel < p.x + p.y ? 1 : 2);
+  const float st = sigma_t[c];
+  const float t = st > 0.0f ? -glm::log(1.0f - u_distance) / st : kInfinity;
+  MediumEvent ev;
+  if (t < t_boundary) {
+    const vec3 tr = glm::exp(-sigma_t * t);
+    const float pdf = glm::dot(p, sigma_t * tr);  // mixture of the per-channel exponentials
+    ev.scattered = true;
+    ev.t = t;
+    ev.weight = pdf > 0.0f ? m.scattering * tr / pdf : vec3(0.0f);
+  } else {
+    const vec3 tr = glm::exp(-sigma_t * t_boundary);
+    const float prob = glm::dot(p, tr);  // probability of flying past the boundary
+    ev.scattered = false;
+    ev.t = t_boundary;
+    ev.weight = prob > 0.0f ? tr / prob : vec3(0.0f);
+  }
+  return ev;
+}
+
+// Single-scattering albedo from the multiple-scattering albedo A an artist picks as the surface
+// colour: Kulla & Conty, "Revisiting Physically Based Shading at Imageworks" (SIGGRAPH 2017
+// course), the fit for a semi-infinite isotropic medium.
+TRACER_HD TRACER_INLINE float albedo_from_surface_colour(float A) {
+  A = glm::clamp(A, 0.0f, 0.999999f);
+  const float s = 4.09712f + 4.20863f * A - safe_sqrt(9.59217f + 41.6808f * A + 17.7126f * A * A);
+  return glm::clamp(1.0f - s * s, 0.0f, 1.0f);
+}
+
+}  // namespace tracer
