@@ -174,6 +174,69 @@ TEST(MirrorBsdfTest, ReflectsExactlyWithItsAlbedo) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Smooth conductor (roughness 0; the rough one is tested in microfacet_test.cpp).
+
+TEST(ConductorBsdfTest, SmoothIsAMirrorWeightedBySchlickFresnel) {
+  // glTF's metallic model: F = F0 + (1 - F0)(1 - cos)^5 with F0 = albedo, a delta reflection.
+  const vec3 f0(0.9f, 0.6f, 0.3f);
+  const Material m = make(MaterialType::kConductor, f0);
+  EXPECT_TRUE(bsdf_is_delta(m, m.type));
+  for (float theta : {0.0f, 30.0f, 60.0f, 85.0f, 89.9f}) {
+    const vec3 wo = direction(theta);
+    const BsdfSample s = bsdf_sample(m, wo, vec2(0.3f, 0.8f), 0.5f);
+    ASSERT_TRUE(s.valid);
+    EXPECT_TRUE(s.specular);
+    EXPECT_EQ(s.wi, vec3(-wo.x, -wo.y, wo.z));
+    EXPECT_EQ(s.pdf, 1.0f);
+    const double c = 1.0 - std::cos(theta * M_PI / 180.0), c5 = c * c * c * c * c;
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(s.weight[k], f0[k] + (1.0 - f0[k]) * c5, 1e-5);
+    EXPECT_EQ(bsdf_eval(m, wo, s.wi), vec3(0.0f));
+    EXPECT_EQ(bsdf_pdf(m, wo, s.wi), 0.0f);
+  }
+  EXPECT_EQ(bsdf_sample(m, direction(0.0f), vec2(0.5f), 0.5f).weight, f0);  // F(0 deg) = F0
+  EXPECT_FALSE(bsdf_sample(m, direction(100.0f), vec2(0.5f), 0.5f).valid);
+}
+
+TEST(ConductorBsdfTest, RoughnessSwitchesOffTheDeltaLobe) {
+  Material m = make(MaterialType::kConductor, vec3(0.9f));
+  m.roughness = 0.3f;
+  EXPECT_FALSE(bsdf_is_delta(m, m.type));
+  const BsdfSample s = bsdf_sample(m, direction(30.0f), vec2(0.3f, 0.8f), 0.5f);
+  ASSERT_TRUE(s.valid);
+  EXPECT_FALSE(s.specular);
+  EXPECT_GT(bsdf_pdf(m, direction(30.0f), s.wi), 0.0f);
+  // Without specular features in the mask every material is sampled as diffuse.
+  const BsdfSample d = bsdf_sample<kFeatureEmissiveMeshes>(m, direction(30.0f), vec2(0.3f), 0.5f);
+  ASSERT_TRUE(d.valid);
+  EXPECT_FALSE(d.specular);
+  EXPECT_EQ(d.weight, m.albedo);
+  EXPECT_EQ(bsdf_pdf<kFeatureEmissiveMeshes>(m, direction(30.0f), d.wi), d.wi.z * kInvPi);
+  EXPECT_EQ(bsdf_eval<kFeatureEmissiveMeshes>(m, direction(30.0f), d.wi), m.albedo * kInvPi);
+}
+
+TEST(SubsurfaceBsdfTest, BoundaryStaysSmoothWhateverTheRoughness) {
+  // The subsurface boundary is the smooth dielectric; its roughness field is not used.
+  Material m = make(MaterialType::kSubsurface, vec3(1.0f), 1.5f);
+  m.roughness = 0.5f;
+  EXPECT_TRUE(bsdf_is_delta(m, m.type));
+  Material glass = make(MaterialType::kDielectric, vec3(1.0f), 1.5f);
+  Uniform rng(40);
+  for (int i = 0; i < 200; ++i) {
+    const vec3 wo = sample_uniform_sphere(rng.f2());
+    const vec2 u = rng.f2();
+    const float uc = rng.f();
+    const BsdfSample a = bsdf_sample(m, wo, u, uc), b = bsdf_sample(glass, wo, u, uc);
+    EXPECT_EQ(a.valid, b.valid);
+    EXPECT_TRUE(a.specular);
+    EXPECT_EQ(a.wi, b.wi);
+    EXPECT_EQ(a.weight, b.weight);
+    EXPECT_EQ(a.pdf, b.pdf);
+    EXPECT_EQ(bsdf_eval(m, wo, -wo), vec3(0.0f));
+    EXPECT_EQ(bsdf_pdf(m, wo, -wo), 0.0f);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Fresnel equations.
 
 TEST(FresnelTest, NormalIncidenceIsR0) {

@@ -81,6 +81,29 @@ inline void add_icosphere(TriangleMesh& m, vec3 center, float radius, int levels
   }
 }
 
+// A closed box whose six faces are each an n x n grid of shared vertices.
+inline void add_grid_box(TriangleMesh& m, vec3 lo, vec3 hi, int n, uint32_t material) {
+  auto face = [&](vec3 o, vec3 a, vec3 b) {  // front side: cross(b, a)
+    const uint32_t base = uint32_t(m.positions.size());
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) m.positions.push_back(o + a * (float(i) / n) + b * (float(j) / n));
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const uint32_t v = base + uint32_t(j * (n + 1) + i);
+        m.indices.push_back(uvec3(v, v + n + 2, v + 1));
+        m.indices.push_back(uvec3(v, v + n + 1, v + n + 2));
+        m.materials.insert(m.materials.end(), {material, material});
+      }
+  };
+  const vec3 e = hi - lo;
+  face(lo, vec3(0, 0, e.z), vec3(e.x, 0, 0));                       // bottom, -y
+  face(vec3(lo.x, hi.y, lo.z), vec3(e.x, 0, 0), vec3(0, 0, e.z));   // top, +y
+  face(lo, vec3(e.x, 0, 0), vec3(0, e.y, 0));                       // front, -z
+  face(vec3(lo.x, lo.y, hi.z), vec3(0, e.y, 0), vec3(e.x, 0, 0));   // back, +z
+  face(lo, vec3(0, e.y, 0), vec3(0, 0, e.z));                       // left, -x
+  face(vec3(hi.x, lo.y, lo.z), vec3(0, 0, e.z), vec3(0, e.y, 0));   // right, +x
+}
+
 inline Material diffuse(vec3 albedo, vec3 emission = vec3(0.0f), bool two_sided = false) {
   Material m;
   m.type = MaterialType::kDiffuse;
@@ -88,6 +111,27 @@ inline Material diffuse(vec3 albedo, vec3 emission = vec3(0.0f), bool two_sided 
   m.emission = emission;
   m.flags = two_sided ? kMaterialTwoSidedEmission : 0u;
   return m;
+}
+
+// The slab: 400 x 200 x 400 mean free paths, top face at y = 0. Walks that matter stay within a
+// few tens of mean free paths, so this is semi-infinite to well under 1e-4 in R, while keeping
+// coordinates small enough that the boundary's rounding error is far below a mean free path.
+constexpr float kSlabHalf = 200.0f;
+
+inline Scene slab_scene(float albedo, int grid) {
+  Scene s;
+  Material slab;
+  slab.type = MaterialType::kSubsurface;
+  slab.albedo = vec3(1.0f);  // boundary tint
+  slab.ior = 1.0f;           // index-matched: the boundary neither reflects nor bends
+  slab.scattering = vec3(albedo);
+  slab.absorption = vec3(1.0f - albedo);
+  s.materials.push_back({"slab", slab});
+  s.materials.push_back({"sky", diffuse(vec3(0.0f), vec3(1.0f), true)});
+  if (grid > 1) add_grid_box(s.mesh, vec3(-kSlabHalf, -kSlabHalf, -kSlabHalf), vec3(kSlabHalf, 0.0f, kSlabHalf), grid, 0);
+  else add_box(s.mesh, vec3(-kSlabHalf, -kSlabHalf, -kSlabHalf), vec3(kSlabHalf, 0.0f, kSlabHalf), 0);
+  s.spheres.push_back({vec3(0.0f), 1e6f, 1});  // everything that leaves lands on the sky
+  return s;
 }
 
 struct PixelStats {

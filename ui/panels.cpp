@@ -118,12 +118,36 @@ void material_panel(Workbench& wb) {
   tracer::Material& m = mats[size_t(wb.selected_material)].material;
   bool changed = false;
   int type = int(m.type);
-  if (ImGui::Combo("type", &type, "diffuse\0mirror\0dielectric\0")) {
+  if (ImGui::Combo("type", &type, "diffuse\0mirror\0dielectric\0conductor\0subsurface\0")) {
     m.type = tracer::MaterialType(type);
     changed = true;
   }
-  changed |= ImGui::ColorEdit3(m.type == tracer::MaterialType::kDiffuse ? "base colour" : "tint",
-                               &m.albedo.x);
+  const bool sss = m.type == tracer::MaterialType::kSubsurface;
+  if (!sss) {
+    changed |= ImGui::ColorEdit3(m.type == tracer::MaterialType::kDiffuse     ? "base colour"
+                                 : m.type == tracer::MaterialType::kConductor ? "F0 colour"
+                                                                              : "tint",
+                                 &m.albedo.x);
+  }
+  if (m.type == tracer::MaterialType::kDielectric || m.type == tracer::MaterialType::kConductor)
+    changed |= ImGui::SliderFloat("roughness", &m.roughness, 0.0f, 1.0f, "%.3f");
+  if (sss) {
+    // Edited as the artist's pair (surface colour, mean free path) and shown as coefficients.
+    const vec3 sigma_t = m.scattering + m.absorption;
+    vec3 mfp = 1.0f / glm::max(sigma_t, vec3(1e-6f));
+    vec3 single = m.scattering / glm::max(sigma_t, vec3(1e-12f));
+    bool e = ImGui::DragFloat3("mean free path", &mfp.x, 0.01f * tracer::max_component(mfp),
+                               1e-4f, 1e6f, "%.4g");
+    e |= ImGui::SliderFloat3("single-scattering albedo", &single.x, 0.0f, 1.0f, "%.4f");
+    if (e) {
+      const vec3 st = 1.0f / glm::max(mfp, vec3(1e-4f));
+      m.scattering = glm::clamp(single, vec3(0.0f), vec3(1.0f)) * st;
+      m.absorption = st - m.scattering;
+      changed = true;
+    }
+    changed |= ImGui::SliderFloat("anisotropy g", &m.g, -0.95f, 0.95f, "%.2f");
+    changed |= ImGui::SliderFloat("IOR", &m.ior, 1.0f, 3.0f, "%.3f");
+  }
   if (m.type == tracer::MaterialType::kDielectric) {
     changed |= ImGui::SliderFloat("IOR", &m.ior, 1.01f, 3.0f, "%.3f");
     bool schlick = m.flags & tracer::kMaterialSchlickFresnel;

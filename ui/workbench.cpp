@@ -56,11 +56,18 @@ nlohmann::json material_json(const tracer::Material& m) {
     j["emission_strength"] = strength;
     if (m.flags & tracer::kMaterialTwoSidedEmission) j["two_sided"] = true;
   }
-  if (m.type == tracer::MaterialType::kDielectric) {
+  if (m.type == tracer::MaterialType::kDielectric || m.type == tracer::MaterialType::kSubsurface) {
     j["ior"] = m.ior;
     j["fresnel"] = (m.flags & tracer::kMaterialSchlickFresnel) ? "schlick" : "exact";
     if (tracer::max_component(m.absorption) > 0.0f) j["absorption"] = vec_json(m.absorption);
   }
+  if (m.type == tracer::MaterialType::kSubsurface) {
+    j.erase("albedo");
+    j["scattering"] = vec_json(m.scattering);
+    j["absorption"] = vec_json(m.absorption);
+    j["g"] = m.g;
+  }
+  if (m.roughness > 0.0f) j["roughness"] = m.roughness;
   return j;
 }
 
@@ -315,7 +322,8 @@ std::vector<std::string> Workbench::settable_keys() {
           "gpu.cache", "gpu.specialize", "backend", "materials.NAME.type",
           "materials.NAME.albedo", "materials.NAME.emission", "materials.NAME.emission_strength",
           "materials.NAME.ior", "materials.NAME.fresnel", "materials.NAME.absorption",
-          "materials.NAME.two_sided"};
+          "materials.NAME.two_sided", "materials.NAME.roughness", "materials.NAME.scattering",
+          "materials.NAME.g"};
 }
 
 bool Workbench::apply(const std::string& assignment, std::string* error) {
@@ -426,8 +434,15 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
       if (value == "diffuse") m.type = tracer::MaterialType::kDiffuse;
       else if (value == "mirror") m.type = tracer::MaterialType::kMirror;
       else if (value == "dielectric") m.type = tracer::MaterialType::kDielectric;
-      else return fail("expected diffuse, mirror or dielectric");
-    } else if (field == "albedo" || field == "absorption" || field == "emission") {
+      else if (value == "conductor") m.type = tracer::MaterialType::kConductor;
+      else if (value == "subsurface") m.type = tracer::MaterialType::kSubsurface;
+      else return fail("expected diffuse, mirror, dielectric, conductor or subsurface");
+    } else if (field == "roughness" || field == "g") {
+      if (!number(field == "g" ? -0.99f : 0.0f, field == "g" ? 0.99f : 1.0f))
+        return fail(field == "g" ? "expected g in (-1, 1)" : "expected roughness in [0, 1]");
+      (field == "g" ? m.g : m.roughness) = f[0];
+    } else if (field == "albedo" || field == "absorption" || field == "emission" ||
+               field == "scattering") {
       if (!parse_floats(value, f, 3)) return fail("expected three numbers r,g,b");
       const vec3 v(f[0], f[1], f[2]);
       if (tracer::max_component(-v) > 0.0f) return fail("components must be >= 0");
@@ -436,6 +451,8 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
         m.albedo = v;
       } else if (field == "absorption") {
         m.absorption = v;
+      } else if (field == "scattering") {
+        m.scattering = v;
       } else {
         m.emission = v * (strength > 0.0f ? strength : 1.0f);
       }
@@ -444,7 +461,7 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
       const vec3 colour = strength > 0.0f ? m.emission / strength : vec3(1.0f);
       m.emission = colour * f[0];
     } else if (field == "ior") {
-      if (!number(1.0001f, 4.0f)) return fail("expected an index of refraction in (1, 4]");
+      if (!number(1.0f, 4.0f)) return fail("expected an index of refraction in [1, 4]");
       m.ior = f[0];
     } else if (field == "fresnel") {
       if (value == "exact") m.flags &= ~tracer::kMaterialSchlickFresnel;

@@ -207,13 +207,18 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
     if (ls.valid && !is_black(ls.le)) {
       const vec3 to = ls.p - sh.p;
       const vec3 wi_world = glm::normalize(to);
-      if (glm::dot(wi_world, ng_viewer) > 0.0f) {
-        const vec3 wi = frame.to_local(wi_world);
-        const vec3 f = bsdf_eval(m, wo, wi);
+      const vec3 wi = frame.to_local(wi_world);
+      // Reflectors see lights on the viewer's side only; a rough transmitter on either side,
+      // as long as the shading and geometric normals agree about which side that is.
+      const float geo = glm::dot(wi_world, sh.ng);
+      const bool usable = transmits ? (geo > 0.0f) == (wi.z > 0.0f) && geo != 0.0f
+                                    : glm::dot(wi_world, ng_viewer) > 0.0f;
+      if (usable) {
+        const vec3 f = bsdf_eval<F>(m, wo, wi);
         if (!is_black(f)) {
-          const float w = cfg.mis ? power_heuristic(ls.pdf, bsdf_pdf(m, wo, wi)) : 1.0f;
+          const float w = cfg.mis ? power_heuristic(ls.pdf, bsdf_pdf<F>(m, wo, wi)) : 1.0f;
           shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * (w / ls.pdf);
-          shadow.ray = spawn_ray_to(sh.p, ng_viewer, ls.p, ls.n);
+          shadow.ray = spawn_ray_to(sh.p, geo > 0.0f ? sh.ng : -sh.ng, ls.p, ls.n);
           shadow.target_prim = ls.prim;
           shadow.origin_prim = hit.prim < s.tri_count ? hit.prim : kInvalid;
           shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);

@@ -3,6 +3,7 @@
 // InputError, never an out-of-bounds read or an endless node walk.
 #include <tiny_gltf.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <glm/gtc/quaternion.hpp>
@@ -10,6 +11,7 @@
 #include <set>
 
 #include "core/math.h"
+#include "integrator/medium.h"
 #include "scene/loader_util.h"
 
 namespace tracer {
@@ -93,7 +95,7 @@ class GltfReader {
       std::string list;
       for (const std::string& a : approximated_) list += (list.empty() ? "" : ", ") + a;
       scene_.diagnostics.warn(file(), "unsupported glTF features: " + list + suffix_,
-                              "approximated with diffuse, mirror or glass materials");
+                              "approximated with the closest supported materials");
     }
     if (skipped_primitives_ > 0) {
       scene_.diagnostics.warn(
@@ -309,20 +311,57 @@ class GltfReader {
     }
     const double transmission =
         ext_number(g.extensions, "KHR_materials_transmission", "transmissionFactor", 0.0);
-    if (transmission > 0.0) {
+    const float roughness = float(std::clamp(pbr.roughnessFactor, 0.0, 1.0));
+    const double diffuse_transmission = ext_number(
+        g.extensions, "KHR_materials_diffuse_transmission", "diffuseTransmissionFactor", 0.0);
+    const float ior = float(ext_number(g.extensions, "KHR_materials_ior", "ior", 1.5));
+    const bool volume = g.extensions.count("KHR_materials_volume") > 0;
+    // KHR_materials_volume: light fades to attenuationColor over attenuationDistance.
+    const double att_distance =
+        ext_number(g.extensions, "KHR_materials_volume", "attenuationDistance", 0.0);
+    vec3 att_colour(1.0f);
+    if (volume) {
+      const auto it = g.extensions.find("KHR_materials_volume");
+      if (it->second.Has("attenuationColor") && it->second.Get("attenuationColor").IsArray() &&
+          it->second.Get("attenuationColor").ArrayLen() == 3) {
+        for (int c = 0; c < 3; ++c)
+          att_colour[c] = float(it->second.Get("attenuationColor").Get(c).GetNumberAsDouble());
+      }
+    }
+    if ((transmission > 0.0 && volume && att_distance > 0.0) || diffuse_transmission > 0.0) {
+      // A scattering volume: subsurface random walk. The base colour is the surface colour and
+      // the attenuation distance the mean free path (the artist's pair of JSON scenes).
+      m.type = MaterialType::kSubsurface;
+      m.ior = ior >= 1.0f && ior <= 4.0f ? ior : 1.5f;
+      const vec3 colour = volume ? glm::clamp(att_colour, vec3(0.0f), vec3(1.0f)) : base;
+      const float mfp = att_distance > 0.0 ? float(att_distance) : 1.0f;
+      vec3 single;
+      for (int c = 0; c < 3; ++c) single[c] = albedo_from_surface_colour(colour[c]);
+      m.scattering = single / mfp;
+      m.absorption = vec3(1.0f / mfp) - m.scattering;
+      m.albedo = vec3(1.0f);
+      if (att_distance <= 0.0) approximated_.insert("diffuse transmission without a distance");
+    } else if (transmission > 0.0) {
       m.type = MaterialType::kDielectric;
       m.albedo = base;
-      const float ior = float(ext_number(g.extensions, "KHR_materials_ior", "ior", 1.5));
+      m.roughness = roughness;
       m.ior = ior > 1.0f && ior <= 4.0f ? ior : 1.5f;
       if (ior != m.ior) approximated_.insert("ior outside (1, 4]");
       if (transmission < 1.0) approximated_.insert("partial transmission");
-    } else if (pbr.metallicFactor >= 0.5 && pbr.roughnessFactor < 0.2) {
-      m.type = MaterialType::kMirror;
+      if (volume && att_distance > 0.0) {  // absorbing glass: Beer-Lambert
+        m.absorption = -glm::log(glm::max(att_colour, vec3(1e-6f))) / float(att_distance);
+      }
+    } else if (pbr.metallicFactor >= 0.5) {
+      // glTF's metallic-roughness model: a GGX conductor with F0 = base colour.
+      m.type = MaterialType::kConductor;
       m.albedo = base;
-      if (pbr.roughnessFactor > 0.0) approximated_.insert("roughness");
+      m.roughness = roughness;
+      if (pbr.metallicFactor < 1.0) approximated_.insert("metallic between 0.5 and 1");
     } else {
       m.albedo = base;
-      if (pbr.metallicFactor > 0.0) approximated_.insert("metallic");
+      if (pbr.metallicFactor > 0.0) approximated_.insert("metallic below 0.5");
+      // A shiny non-metal's specular layer is missing; a rough one looks diffuse anyway.
+      if (pbr.roughnessFactor < 0.5) approximated_.insert("glossy dielectric layer");
     }
     if (pbr.baseColorTexture.index >= 0 || pbr.metallicRoughnessTexture.index >= 0 ||
         g.normalTexture.index >= 0 || g.emissiveTexture.index >= 0 || g.occlusionTexture.index >= 0)
@@ -330,7 +369,8 @@ class GltfReader {
     if (!g.alphaMode.empty() && g.alphaMode != "OPAQUE") approximated_.insert("alphaMode");
     for (const auto& e : g.extensions) {
       if (e.first != "KHR_materials_emissive_strength" && e.first != "KHR_materials_transmission" &&
-          e.first != "KHR_materials_ior")
+          e.first != "KHR_materials_ior" && e.first != "KHR_materials_volume" &&
+          e.first != "KHR_materials_diffuse_transmission")
         approximated_.insert(e.first);
     }
     const std::string name = g.name.empty() ? "material " + std::to_string(index) : g.name;

@@ -6,6 +6,7 @@
 
 #include "core/math.h"
 #include "scene/json_lines.h"
+#include "integrator/medium.h"
 #include "scene/loader.h"
 #include "scene/loader_util.h"
 
@@ -206,25 +207,34 @@ class JsonSceneReader {
     require_object(m, ptr, where);
     check_keys(m, ptr,
                {"type", "albedo", "emission", "emission_strength", "two_sided", "ior", "fresnel",
-                "absorption"},
+                "absorption", "roughness", "scattering", "mean_free_path", "g"},
                where);
     Material mat;
     const std::string type = get_string(m, ptr, "type", "diffuse", where);
-    const std::vector<std::string> types = {"diffuse", "mirror", "dielectric"};
+    const std::vector<std::string> types = {"diffuse", "mirror", "dielectric", "conductor",
+                                            "subsurface"};
     if (type == "diffuse") {
       mat.type = MaterialType::kDiffuse;
     } else if (type == "mirror") {
       mat.type = MaterialType::kMirror;
     } else if (type == "dielectric") {
       mat.type = MaterialType::kDielectric;
+    } else if (type == "conductor") {
+      mat.type = MaterialType::kConductor;
+    } else if (type == "subsurface") {
+      mat.type = MaterialType::kSubsurface;
     } else {
       const std::string guess = did_you_mean(type, types);
       fail(json_pointer_child(ptr, "type"),
            "unknown material type " + in_quotes(type) + " in " + where +
-               (guess.empty() ? " (expected diffuse, mirror or dielectric)"
-                              : " (did you mean " + in_quotes(guess) + "?)"));
+               (guess.empty()
+                    ? " (expected diffuse, mirror, dielectric, conductor or subsurface)"
+                    : " (did you mean " + in_quotes(guess) + "?)"));
     }
-    const vec3 default_albedo = mat.type == MaterialType::kDielectric ? vec3(1.0f) : vec3(0.8f);
+    const bool dielectric = mat.type == MaterialType::kDielectric;
+    const bool subsurface = mat.type == MaterialType::kSubsurface;
+    const bool has_boundary = dielectric || subsurface;  // ior and fresnel apply
+    const vec3 default_albedo = dielectric ? vec3(1.0f) : vec3(0.8f);
     mat.albedo = get_vec3(m, ptr, "albedo", default_albedo, where);
     const vec3 clamped = glm::clamp(mat.albedo, vec3(0.0f), vec3(1.0f));
     if (clamped != mat.albedo) {
@@ -246,22 +256,30 @@ class JsonSceneReader {
     mat.emission = emission * strength;
     if (get_bool(m, ptr, "two_sided", false, where)) mat.flags |= kMaterialTwoSidedEmission;
 
-    const bool dielectric = mat.type == MaterialType::kDielectric;
-    for (const char* key : {"ior", "fresnel", "absorption"}) {
-      if (!dielectric && m.contains(key)) {
+    auto ignored = [&](const char* key, bool applies) {
+      if (!applies && m.contains(key)) {
         scene_.diagnostics.warn(at(json_pointer_child(ptr, key)),
                                 in_quotes(key) + " has no effect on a " + type + " material",
                                 "ignored");
       }
+    };
+    ignored("ior", has_boundary);
+    ignored("fresnel", has_boundary);
+    ignored("absorption", has_boundary);
+    ignored("roughness", dielectric || mat.type == MaterialType::kConductor);
+    for (const char* key : {"scattering", "mean_free_path", "g"}) ignored(key, subsurface);
+
+    mat.ior = get_float(m, ptr, "ior", subsurface ? 1.4f : 1.5f, where);
+    if (has_boundary && !(mat.ior >= 1.0f && mat.ior <= 4.0f)) {
+      fail(json_pointer_child(ptr, "ior"), "\"ior\" in " + where + " must be in [1, 4]");
     }
-    mat.ior = get_float(m, ptr, "ior", 1.5f, where);
-    if (dielectric && !(mat.ior > 1.0f && mat.ior <= 4.0f)) {
+    if (dielectric && mat.ior == 1.0f) {
       fail(json_pointer_child(ptr, "ior"),
-           "\"ior\" in " + where + " must be greater than 1 and at most 4");
+           "\"ior\" 1 makes a dielectric invisible; use at least 1.0001");
     }
     const std::string fresnel = get_string(m, ptr, "fresnel", "exact", where);
     if (fresnel == "schlick") {
-      if (dielectric) mat.flags |= kMaterialSchlickFresnel;
+      if (has_boundary) mat.flags |= kMaterialSchlickFresnel;
     } else if (fresnel != "exact") {
       const std::string guess = did_you_mean(fresnel, {"exact", "schlick"});
       fail(json_pointer_child(ptr, "fresnel"),
@@ -269,11 +287,54 @@ class JsonSceneReader {
                in_quotes(fresnel) +
                (guess.empty() ? "" : " (did you mean " + in_quotes(guess) + "?)"));
     }
+    mat.roughness = get_float(m, ptr, "roughness", 0.0f, where);
+    if (!(mat.roughness >= 0.0f && mat.roughness <= 1.0f))
+      fail(json_pointer_child(ptr, "roughness"), "\"roughness\" in " + where + " must be in [0, 1]");
     mat.absorption = get_vec3(m, ptr, "absorption", vec3(0.0f), where);
     if (glm::any(glm::lessThan(mat.absorption, vec3(0.0f))))
       fail(json_pointer_child(ptr, "absorption"), "\"absorption\" in " + where + " must be >= 0");
-    if (!dielectric) mat.absorption = vec3(0.0f), mat.ior = 1.5f;
+    if (subsurface) read_medium(m, ptr, where, mat);
+    if (!has_boundary) mat.absorption = vec3(0.0f), mat.ior = 1.5f;
+    if (!dielectric && mat.type != MaterialType::kConductor) mat.roughness = 0.0f;
     scene_.add_material(name, mat);
+  }
+
+  // A subsurface medium from either the physical coefficients ("scattering" and "absorption",
+  // per unit length) or the artist's pair: the surface colour ("albedo", the multiple-scattering
+  // albedo) and "mean_free_path" (per channel, in scene units), inverted with Kulla & Conty's fit.
+  void read_medium(const json& m, const std::string& ptr, const std::string& where,
+                   Material& mat) {
+    mat.g = get_float(m, ptr, "g", 0.0f, where);
+    if (!(mat.g > -1.0f && mat.g < 1.0f))
+      fail(json_pointer_child(ptr, "g"), "\"g\" in " + where + " must be in (-1, 1)");
+    const bool physical = m.contains("scattering");
+    if (physical && m.contains("mean_free_path")) {
+      fail(json_pointer_child(ptr, "mean_free_path"),
+           "give either \"scattering\" + \"absorption\" or \"albedo\" + \"mean_free_path\" in " +
+               where + ", not both");
+    }
+    if (physical) {
+      mat.scattering = get_vec3(m, ptr, "scattering", vec3(0.0f), where);
+      if (glm::any(glm::lessThan(mat.scattering, vec3(0.0f))))
+        fail(json_pointer_child(ptr, "scattering"), "\"scattering\" in " + where + " must be >= 0");
+    } else {
+      vec3 mfp(1.0f);
+      if (m.contains("mean_free_path") && m["mean_free_path"].is_number())
+        mfp = vec3(get_float(m, ptr, "mean_free_path", 1.0f, where));
+      else
+        mfp = get_vec3(m, ptr, "mean_free_path", vec3(1.0f), where);
+      if (!glm::all(glm::greaterThan(mfp, vec3(0.0f))))
+        fail(json_pointer_child(ptr, "mean_free_path"),
+             "\"mean_free_path\" in " + where + " must be > 0");
+      vec3 single;
+      for (int c = 0; c < 3; ++c) single[c] = albedo_from_surface_colour(mat.albedo[c]);
+      const vec3 sigma_t = 1.0f / mfp;
+      mat.scattering = single * sigma_t;
+      mat.absorption = sigma_t - mat.scattering;
+    }
+    if (max_component(mat.scattering + mat.absorption) <= 0.0f)
+      fail(ptr, where + " has neither scattering nor absorption; use a dielectric instead");
+    mat.albedo = vec3(1.0f);  // the boundary transmits untinted; colour comes from the medium
   }
 
   void read_objects(const json& objs, const std::string& ptr) {
