@@ -161,7 +161,6 @@ struct CudaRenderer::Impl {
   void wavefront_wave(uint32_t sample, bool first, bool timed) {
     const uint32_t sp = spec();
     WavefrontState w = wavefront();
-    TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
     mark(timed, kGenerate);
     launch_generate(sp, view, cfg, sample, w, stream);
     mark(timed, kGenerate);
@@ -170,7 +169,15 @@ struct CudaRenderer::Impl {
       cached_hits.resize(n());
       cache_valid = false;
     }
-    for (uint32_t b = 0; b < cfg.max_depth; ++b) {
+    // Without subsurface every path has ended after max_depth bounces. Random walks do not
+    // count towards the depth, so with them the loop runs until no path is left (checked every
+    // 8 iterations) or a walk's step limit must have been reached.
+    const bool walks = (features & kFeatureSubsurface) != 0;
+    const uint32_t iterations = walks ? cfg.max_depth + kMaxWalkSteps : cfg.max_depth;
+    if (alive_counts.size() < iterations + 2) alive_counts.resize(iterations + 2);
+    w.alive_counts = alive_counts.get();
+    TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
+    for (uint32_t b = 0; b < iterations; ++b) {
       const bool compacted = opts.compaction && b > 0;
       const uint32_t* q = compacted ? queue.get() : nullptr;
       const uint32_t* c = compacted ? count.get() : nullptr;
@@ -199,7 +206,7 @@ struct CudaRenderer::Impl {
       mark(timed, kShade);
       launch_shadow(sp, view, w, q, c, first, film_view(sample), stream);
       mark(timed, kShadow);
-      if (b + 1 == cfg.max_depth) break;
+      if (b + 1 == iterations) break;
       if (opts.compaction) {
         launch_compact(w, queue.get(), count.get(), cub_temp.get(), cub_temp.bytes(), stream);
         mark(timed, kCompact);

@@ -156,8 +156,10 @@ __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, Wavefron
   ray.d = vec3(d.x, d.y, d.z);
   ray.tmax = kInfinity;
   ray.pad = 0.0f;
-  // hit[id] still holds the hit this ray leaves from: skip that triangle.
-  const uint32_t origin = __float_as_uint(w.hit[id].y);
+  // hit[id] still holds the hit this ray leaves from: with random walks (where a triangle can be
+  // far larger than a mean free path) that triangle is skipped.
+  uint32_t origin = kInvalid;
+  if (features_of<Spec>() & kFeatureSubsurface) origin = __float_as_uint(w.hit[id].y);
   const Hit h = intersect_closest<features_of<Spec>()>(
       s, ray, origin < s.tri_count ? origin : kInvalid);
   w.hit[id] = make_float4(h.t, __uint_as_float(h.prim), h.u, h.v);
@@ -181,7 +183,8 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     ShadowRequest sr;
     go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
     store_state(w, id, st);
-    if (st.origin_prim == kInvalid) w.hit[id].y = __uint_as_float(kInvalid);  // medium scatter
+    if ((features_of<Spec>() & kFeatureSubsurface) && st.origin_prim == kInvalid)
+      w.hit[id].y = __uint_as_float(kInvalid);  // a medium scatter leaves from no surface
     shadow_valid = sr.valid;
     if (sr.valid) {
       w.shadow_o[id] = make_float4(sr.ray.o.x, sr.ray.o.y, sr.ray.o.z, sr.ray.tmax);
@@ -221,7 +224,8 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontSt
     ray.tmax = o.w;
     ray.d = vec3(d.x, d.y, d.z);
     ray.pad = 0.0f;
-    const uint32_t origin = __float_as_uint(w.hit[id].y);
+    uint32_t origin = kInvalid;
+    if (features_of<Spec>() & kFeatureSubsurface) origin = __float_as_uint(w.hit[id].y);
     if (!intersect_any<features_of<Spec>()>(s, ray, __float_as_uint(d.w),
                                            origin < s.tri_count ? origin : kInvalid)) {
       r.x += c.x;

@@ -220,7 +220,8 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
           shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * (w / ls.pdf);
           shadow.ray = spawn_ray_to(sh.p, geo > 0.0f ? sh.ng : -sh.ng, ls.p, ls.n);
           shadow.target_prim = ls.prim;
-          shadow.origin_prim = hit.prim < s.tri_count ? hit.prim : kInvalid;
+          shadow.origin_prim =
+              (F & kFeatureSubsurface) && hit.prim < s.tri_count ? hit.prim : kInvalid;
           shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);
         }
       }
@@ -247,7 +248,9 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   st.prev_pdf = bs.pdf;
   st.flags = bs.specular ? (st.flags | kPathPrevSpecular) : (st.flags & ~kPathPrevSpecular);
   st.ray = spawn_ray(sh.p, sh.ng, wi_world);
-  st.origin_prim = hit.prim < s.tri_count ? hit.prim : kInvalid;
+  // Only random walks need the origin triangle skipped (see traverse); elsewhere the offset
+  // suffices and the skip would cost a compare per primitive test.
+  st.origin_prim = (F & kFeatureSubsurface) && hit.prim < s.tri_count ? hit.prim : kInvalid;
 
   if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
     const float q = glm::min(1.0f, max_component(st.throughput));
