@@ -105,12 +105,7 @@ nlohmann::json to_json(const Result& r) {
 
 int run_bench(const BenchOptions& o) {
   tracer::Scene scene;
-  try {
-    scene = o.scene.empty() ? tracer::builtin_default_scene() : tracer::load_scene(o.scene);
-  } catch (const tracer::InputError& e) {
-    std::cerr << "error: " << e.what() << "\n";
-    return kExitInputError;
-  }
+  if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
   tracer::RenderSettings rs = scene.settings;
   rs.width = o.width;
   rs.height = o.height;
@@ -257,6 +252,9 @@ int run_bench(const BenchOptions& o) {
   // The CPU backend on the same scene, for the CPU/GPU ratio.
   if (o.backend != "cuda" && o.cpu_spp > 0) {
     tracer::CpuRenderer cpu;
+    if (results.empty())
+      std::printf("\n%-40s %-10s %9s %11s %10s\n", "configuration", "kernel", "ms/spp", "Mseg/s",
+                  "Mrays/s");
     Config c;
     c.name = "cpu (" + cpu.device_name() + ")";
     const Result r = run_config(cpu, cs, cfg, c, o.cpu_spp);

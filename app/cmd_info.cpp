@@ -18,12 +18,7 @@ struct InfoOptions {
 
 int run_info(const InfoOptions& o) {
   tracer::Scene scene;
-  try {
-    scene = o.scene.empty() ? tracer::builtin_default_scene() : tracer::load_scene(o.scene);
-  } catch (const tracer::InputError& e) {
-    std::cerr << "error: " << e.what() << "\n";
-    return kExitInputError;
-  }
+  if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
   for (const auto& w : scene.diagnostics.warnings) std::cerr << "warning: " << w << "\n";
   const tracer::CompiledScene cs(scene, scene.settings.width, scene.settings.height);
   const tracer::SceneView& v = cs.view();

@@ -3,6 +3,7 @@
 // records everything needed to reproduce it.
 #include <unistd.h>
 
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -61,12 +62,7 @@ int run_render(const RenderOptions& o) {
   using clock = std::chrono::steady_clock;
   const auto t_start = clock::now();
   tracer::Scene scene;
-  try {
-    scene = o.scene.empty() ? tracer::builtin_default_scene() : tracer::load_scene(o.scene);
-  } catch (const tracer::InputError& e) {
-    std::cerr << "error: " << e.what() << "\n";
-    return kExitInputError;
-  }
+  if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
   for (const auto& w : scene.diagnostics.warnings) std::cerr << "warning: " << w << "\n";
 
   tracer::RenderSettings rs = scene.settings;
@@ -87,6 +83,16 @@ int run_render(const RenderOptions& o) {
   } catch (const tracer::InputError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInputError;
+  }
+  {  // Refuse an output the writer cannot produce before spending the render on it.
+    const std::string ext = o.out.size() > 4 ? o.out.substr(o.out.size() - 4) : "";
+    std::string lower = ext;
+    for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (lower != ".png" && lower != ".exr") {
+      std::cerr << "error: " << o.out << ": unsupported image format (use .png or .exr); "
+                << "nothing was rendered\n";
+      return kExitUsage;
+    }
   }
   tracer::ToneMap op;
   if (!tracer::parse_tone_map(o.tonemap, &op)) {
@@ -138,6 +144,8 @@ int run_render(const RenderOptions& o) {
     rays.camera += fs.rays.camera;
     rays.extension += fs.rays.extension;
     rays.shadow += fs.rays.shadow;
+    rays.walk_capped += fs.rays.walk_capped;
+    rays.medium_leaks += fs.rays.medium_leaks;
     render_s = std::chrono::duration<double>(clock::now() - r_start).count();
     const double per_spp = fs.ms / 1000.0 / n;
     double budget = 0.5;
@@ -185,6 +193,8 @@ int run_render(const RenderOptions& o) {
     j["rays"] = {{"camera", rays.camera}, {"extension", rays.extension}, {"shadow", rays.shadow}};
     j["mrays_per_s"] = double(rays.camera + rays.extension + rays.shadow) / render_s / 1e6;
     j["nonfinite_samples"] = nonfinite;
+    j["random_walks_capped"] = rays.walk_capped;
+    j["medium_leaks"] = rays.medium_leaks;
     j["features"] = tracer::describe_features(compiled.features());
     j["warnings"] = scene.diagnostics.warnings;
     const std::string cmd_seed = std::to_string(rs.seed);
@@ -198,6 +208,12 @@ int run_render(const RenderOptions& o) {
               << " spp, " << fmt_seconds(render_s) << ", " << renderer->backend_name() << ")";
     if (nonfinite) std::cerr << "; " << nonfinite << " NaN/Inf samples rejected";
     std::cerr << "\n";
+    if (rays.walk_capped)
+      std::cerr << "warning: " << rays.walk_capped << " subsurface random walks stopped at "
+                << tracer::kMaxWalkSteps << " steps (their paths end there: energy is lost)\n";
+    if (rays.medium_leaks)
+      std::cerr << "warning: " << rays.medium_leaks << " paths left a subsurface medium without "
+                << "crossing its boundary: a mesh with subsurface material is not closed\n";
   }
   return 0;
 }

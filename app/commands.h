@@ -4,6 +4,9 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <string>
+
+#include "scene/scene.h"
 
 namespace app {
 
@@ -14,6 +17,10 @@ Runner add_info_command(CLI::App& app);
 Runner add_compare_command(CLI::App& app);
 Runner add_bench_command(CLI::App& app);
 Runner add_gui_command(CLI::App& app);
+
+// Loads `path`, or the built-in Cornell box when it is empty. On bad input prints the message
+// (path:line: problem; what was done) and returns false.
+bool load_scene_or_report(const std::string& path, tracer::Scene* scene);
 
 // Exit codes: 0 success, 1 bad input or failed render, 2 bad command line.
 constexpr int kExitInputError = 1;

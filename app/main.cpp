@@ -7,6 +7,19 @@
 #include <iostream>
 
 #include "commands.h"
+#include "scene/loader.h"
+
+namespace app {
+bool load_scene_or_report(const std::string& path, tracer::Scene* scene) {
+  try {
+    *scene = path.empty() ? tracer::builtin_default_scene() : tracer::load_scene(path);
+  } catch (const tracer::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return false;
+  }
+  return true;
+}
+}  // namespace app
 
 int main(int argc, char** argv) {
   CLI::App app{"pathtracer: a CPU/CUDA path tracing workbench"};

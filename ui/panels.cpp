@@ -9,7 +9,7 @@
 namespace ui {
 namespace {
 
-constexpr float kColumnWidth = 400.0f;
+constexpr float kColumnWidth = 460.0f;
 // Letter keys: ImGui 1.86's key indices are the platform's, and GLFW's are upper-case ASCII.
 
 bool edit_vec3(const char* label, vec3& v, float speed) {
