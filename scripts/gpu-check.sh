@@ -35,7 +35,7 @@ fi
 
 if [ "$MODE" = all ] || [ "$MODE" = render ]; then
   echo "== renders (CUDA backend); sidecars stay in /tmp (8 files come back at most)"
-  for s in cornell_box cornell_spheres depth_of_field cornell_bunnies; do
+  for s in cornell_spheres subsurface rough_materials cornell_bunnies; do
     $DIST/pathtracer render "$(scene $s)" --backend cuda --spp 1024 --out "/tmp/$s.png"
     cp "/tmp/$s.png" "$OUT/"
   done
@@ -70,7 +70,7 @@ fi
 if [ "$MODE" = all ] || [ "$MODE" = bench ]; then
   echo "== benchmarks (1920x1080, max depth 8)"
   : > "$OUT/bench.jsonl"
-  for s in cornell_box cornell_closed cornell_spheres cornell_bunnies; do
+  for s in cornell_box cornell_closed cornell_spheres cornell_bunnies rough_materials subsurface; do
     echo "---- $s"
     $DIST/pathtracer bench "$(scene $s)" --width 1920 --height 1080 --max-depth 8 \
       --spp 16 --cpu-spp 1 --json "$OUT/b.json"

@@ -134,14 +134,15 @@ __device__ __forceinline__ uint32_t queued_path(const WavefrontState& w, const u
 
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) generate_kernel(SceneView s, IntegratorSettings cfg,
-                                                          uint32_t sample, WavefrontState w) {
+                                                          uint32_t sample, WavefrontState w,
+                                                          bool walks) {
   const uint32_t id = blockIdx.x * blockDim.x + threadIdx.x;
   if (id >= w.n) return;
   PathState st;
   generate_path<features_of<Spec>()>(s, cfg, id, sample, st);
   store_state(w, id, st);
   w.alive[id] = 1;
-  w.hit[id].y = __uint_as_float(kInvalid);  // camera rays leave from no surface
+  if (walks) w.hit[id].y = __uint_as_float(kInvalid);  // camera rays leave from no surface
 }
 
 template <uint32_t Spec>
@@ -380,7 +381,9 @@ void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettin
 
 void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                      uint32_t sample, const WavefrontState& w, cudaStream_t stream) {
-#define CALL(S) generate_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, w)
+#define CALL(S)                                                    \
+  generate_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, w, \
+                                                         (s.features & kFeatureSubsurface) != 0)
   switch (spec & kSpecDepthOfField) {
     case 0: CALL(0); break;
     default: CALL(kSpecDepthOfField); break;
