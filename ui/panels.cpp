@@ -253,7 +253,7 @@ void render_panel(Workbench& wb, PanelState& ps) {
   }
 }
 
-void stats_panel(Workbench& wb, const PanelState& ps) {
+void stats_panel(Workbench& wb, PanelState& ps) {
   if (!ImGui::CollapsingHeader("Stats", ImGuiTreeNodeFlags_DefaultOpen)) return;
   const WorkbenchStats& s = wb.stats();
   ImGui::Text("%u spp%s, %.1f s, %.1f spp/s", s.spp, wb.converged() ? " (done)" : "", s.elapsed_s,
@@ -279,7 +279,15 @@ void stats_panel(Workbench& wb, const PanelState& ps) {
                          0.0f, alive[0], ImVec2(0, 60));
   }
   if (ImGui::TreeNode("Reference image")) {
-    ImGui::InputText("##ref", const_cast<char*>(ps.reference_path), sizeof ps.reference_path);
+    ImGui::InputText("##ref", ps.reference_path, sizeof ps.reference_path);
+    ImGui::SameLine();
+    if (ImGui::Button("Load##ref")) {
+      std::string err;
+      ps.status = wb.load_reference(ps.reference_path, &err)
+                      ? std::string("reference ") + ps.reference_path + " loaded"
+                      : "error: " + err;
+      if (!err.empty()) wb.messages.push_back("error: " + err);
+    }
     ImGui::TreePop();
   }
 }
