@@ -193,6 +193,18 @@ void Workbench::update() {
     worker_target_spp_ = target_spp;
     worker_target_s_ = target_seconds;
     wake_.notify_all();  // targets or pause may have changed
+    if (reference_ && ++frames_since_estimate_ >= 30 && !published_mean_.empty()) {
+      frames_since_estimate_ = 0;
+      tracer::ImageRGB img;
+      img.width = published_w_;
+      img.height = published_h_;
+      img.pixels = published_mean_;
+      try {
+        stats_.relmse_reference = tracer::compare_images(img, *reference_).relmse;
+      } catch (const std::exception&) {
+        stats_.relmse_reference = -1.0;  // a reference of another size
+      }
+    }
     return;
   }
   if (paused || converged()) return;
