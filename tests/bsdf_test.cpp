@@ -24,21 +24,9 @@ constexpr double kSignificance = 0.01;
 constexpr int kChiSquareTests = 12;
 constexpr size_t kSamples = 1000000;
 
-struct Uniform {
-  std::mt19937 engine;
-  explicit Uniform(uint32_t seed) : engine(seed) {}
-  float f() { return chi2::uniform_float(engine); }
-  vec2 f2() {
-    const float a = f();
-    return vec2(a, f());
-  }
-};
+using chi2::Uniform;
 
-// A unit direction in the local frame from its polar angle (degrees) and azimuth (radians).
-vec3 direction(float theta_deg, float phi = 0.7f) {
-  const float t = theta_deg * kPi / 180.0f;
-  return vec3(std::sin(t) * std::cos(phi), std::sin(t) * std::sin(phi), std::cos(t));
-}
+using chi2::direction;
 
 Material make(MaterialType type, vec3 albedo = vec3(0.8f), float ior = 1.5f, uint32_t flags = 0) {
   Material m;

@@ -7,11 +7,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <glm/glm.hpp>
+
+#include "core/hd.h"
 #include <numeric>
 #include <string>
 #include <vector>
@@ -295,6 +298,24 @@ Result plane_chi_square(Sampler&& sample, Pdf&& pdf, size_t n, const PlaneBins& 
 template <class Engine>
 float uniform_float(Engine& e) {
   return float(uint32_t(e()) >> 8) * 0x1p-24f;
+}
+
+// Uniform numbers in [0, 1) for the tests' samplers, from a seeded std::mt19937.
+struct Uniform {
+  std::mt19937 engine;
+  explicit Uniform(uint32_t seed) : engine(seed) {}
+  float f() { return uniform_float(engine); }
+  tracer::vec2 f2() {
+    const float a = f();
+    return tracer::vec2(a, f());
+  }
+};
+
+// A unit direction in the local frame from its polar angle (degrees) and azimuth (radians).
+inline tracer::vec3 direction(float theta_deg, float phi = 0.7f) {
+  const double t = theta_deg * 3.14159265358979323846 / 180.0;
+  return tracer::vec3(float(std::sin(t) * std::cos(phi)), float(std::sin(t) * std::sin(phi)),
+                      float(std::cos(t)));
 }
 
 }  // namespace chi2

@@ -26,22 +26,9 @@ constexpr double kSignificance = 0.01;
 constexpr int kChiSquareTests = 26;
 constexpr size_t kChiSamples = 1000000;
 
-struct Uniform {
-  std::mt19937 engine;
-  explicit Uniform(uint32_t seed) : engine(seed) {}
-  float f() { return chi2::uniform_float(engine); }
-  vec2 f2() {
-    const float a = f();
-    return vec2(a, f());
-  }
-};
+using chi2::Uniform;
 
-// A unit direction in the local frame from its polar angle (degrees) and azimuth (radians).
-vec3 direction(float theta_deg, float phi = 0.7f) {
-  const double t = theta_deg * M_PI / 180.0;
-  return vec3(float(std::sin(t) * std::cos(phi)), float(std::sin(t) * std::sin(phi)),
-              float(std::cos(t)));
-}
+using chi2::direction;
 
 Material conductor(float roughness, vec3 f0 = vec3(1.0f)) {
   Material m;

@@ -25,15 +25,7 @@ glm::dvec3 to_d(vec3 v) {
   return glm::dvec3(v);
 }
 
-struct Uniform {
-  std::mt19937 engine;
-  explicit Uniform(uint32_t seed) : engine(seed) {}
-  float f() { return chi2::uniform_float(engine); }
-  vec2 f2() {
-    const float a = f();
-    return vec2(a, f());
-  }
-};
+using chi2::Uniform;
 
 // ---------------------------------------------------------------------------------------------
 // The harness itself: p-values against tabulated chi-square quantiles.
