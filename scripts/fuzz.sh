@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Fuzzes the JSON, OBJ and glTF scene loaders with libFuzzer (clang from Debian) under ASan and
+# UBSan for a bounded time each: scripts/fuzz.sh [SECONDS per format, default 60].
+# The seed corpus is tests/fuzz/corpus/<format>; new inputs found go to build-fuzz/corpus/.
+# Exits non-zero on a crash, a hang (> 10 s on one input), a leak or a sanitizer report.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+SECONDS_EACH=${1:-60}
+scripts/setup.sh >/dev/null
+for p in clang libclang-rt-14-dev; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || {
+    SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO=sudo
+    $SUDO apt-get install -y -qq "$p" >/dev/null; }
+done
+OUT=build-fuzz
+mkdir -p "$OUT"
+clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
+  -Itracer -I/usr/include/stb \
+  tests/fuzz/fuzz_loaders.cpp tracer/scene/json_loader.cpp tracer/scene/json_lines.cpp \
+  tracer/scene/loader.cpp tracer/scene/loader_util.cpp tracer/scene/obj_loader.cpp \
+  tracer/scene/gltf_loader.cpp tracer/scene/validate.cpp tracer/scene/scene.cpp \
+  -ltinyobjloader -ltinygltf -o "$OUT/fuzz_loaders"
+status=0
+for fmt in json obj gltf; do
+  mkdir -p "$OUT/corpus/$fmt"
+  echo "fuzz: $fmt for ${SECONDS_EACH}s"
+  if ! FUZZ_FORMAT=$fmt "$OUT/fuzz_loaders" "$OUT/corpus/$fmt" "tests/fuzz/corpus/$fmt" \
+      -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=4096 -max_len=65536 \
+      -artifact_prefix="$OUT/crash-$fmt-" -print_final_stats=1 > "$OUT/$fmt.log" 2>&1; then
+    echo "fuzz: $fmt FAILED; see $OUT/$fmt.log and $OUT/crash-$fmt-*"
+    tail -30 "$OUT/$fmt.log"
+    status=1
+  else
+    grep -E "stat::number_of_executed_units|stat::peak_rss_mb" "$OUT/$fmt.log" | sed "s/^/fuzz: $fmt /"
+  fi
+done
+exit $status
