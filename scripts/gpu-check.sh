@@ -25,7 +25,13 @@ if ldd $DIST/pathtracer | grep -q "not found"; then echo "MISSING LIBRARIES"; fi
 BUNNIES=/tmp/cornell_bunnies.json
 sed "s|/usr/share/glmark2/models/bunny.obj|$PWD/$DIST/bunny.obj|" \
   assets/scenes/cornell_bunnies.json > $BUNNIES
-scene() { if [ "$1" = cornell_bunnies ]; then echo $BUNNIES; else echo assets/scenes/$1.json; fi; }
+scene() {
+  case "$1" in
+    cornell_bunnies) echo $BUNNIES ;;
+    textured) echo assets/scenes/textured.gltf ;;
+    *) echo assets/scenes/$1.json ;;
+  esac
+}
 
 MODE=${1:-all}
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
@@ -70,7 +76,7 @@ fi
 if [ "$MODE" = all ] || [ "$MODE" = bench ]; then
   echo "== benchmarks (1920x1080, max depth 8)"
   : > "$OUT/bench.jsonl"
-  for s in cornell_box cornell_closed cornell_spheres cornell_bunnies rough_materials subsurface; do
+  for s in cornell_box cornell_closed cornell_spheres cornell_bunnies rough_materials subsurface textured; do
     echo "---- $s"
     $DIST/pathtracer bench "$(scene $s)" --width 1920 --height 1080 --max-depth 8 \
       --spp 16 --cpu-spp 1 --json "$OUT/b.json"

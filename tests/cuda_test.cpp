@@ -88,7 +88,7 @@ ImageRGB render_gpu(Renderer& r, const Scene& s, const RenderSettings& rs, uint3
 
 const char* kScenes[] = {"cornell_box.json",    "cornell_spheres.json", "depth_of_field.json",
                          "obj_scene.json",      "gltf_scene.gltf",      "cornell_closed.json",
-                         "rough_materials.json", "subsurface.json"};
+                         "rough_materials.json", "subsurface.json",      "textured.gltf"};
 
 TEST(Gpu, MatchesCpuOnEveryAsset) {
   REQUIRE_GPU(gpu);

@@ -21,8 +21,10 @@ enum SceneFeature : uint32_t {
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
 // Materials other than Lambertian diffuse.
-// (Subsurface is grouped with them: its boundary is a dielectric.)
-constexpr uint32_t kFeatureSpecular =
-    kFeatureDielectric | kFeatureMirror | kFeatureAbsorption | kFeatureSubsurface;
+// (Subsurface is grouped with them: its boundary is a dielectric. Textures too: a
+// metallic-roughness map turns diffuse into metal per texel, and grouping them keeps the CUDA
+// specialisations at three bits, so diffuse-only untextured kernels compile no texture code.)
+constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption |
+                                      kFeatureSubsurface | kFeatureTextures;
 
 }  // namespace tracer

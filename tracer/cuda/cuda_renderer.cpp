@@ -30,6 +30,9 @@ struct CudaRenderer::Impl {
   DeviceBuffer<Material> materials;
   DeviceBuffer<Light> lights;
   DeviceBuffer<float> light_cdf;
+  DeviceBuffer<TriangleUv> tri_uvs;  // empty unless the scene is textured
+  DeviceBuffer<TextureDesc> textures;
+  DeviceBuffer<uint32_t> texels;     // all textures' RGBA8 texels in one allocation
   SceneView view;
   uint32_t features = 0;
 
@@ -248,6 +251,9 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.materials.upload(scene.materials());
   m.lights.upload(scene.lights());
   m.light_cdf.upload(scene.light_cdf());
+  m.tri_uvs.upload(scene.tri_uvs());
+  m.textures.upload(scene.textures());
+  m.texels.upload(scene.texels());
   m.view = scene.view();
   m.view.nodes = m.nodes.get();
   m.view.prim_indices = m.prim_indices.get();
@@ -257,6 +263,9 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.materials = m.materials.get();
   m.view.lights = m.lights.get();
   m.view.light_cdf = m.light_cdf.get();
+  m.view.tri_uvs = scene.tri_uvs().empty() ? nullptr : m.tri_uvs.get();
+  m.view.textures = m.textures.get();
+  m.view.texels = m.texels.get();
   m.features = scene.features();
   m.has_scene = true;
   set_settings(cfg);

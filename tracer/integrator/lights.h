@@ -5,6 +5,7 @@
 
 #include "core/sampling.h"
 #include "materials/bsdf.h"
+#include "integrator/textured.h"
 #include "scene/scene_view.h"
 
 namespace tracer {
@@ -68,7 +69,14 @@ TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref
     const float cos_l = glm::abs(glm::dot(ls.n, to_ref)) / glm::sqrt(d2);
     if (cos_l <= 0.0f || d2 <= 0.0f) return ls;
     ls.pdf = select * d2 / (cos_l * light.area);
-    ls.le = material_emission(s.materials[material], glm::dot(ls.n, to_ref) > 0.0f);
+    const Material& lm = s.materials[material];
+    ls.le = material_emission(lm, glm::dot(ls.n, to_ref) > 0.0f);
+    // The same textured radiance a path that hits this point sees (shade_path), or MIS breaks.
+    // The light's selection power stays untextured: any positive power is unbiased.
+    if ((F & kFeatureTextures) && lm.emissive_tex != kInvalid) {
+      const vec2 uv = triangle_uv(s, light.prim, b.y, 1.0f - b.x - b.y);
+      ls.le *= vec3(lookup_texture(s, lm.emissive_tex, uv));
+    }
   } else {
     const Sphere& sph = s.spheres[light.prim - s.tri_count];
     material = sph.material;

@@ -159,8 +159,17 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
     }
   }
   if (!hit.valid()) return false;  // escaped: the scene has no environment light
-  const SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
-  const Material& m = s.materials[sh.material];
+  SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
+  // Textured materials are evaluated on a copy holding this point's texel values; scenes without
+  // textures (F without kFeatureTextures) read the material in place.
+  const Material* mp = &s.materials[sh.material];
+  Material textured;
+  if ((F & kFeatureTextures) && mp->has_textures()) {
+    textured = *mp;
+    apply_textures<F>(s, hit.prim, sh, textured);
+    mp = &textured;
+  }
+  const Material& m = *mp;
   // Without specular features in F, the compiler drops every non-diffuse branch below.
   const MaterialType type = (F & kFeatureSpecular) ? m.type : MaterialType::kDiffuse;
   if ((F & kFeatureSubsurface) && (st.flags & kPathInMedium) &&

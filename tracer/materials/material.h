@@ -33,14 +33,27 @@ struct alignas(16) Material {
   vec3 scattering = vec3(0.0f);  // subsurface: scattering coefficient per unit length
   float roughness = 0.0f;        // perceptual roughness; the GGX alpha is roughness^2
   float g = 0.0f;                // subsurface: Henyey-Greenstein mean cosine, (-1, 1)
-  uint32_t pad[3] = {0, 0, 0};
+  // Texture indices into the scene's texture list (kInvalid: none), glTF semantics: the base
+  // colour texel multiplies `albedo`, the emissive one `emission`; metallic-roughness reads
+  // roughness from G and metallic from B, scaled by `roughness` and `metallic`.
+  uint32_t base_color_tex = kInvalid;
+  uint32_t metal_rough_tex = kInvalid;
+  uint32_t emissive_tex = kInvalid;
+  uint32_t normal_tex = kInvalid;
+  float metallic = 0.0f;      // glTF metallicFactor; used only with metal_rough_tex
+  float normal_scale = 1.0f;  // glTF normalTexture.scale
+  uint32_t pad = 0;
+
+  TRACER_HD bool has_textures() const {
+    return (base_color_tex & metal_rough_tex & emissive_tex & normal_tex) != kInvalid;
+  }
 
   TRACER_HD bool is_emissive() const {
     return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f;
   }
   TRACER_HD bool is_specular() const { return type != MaterialType::kDiffuse; }
 };
-static_assert(sizeof(Material) == 80, "Material is uploaded as plain bytes");
+static_assert(sizeof(Material) == 96, "Material is uploaded as plain bytes");
 
 inline const char* material_type_name(MaterialType t) {
   switch (t) {

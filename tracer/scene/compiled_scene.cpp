@@ -144,6 +144,43 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   }
   if (scene.camera.aperture_radius > 0.0f) features |= kFeatureDepthOfField;
 
+  // Textures: one flat texel array for all of them, uploaded once. Only scenes whose materials
+  // use a texture get the feature (and pay for texture code and uvs).
+  bool textured = false;
+  for (const Material& m : materials_) {
+    if (!m.has_textures()) continue;
+    textured = true;
+    // A metallic-roughness map can turn a diffuse material into a conductor per texel.
+    if (m.metal_rough_tex != kInvalid) features |= kFeatureMirror;
+  }
+  if (textured) {
+    features |= kFeatureTextures;
+    size_t total = 0;
+    for (const TextureImage& t : scene.textures) total += size_t(t.width) * size_t(t.height);
+    texels_.reserve(total);
+    for (const TextureImage& t : scene.textures) {
+      TextureDesc d;
+      d.offset = uint32_t(texels_.size());
+      d.width = uint32_t(t.width);
+      d.height = uint32_t(t.height);
+      d.flags = uint32_t(t.wrap_s) | uint32_t(t.wrap_t) << 2 | (t.srgb ? kTextureSrgb : 0u);
+      const size_t n = size_t(t.width) * size_t(t.height);
+      for (size_t i = 0; i < n; ++i) {
+        const uint8_t* c = &t.rgba8[4 * i];
+        texels_.push_back(uint32_t(c[0]) | uint32_t(c[1]) << 8 | uint32_t(c[2]) << 16 |
+                          uint32_t(c[3]) << 24);
+      }
+      textures_.push_back(d);
+    }
+    if (mesh.uvs.size() == mesh.positions.size() && !mesh.uvs.empty()) {
+      tri_uvs_.resize(tri_count);
+      for (uint32_t i = 0; i < tri_count; ++i) {
+        const uvec3 idx = mesh.indices[i];
+        tri_uvs_[i] = {mesh.uvs[idx.x], mesh.uvs[idx.y], mesh.uvs[idx.z]};
+      }
+    }
+  }
+
   bvh_ = build_bvh(bounds);
 
   view_.nodes = bvh_.nodes.data();
@@ -154,6 +191,10 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.materials = materials_.data();
   view_.lights = lights_.data();
   view_.light_cdf = light_cdf_.data();
+  view_.tri_uvs = tri_uvs_.empty() ? nullptr : tri_uvs_.data();
+  view_.textures = textures_.data();
+  view_.texels = texels_.data();
+  view_.texture_count = uint32_t(textures_.size());
   view_.node_count = uint32_t(bvh_.nodes.size());
   view_.tri_count = tri_count;
   view_.sphere_count = uint32_t(spheres_.size());

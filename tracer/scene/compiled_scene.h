@@ -28,6 +28,9 @@ class CompiledScene {
   const std::vector<Material>& materials() const { return materials_; }
   const std::vector<Light>& lights() const { return lights_; }
   const std::vector<float>& light_cdf() const { return light_cdf_; }
+  const std::vector<TriangleUv>& tri_uvs() const { return tri_uvs_; }
+  const std::vector<TextureDesc>& textures() const { return textures_; }
+  const std::vector<uint32_t>& texels() const { return texels_; }
 
  private:
   Bvh bvh_;
@@ -37,6 +40,9 @@ class CompiledScene {
   std::vector<Material> materials_;
   std::vector<Light> lights_;
   std::vector<float> light_cdf_;
+  std::vector<TriangleUv> tri_uvs_;  // empty unless the scene has textures and uvs
+  std::vector<TextureDesc> textures_;
+  std::vector<uint32_t> texels_;  // RGBA8 packed little-endian (R in the low byte)
   SceneView view_;
 };
 

@@ -1,6 +1,7 @@
 // glTF 2.0 (.gltf/.glb) meshes through tinygltf. tinygltf checks little of what it reads, so every
 // index, accessor range and node link is validated here before use: a broken file gives an
 // InputError, never an out-of-bounds read or an endless node walk.
+#include <stb_image.h>
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -18,11 +19,50 @@ namespace tracer {
 
 namespace {
 
-// Textures are not used by the renderer; skipping the decode saves time and avoids failures on
-// images we would throw away.
-bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, int,
-                const unsigned char*, int, void*) {
+constexpr int kMaxTextureSide = 16384;
+
+// Decodes an encoded image (PNG, JPEG, ...) into RGBA8 with stb_image. `what` names the image.
+// Decodes an encoded image (PNG, JPEG, ...) into RGBA8 with stb_image; `what` names the image.
+// One larger than kMaxTextureSide a side is an error (returns false, says why in *err); one stb
+// cannot decode (KTX2, WebP behind an extension, a corrupt file) stays empty, and the materials
+// that use it are rendered without it, with a warning (GltfReader::texture).
+bool decode_image(tinygltf::Image* image, const unsigned char* bytes, size_t size,
+                  const std::string& what, std::string* err) {
+  int w = 0, h = 0, comp = 0;
+  if (size > size_t(INT32_MAX) || !stbi_info_from_memory(bytes, int(size), &w, &h, &comp))
+    return true;
+  if (w > kMaxTextureSide || h > kMaxTextureSide) {
+    if (err)
+      *err += what + " is " + std::to_string(w) + "x" + std::to_string(h) + ", larger than " +
+              std::to_string(kMaxTextureSide) + "x" + std::to_string(kMaxTextureSide) + "\n";
+    return false;
+  }
+  unsigned char* data = stbi_load_from_memory(bytes, int(size), &w, &h, &comp, 4);
+  if (!data || w <= 0 || h <= 0) {
+    stbi_image_free(data);
+    return true;
+  }
+  image->width = w;
+  image->height = h;
+  image->component = 4;
+  image->bits = 8;
+  image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+  image->image.assign(data, data + size_t(w) * size_t(h) * 4);
+  stbi_image_free(data);
   return true;
+}
+
+// tinygltf's image callback. Images stored in a buffer view arrive as a pointer tinygltf has not
+// checked against the buffer's size; those are left for GltfReader::decode_buffer_images, which
+// checks the range first. Data URIs and external files arrive in tinygltf's own copy.
+bool load_image(tinygltf::Image* image, const int index, std::string* err, std::string*, int, int,
+                const unsigned char* bytes, int size, void*) {
+  if (image->bufferView >= 0) return true;
+  const std::string what =
+      "image " + std::to_string(index) +
+      (image->uri.empty() || image->uri.rfind("data:", 0) == 0 ? std::string()
+                                                               : " (\"" + image->uri + "\")");
+  return decode_image(image, bytes, size_t(size), what, err);
 }
 
 class GltfReader {
@@ -34,7 +74,7 @@ class GltfReader {
 
   void load() {
     tinygltf::TinyGLTF loader;
-    loader.SetImageLoader(&skip_image, nullptr);
+    loader.SetImageLoader(&load_image, nullptr);
     std::string err, warn;
     const bool binary = path_extension_lower(path_) == ".glb";
     const bool ok = binary ? loader.LoadBinaryFromFile(&model_, &err, &warn, path_)
@@ -42,6 +82,7 @@ class GltfReader {
     if (!ok) fail("cannot read glTF: " + trim(err.empty() ? warn : err));
     if (!warn.empty())
       scene_.diagnostics.warn(file(), "tinygltf: " + trim(warn) + suffix_, "continued");
+    decode_buffer_images();
     for (const std::string& ext : model_.extensionsRequired) {
       if (ext != "KHR_materials_emissive_strength" && ext != "KHR_materials_transmission" &&
           ext != "KHR_materials_ior")
@@ -146,6 +187,123 @@ class GltfReader {
         }
       }
     }
+  }
+
+  // Decodes the images stored in buffer views (GLB and most exporters), range-checked first.
+  void decode_buffer_images() {
+    for (size_t i = 0; i < model_.images.size(); ++i) {
+      tinygltf::Image& image = model_.images[i];
+      if (image.bufferView < 0 || !image.image.empty()) continue;
+      const std::string what = "image " + std::to_string(i);
+      if (size_t(image.bufferView) >= model_.bufferViews.size())
+        fail(what + " refers to buffer view " + std::to_string(image.bufferView) +
+             ", which does not exist");
+      const tinygltf::BufferView& view = model_.bufferViews[size_t(image.bufferView)];
+      if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
+        fail(what + ": buffer view refers to buffer " + std::to_string(view.buffer) +
+             ", which does not exist");
+      const std::vector<unsigned char>& data = model_.buffers[size_t(view.buffer)].data;
+      if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset)
+        fail(what + ": buffer view runs past the end of its " + std::to_string(data.size()) +
+             "-byte buffer");
+      std::string err;
+      if (!decode_image(&image, data.data() + view.byteOffset, view.byteLength, what, &err))
+        fail(trim(err));
+    }
+  }
+
+  // The scene texture for glTF texture `index` decoded as sRGB colour or as linear data; each
+  // (texture, encoding) pair is converted once. kInvalid, with a warning, when its image could
+  // not be loaded.
+  uint32_t texture(int index, bool srgb, int tex_coord, const std::string& what) {
+    if (index < 0) return kInvalid;
+    if (size_t(index) >= model_.textures.size())
+      fail(what + " refers to texture " + std::to_string(index) + ", which does not exist");
+    if (tex_coord != 0) approximated_.insert("texCoord sets other than 0 (used set 0)");
+    const auto key = std::make_pair(index, srgb);
+    auto found = textures_.find(key);
+    if (found != textures_.end()) return found->second;
+    const tinygltf::Texture& t = model_.textures[size_t(index)];
+    if (t.source >= 0 && size_t(t.source) >= model_.images.size())
+      fail("texture " + std::to_string(index) + " refers to image " + std::to_string(t.source) +
+           ", which does not exist");
+    // No source: the image is only in an extension (KHR_texture_basisu, EXT_texture_webp).
+    static const tinygltf::Image kNoImage;
+    const tinygltf::Image& image = t.source >= 0 ? model_.images[size_t(t.source)] : kNoImage;
+    uint32_t id = kInvalid;
+    if (image.image.empty() || image.component != 4 || image.bits != 8) {
+      scene_.diagnostics.warn(file(),
+                              "image " + std::to_string(t.source) +
+                                  (image.uri.empty() ? "" : " (\"" + image.uri + "\")") +
+                                  " could not be loaded" + suffix_,
+                              "rendered " + what + " without it");
+    } else {
+      TextureImage ti;
+      ti.width = image.width;
+      ti.height = image.height;
+      ti.rgba8 = image.image;
+      ti.srgb = srgb;
+      ti.source = image.uri.empty() || image.uri.rfind("data:", 0) == 0
+                      ? path_
+                      : path_join(path_directory(path_), image.uri);
+      if (t.sampler >= 0) {
+        if (size_t(t.sampler) >= model_.samplers.size())
+          fail("texture " + std::to_string(index) + " refers to sampler " +
+               std::to_string(t.sampler) + ", which does not exist");
+        const tinygltf::Sampler& sm = model_.samplers[size_t(t.sampler)];
+        ti.wrap_s = wrap_mode(sm.wrapS);
+        ti.wrap_t = wrap_mode(sm.wrapT);
+      }
+      scene_.textures.push_back(std::move(ti));
+      id = uint32_t(scene_.textures.size() - 1);
+    }
+    textures_[key] = id;
+    return id;
+  }
+
+  static TextureWrap wrap_mode(int gl) {
+    switch (gl) {
+      case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE:
+        return TextureWrap::kClampToEdge;
+      case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT:
+        return TextureWrap::kMirroredRepeat;
+      default:
+        return TextureWrap::kRepeat;
+    }
+  }
+
+  // TEXCOORD_n: floats, or normalized unsigned bytes/shorts (glTF 2.0 sec. 3.7.2.1).
+  std::vector<vec2> read_uvs(int index, const std::string& what) const {
+    const tinygltf::Accessor& a = accessor(index, what);
+    size_t size = 0;
+    if (a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT)
+      size = 4;
+    else if (a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && a.normalized)
+      size = 1;
+    else if (a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT && a.normalized)
+      size = 2;
+    if (a.type != TINYGLTF_TYPE_VEC2 || size == 0)
+      fail(what + " must be a VEC2 of floats or normalized unsigned bytes or shorts");
+    std::vector<vec2> out(a.count, vec2(0.0f));
+    if (a.count == 0) return out;
+    size_t stride = 0;
+    const unsigned char* p = accessor_data(a, size * 2, &stride, what);
+    if (!p) return out;
+    for (size_t i = 0; i < a.count; ++i) {
+      const unsigned char* e = p + i * stride;
+      for (int c = 0; c < 2; ++c) {
+        if (size == 4) {
+          std::memcpy(&out[i][c], e + 4 * c, 4);
+        } else if (size == 2) {
+          uint16_t v;
+          std::memcpy(&v, e + 2 * c, 2);
+          out[i][c] = float(v) / 65535.0f;
+        } else {
+          out[i][c] = float(e[c]) / 255.0f;
+        }
+      }
+    }
+    return out;
   }
 
   mat4 local_transform(const tinygltf::Node& n, int index) const {
@@ -363,9 +521,27 @@ class GltfReader {
       // A shiny non-metal's specular layer is missing; a rough one looks diffuse anyway.
       if (pbr.roughnessFactor < 0.5) approximated_.insert("glossy dielectric layer");
     }
-    if (pbr.baseColorTexture.index >= 0 || pbr.metallicRoughnessTexture.index >= 0 ||
-        g.normalTexture.index >= 0 || g.emissiveTexture.index >= 0 || g.occlusionTexture.index >= 0)
-      approximated_.insert("textures");
+    const std::string mname = "material \"" + g.name + "\"";
+    if (m.type == MaterialType::kSubsurface) {
+      if (pbr.baseColorTexture.index >= 0)
+        approximated_.insert("base colour texture on a scattering volume (ignored)");
+    } else {
+      m.base_color_tex = texture(pbr.baseColorTexture.index, true, pbr.baseColorTexture.texCoord,
+                                 mname + " base colour");
+    }
+    if (pbr.metallicRoughnessTexture.index >= 0) {
+      m.metal_rough_tex =
+          texture(pbr.metallicRoughnessTexture.index, false, pbr.metallicRoughnessTexture.texCoord,
+                  mname + " metallic-roughness");
+      m.metallic = float(std::clamp(pbr.metallicFactor, 0.0, 1.0));
+      m.roughness = roughness;  // scaled by the texture's G channel per texel
+    }
+    m.emissive_tex =
+        texture(g.emissiveTexture.index, true, g.emissiveTexture.texCoord, mname + " emissive");
+    m.normal_tex =
+        texture(g.normalTexture.index, false, g.normalTexture.texCoord, mname + " normal");
+    m.normal_scale = std::isfinite(g.normalTexture.scale) ? float(g.normalTexture.scale) : 1.0f;
+    if (g.occlusionTexture.index >= 0) approximated_.insert("occlusion texture (ignored)");
     if (!g.alphaMode.empty() && g.alphaMode != "OPAQUE") approximated_.insert("alphaMode");
     for (const auto& e : g.extensions) {
       if (e.first != "KHR_materials_emissive_strength" && e.first != "KHR_materials_transmission" &&
@@ -415,6 +591,18 @@ class GltfReader {
                                   what + " has missing, non-finite or zero normals" + suffix_,
                                   "used flat shading");
           part.normals.clear();
+        }
+      }
+      auto uv = prim.attributes.find("TEXCOORD_0");
+      if (uv != prim.attributes.end()) {
+        part.uvs = read_uvs(uv->second, what + " TEXCOORD_0");
+        bool good = part.uvs.size() == part.positions.size();
+        for (const vec2& t : part.uvs) good &= std::isfinite(t.x) && std::isfinite(t.y);
+        if (!good) {
+          scene_.diagnostics.warn(file(),
+                                  what + " has a wrong count of or non-finite TEXCOORD_0" + suffix_,
+                                  "rendered it untextured");
+          part.uvs.clear();
         }
       }
       std::vector<uint32_t> idx;
@@ -482,6 +670,7 @@ class GltfReader {
   uint32_t material_override_ = kInvalid;
   uint32_t default_material_ = kInvalid;
   std::map<int, uint32_t> materials_;
+  std::map<std::pair<int, bool>, uint32_t> textures_;  // (glTF texture, sRGB) -> scene texture
   std::set<std::string> approximated_;
   int skipped_primitives_ = 0;
 };

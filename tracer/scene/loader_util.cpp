@@ -18,12 +18,13 @@ namespace tracer {
 uint32_t append_part(Scene& scene, const MeshPart& part, const mat4& xform) {
   TriangleMesh& mesh = scene.mesh;
   const uint32_t first_tri = uint32_t(mesh.indices.size());
-  const uint32_t base = uint32_t(mesh.positions.size());
   const bool part_normals = !part.normals.empty();
   // One normals array covers the whole scene mesh, so it is all or nothing: when the first smooth
   // object arrives, the flat ones before it get their exact geometric normal.
   if (part_normals && mesh.normals.empty() && !mesh.indices.empty())
     set_flat_normals(mesh, 0, first_tri);
+  // After set_flat_normals, which may append duplicated vertices.
+  const uint32_t base = uint32_t(mesh.positions.size());
 
   const mat3 m(xform);
   const mat3 normal_m = glm::transpose(glm::inverse(m));
@@ -37,6 +38,15 @@ uint32_t append_part(Scene& scene, const MeshPart& part, const mat4& xform) {
       // Zero-length normals stay zero so that validate_scene can report and replace them.
       mesh.normals.push_back(len > 0.0f && is_finite(len) ? t / len : t);
     }
+  }
+  // Texture coordinates, like normals, cover all positions or none; parts without get (0, 0).
+  const bool part_uvs = part.uvs.size() == part.positions.size() && !part.uvs.empty();
+  if (part_uvs || !mesh.uvs.empty()) {
+    mesh.uvs.resize(base, vec2(0.0f));
+    if (part_uvs)
+      mesh.uvs.insert(mesh.uvs.end(), part.uvs.begin(), part.uvs.end());
+    else
+      mesh.uvs.resize(mesh.positions.size(), vec2(0.0f));
   }
   for (size_t i = 0; i < part.indices.size(); ++i) {
     uvec3 t = part.indices[i] + uvec3(base);
@@ -67,6 +77,7 @@ void set_flat_normals(TriangleMesh& mesh, uint32_t first, uint32_t count) {
       } else if (glm::dot(mesh.normals[v], n) < 1.0f - 1e-6f) {
         mesh.positions.push_back(mesh.positions[v]);
         mesh.normals.push_back(n);
+        if (!mesh.uvs.empty()) mesh.uvs.push_back(mesh.uvs[v]);
         tri[k] = uint32_t(mesh.positions.size() - 1);
       }
     }

@@ -13,6 +13,7 @@ namespace tracer {
 struct MeshPart {
   std::vector<vec3> positions;
   std::vector<vec3> normals;  // empty, or one per position
+  std::vector<vec2> uvs;      // empty, or one per position; (0, 0) is the image's top-left
   std::vector<uvec3> indices;
   std::vector<uint32_t> materials;  // one per triangle
 };

@@ -1,7 +1,9 @@
 // Wavefront OBJ + MTL meshes through tinyobjloader, with our own pre-scan so that bad vertices and
 // face indices are reported with their line (tinyobjloader would read garbage or crash on them).
+#include <stb_image.h>
 #include <tiny_obj_loader.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -170,6 +172,57 @@ Material convert_mtl(const tinyobj::material_t& m, const std::string& path, Diag
   return out;
 }
 
+// map_Kd: an sRGB colour map, relative to the OBJ's folder (where tinyobjloader finds the MTL).
+// A missing or undecodable file leaves the material untextured with a warning; one larger than
+// 16384 texels a side is an error. Returns the scene texture index or kInvalid.
+uint32_t load_map_kd(Scene& scene, const std::string& obj_path, const tinyobj::material_t& m,
+                     const std::string& suffix) {
+  std::string name = m.diffuse_texname;
+  if (name.empty()) return kInvalid;
+  std::replace(name.begin(), name.end(), '\\', '/');
+  const std::string file = path_join(path_directory(obj_path), name);
+  const SourceLoc loc{obj_path, 0};
+  const std::string what = "material \"" + m.name + "\" map_Kd \"" + name + "\"";
+  if (!file_exists(file)) {
+    scene.diagnostics.warn(loc, what + " not found" + suffix, "rendered it untextured");
+    return kInvalid;
+  }
+  int w = 0, h = 0, comp = 0;
+  if (!stbi_info(file.c_str(), &w, &h, &comp)) {
+    scene.diagnostics.warn(loc, what + " cannot be decoded" + suffix, "rendered it untextured");
+    return kInvalid;
+  }
+  if (w > 16384 || h > 16384)
+    throw InputError({file, 0}, "texture is " + std::to_string(w) + "x" + std::to_string(h) +
+                                    ", larger than 16384x16384" + suffix);
+  unsigned char* data = stbi_load(file.c_str(), &w, &h, &comp, 4);
+  if (!data) {
+    scene.diagnostics.warn(loc, what + " cannot be decoded" + suffix, "rendered it untextured");
+    return kInvalid;
+  }
+  TextureImage t;
+  t.width = w;
+  t.height = h;
+  t.rgba8.assign(data, data + size_t(w) * size_t(h) * 4);
+  stbi_image_free(data);
+  t.srgb = true;
+  t.source = file;
+  scene.textures.push_back(std::move(t));
+  return uint32_t(scene.textures.size() - 1);
+}
+
+struct CornerKey {
+  int v, n, t;
+  bool operator==(const CornerKey& o) const { return v == o.v && n == o.n && t == o.t; }
+};
+struct CornerHash {
+  size_t operator()(const CornerKey& k) const {
+    return std::hash<uint64_t>()((uint64_t(uint32_t(k.v)) << 32) ^
+                                 (uint64_t(uint32_t(k.n)) * 0x9e3779b97f4a7c15ull) ^
+                                 uint64_t(uint32_t(k.t)) << 1);
+  }
+};
+
 }  // namespace
 
 void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
@@ -215,15 +268,25 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
       return default_material;
     }
     if (material_ids[size_t(id)] == kInvalid) {
-      material_ids[size_t(id)] = scene.add_material(
-          mtls[size_t(id)].name, convert_mtl(mtls[size_t(id)], path, scene.diagnostics));
+      const tinyobj::material_t& mtl = mtls[size_t(id)];
+      Material mat = convert_mtl(mtl, path, scene.diagnostics);
+      if (mat.type == MaterialType::kDiffuse)
+        mat.base_color_tex = load_map_kd(scene, path, mtl, suffix);
+      material_ids[size_t(id)] = scene.add_material(mtl.name, mat);
     }
     return material_ids[size_t(id)];
   };
 
+  // Texture coordinates likewise, only if every corner has one ("vt"); OBJ's v runs up the
+  // image, glTF's (and ours) down, hence 1 - v.
+  bool use_uvs = !attrib.texcoords.empty();
+  for (const tinyobj::shape_t& shape : reader.GetShapes())
+    for (const tinyobj::index_t& ix : shape.mesh.indices) use_uvs &= ix.texcoord_index >= 0;
+
   MeshPart part;
-  std::unordered_map<uint64_t, uint32_t> remap;
+  std::unordered_map<CornerKey, uint32_t, CornerHash> remap;
   const size_t nv = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3;
+  const size_t nt = attrib.texcoords.size() / 2;
   for (const tinyobj::shape_t& shape : reader.GetShapes()) {
     const tinyobj::mesh_t& m = shape.mesh;
     size_t offset = 0;
@@ -239,12 +302,13 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
         const tinyobj::index_t ix = m.indices[offset + size_t(k)];
         // The pre-scan already rejected bad indices; this guards against anything it missed.
         if (ix.vertex_index < 0 || size_t(ix.vertex_index) >= nv ||
-            (use_normals && size_t(ix.normal_index) >= nn)) {
+            (use_normals && size_t(ix.normal_index) >= nn) ||
+            (use_uvs && size_t(ix.texcoord_index) >= nt)) {
           ok = false;
           break;
         }
-        const uint64_t key = (uint64_t(uint32_t(ix.vertex_index)) << 32) |
-                             uint32_t(use_normals ? ix.normal_index : 0);
+        const CornerKey key{ix.vertex_index, use_normals ? ix.normal_index : 0,
+                            use_uvs ? ix.texcoord_index : 0};
         auto [it, inserted] = remap.emplace(key, uint32_t(part.positions.size()));
         if (inserted) {
           const float* p = &attrib.vertices[3 * size_t(ix.vertex_index)];
@@ -252,6 +316,10 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
           if (use_normals) {
             const float* q = &attrib.normals[3 * size_t(ix.normal_index)];
             part.normals.push_back(vec3(q[0], q[1], q[2]));
+          }
+          if (use_uvs) {
+            const float* t = &attrib.texcoords[2 * size_t(ix.texcoord_index)];
+            part.uvs.push_back(vec2(t[0], 1.0f - t[1]));
           }
         }
         tri[k] = it->second;

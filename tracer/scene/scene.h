@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "materials/material.h"
+#include "materials/texture.h"
 #include "scene/diagnostics.h"
 
 namespace tracer {
@@ -44,12 +45,24 @@ struct SphereDesc {
   uint32_t material = 0;
 };
 
-// Indexed triangles with optional per-vertex normals (empty or one per position).
+// Indexed triangles with optional per-vertex normals and texture coordinates (each empty or one
+// per position). uv (0, 0) is the top-left corner of an image (glTF convention).
 struct TriangleMesh {
   std::vector<vec3> positions;
   std::vector<vec3> normals;
+  std::vector<vec2> uvs;
   std::vector<uvec3> indices;
   std::vector<uint32_t> materials;  // one per triangle
+};
+
+// A decoded image plus how it is sampled. RGBA8, as in the file: a quarter of the memory of
+// linear floats; colour maps keep their sRGB encoding and are decoded per texel at lookup.
+struct TextureImage {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgba8;  // width * height * 4 bytes, rows top to bottom
+  bool srgb = false;           // base colour and emissive maps; not metallic-roughness or normal
+  TextureWrap wrap_s = TextureWrap::kRepeat, wrap_t = TextureWrap::kRepeat;
+  std::string source;  // file it came from, for messages
 };
 
 // What the user sees in the object list; a sphere or a range of the mesh's triangles.
@@ -68,7 +81,8 @@ struct Scene {
   RenderSettings settings;
   std::vector<NamedMaterial> materials;
   std::vector<SphereDesc> spheres;
-  TriangleMesh mesh;  // every triangle of every object, in world space
+  std::vector<TextureImage> textures;  // Material::*_tex index into this
+  TriangleMesh mesh;                   // every triangle of every object, in world space
   std::vector<ObjectInfo> objects;
   Diagnostics diagnostics;
 

@@ -7,6 +7,7 @@
 #include "camera/camera.h"
 #include "core/features.h"
 #include "materials/material.h"
+#include "materials/texture.h"
 
 namespace tracer {
 
@@ -16,6 +17,11 @@ struct TriangleShading {
   uint32_t material;
   uint32_t light;      // index into the light list, kInvalid when not emissive
   uint32_t has_normals;
+};
+
+// Per-triangle texture coordinates, apart from TriangleShading: only textured scenes read them.
+struct TriangleUv {
+  vec2 uv0, uv1, uv2;
 };
 
 // An emissive primitive. `prim` is a unified primitive id (triangles first, then spheres).
@@ -35,6 +41,10 @@ struct SceneView {
   const Material* materials = nullptr;
   const Light* lights = nullptr;
   const float* light_cdf = nullptr;  // light_count + 1 entries, 0 .. 1
+  const TriangleUv* tri_uvs = nullptr;    // tri_count entries, or null when the mesh has none
+  const TextureDesc* textures = nullptr;  // texture_count entries
+  const uint32_t* texels = nullptr;       // RGBA8 texels of all textures, one after another
+  uint32_t texture_count = 0;
   uint32_t node_count = 0, tri_count = 0, sphere_count = 0, material_count = 0, light_count = 0;
   uint32_t features = 0;
   Camera camera;
@@ -164,6 +174,7 @@ struct SurfaceHit {
   vec3 p;         // position
   vec3 ng;        // unit geometric normal (triangle winding / sphere outward)
   vec3 ns;        // unit shading normal, on the same side as ng
+  vec2 uv;        // texture coordinates (F with kFeatureTextures only; else zero)
   uint32_t material;
   uint32_t light;  // kInvalid when not emissive
   bool front;      // the ray arrived on the ng side
@@ -188,6 +199,11 @@ TRACER_HD inline SurfaceHit make_surface_hit(const SceneView& s, const Ray& ray,
     }
     sh.material = ts.material;
     sh.light = ts.light;
+    sh.uv = vec2(0.0f);
+    if ((F & kFeatureTextures) && s.tri_uvs) {
+      const TriangleUv tu = s.tri_uvs[hit.prim];
+      sh.uv = b0 * tu.uv0 + hit.u * tu.uv1 + hit.v * tu.uv2;
+    }
   } else {
     const Sphere& sph = s.spheres[hit.prim - s.tri_count];
     const vec3 p = ray.o + hit.t * ray.d;
@@ -195,6 +211,7 @@ TRACER_HD inline SurfaceHit make_surface_hit(const SceneView& s, const Ray& ray,
     // Re-project onto the surface to remove the error of o + t d (pbrt-v4 sec. 6.8.5).
     sh.p = sph.center + sph.radius * sh.ng;
     sh.ns = sh.ng;
+    sh.uv = vec2(0.0f);  // spheres have no texture coordinates
     sh.material = sph.material;
     sh.light = sph.light;
   }

@@ -74,8 +74,25 @@ void validate_camera_and_settings(const Scene& scene) {
   }
 }
 
+void validate_textures(const Scene& scene) {
+  uint64_t total = 0;
+  for (const TextureImage& t : scene.textures) {
+    const SourceLoc loc{t.source.empty() ? scene.source : t.source, 0};
+    if (t.width <= 0 || t.height <= 0 || t.width > 16384 || t.height > 16384 ||
+        t.rgba8.size() != size_t(t.width) * size_t(t.height) * 4)
+      throw InputError(loc, "texture is " + std::to_string(t.width) + "x" +
+                                std::to_string(t.height) + " with " +
+                                std::to_string(t.rgba8.size()) +
+                                " bytes; expected 1..16384 texels a side, RGBA8");
+    total += uint64_t(t.width) * uint64_t(t.height);
+  }
+  if (total >= uint64_t(kInvalid))
+    throw InputError({scene.source, 0}, "textures hold more than 2^32 texels in all");
+}
+
 void validate_materials(Scene& scene) {
   const SourceLoc loc{scene.source, 0};
+  validate_textures(scene);
   for (NamedMaterial& nm : scene.materials) {
     Material& m = nm.material;
     const std::string name = "material \"" + nm.name + "\"";
@@ -94,6 +111,13 @@ void validate_materials(Scene& scene) {
       throw InputError(loc, name + " has negative emission");
     if (glm::any(glm::lessThan(m.absorption, vec3(0.0f))))
       throw InputError(loc, name + " has negative absorption");
+    for (uint32_t tex : {m.base_color_tex, m.metal_rough_tex, m.emissive_tex, m.normal_tex}) {
+      if (tex != kInvalid && tex >= scene.textures.size())
+        throw InputError(loc, name + " refers to texture " + std::to_string(tex) +
+                                  ", but the scene has " + std::to_string(scene.textures.size()));
+    }
+    if (!std::isfinite(m.metallic) || !std::isfinite(m.normal_scale))
+      throw InputError(loc, name + " has a non-finite metallic factor or normal scale");
     if (m.type == MaterialType::kDielectric && !(m.ior > 1.0f && m.ior <= 4.0f))
       throw InputError(loc, name + " has ior " + std::to_string(m.ior) + ", outside (1, 4]");
   }
@@ -123,6 +147,14 @@ void validate_geometry(Scene& scene) {
     throw InputError({scene.source, 0},
                      "triangle mesh has " + std::to_string(mesh.positions.size()) +
                          " positions but " + std::to_string(mesh.normals.size()) + " normals");
+  if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
+    throw InputError({scene.source, 0}, "triangle mesh has " +
+                                            std::to_string(mesh.positions.size()) +
+                                            " positions but " + std::to_string(mesh.uvs.size()) +
+                                            " texture coordinates");
+  for (const vec2& uv : mesh.uvs)
+    if (!std::isfinite(uv.x) || !std::isfinite(uv.y))
+      throw InputError({scene.source, 0}, "triangle mesh has a non-finite texture coordinate");
   if (mesh.indices.size() >= size_t(kInvalid))
     throw InputError({scene.source, 0}, "too many triangles for 32-bit indices");
 
