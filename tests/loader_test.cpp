@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "test_util.h"
 
@@ -341,4 +342,54 @@ TEST(Loader, RealMeshes) {
     EXPECT_GE(emissive_materials(s), 1u);
   }
   if (found == 0) GTEST_SKIP() << "neither python3-tinyobjloader nor glmark2-data is installed";
+}
+
+// glTF volumes become subsurface media: KHR_materials_volume (with transmission) and
+// KHR_materials_diffuse_transmission; rough metals become GGX conductors.
+TEST(LoaderGltfMaterials, VolumesBecomeSubsurfaceAndMetalsConductors) {
+  std::ifstream in(test::source_dir() + "/assets/scenes/gltf_scene.gltf");
+  ASSERT_TRUE(in.good());
+  nlohmann::json j = nlohmann::json::parse(in);
+  auto& mats = j["materials"];
+  for (auto& m : mats) {
+    if (m["name"] == "glass") {
+      m["extensions"]["KHR_materials_volume"] = {{"thicknessFactor", 1.0},
+                                                 {"attenuationDistance", 0.5},
+                                                 {"attenuationColor", {0.9, 0.5, 0.3}}};
+    }
+    if (m["name"] == "terracotta") {
+      m["pbrMetallicRoughness"]["metallicFactor"] = 1.0;
+      m["pbrMetallicRoughness"]["roughnessFactor"] = 0.35;
+    }
+    if (m["name"] == "floor") {
+      m["extensions"]["KHR_materials_diffuse_transmission"] = {{"diffuseTransmissionFactor", 1.0}};
+    }
+  }
+  j["extensionsUsed"].push_back("KHR_materials_volume");
+  j["extensionsUsed"].push_back("KHR_materials_diffuse_transmission");
+  char tmpl[] = "/tmp/pathtracer_gltfmat_XXXXXX";
+  const std::string dir = mkdtemp(tmpl);
+  const std::string path = dir + "/volume.gltf";
+  std::ofstream(path) << j.dump();
+  const tracer::Scene s = tracer::load_scene(path);
+  int subsurface = 0, conductor = 0;
+  for (const auto& nm : s.materials) {
+    const tracer::Material& m = nm.material;
+    if (m.type == tracer::MaterialType::kSubsurface) {
+      ++subsurface;
+      EXPECT_EQ(m.albedo, tracer::vec3(1.0f)) << nm.name;  // the boundary is untinted
+      if (nm.name.find("glass") != std::string::npos) {
+        // mean free path 0.5: sigma_t = 2 in every channel; the surface colour sets the split.
+        EXPECT_NEAR(m.scattering.x + m.absorption.x, 2.0f, 1e-4f);
+        EXPECT_GT(m.scattering.x / 2.0f, m.scattering.z / 2.0f);  // redder light survives
+        EXPECT_NEAR(m.ior, 1.5f, 1e-6f);
+      }
+    }
+    if (m.type == tracer::MaterialType::kConductor) {
+      ++conductor;
+      EXPECT_NEAR(m.roughness, 0.35f, 1e-6f);
+    }
+  }
+  EXPECT_EQ(subsurface, 2);
+  EXPECT_EQ(conductor, 1);
 }
