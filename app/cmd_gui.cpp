@@ -243,7 +243,11 @@ int run_gui(const GuiOptions& o) {
     wb.update();
 
     const int w = wb.width(), h = wb.height();
-    const bool resized = tex.ensure(w, h);
+    const bool resizing = w != tex.width || h != tex.height;
+#if defined(TRACER_CUDA_BACKEND)
+    if (resizing) interop.reset();  // unregister before the buffer is reallocated
+#endif
+    const bool resized = tex.ensure(w, h) || resizing;
     bool uploaded = false;
 #if defined(TRACER_CUDA_BACKEND)
     if (auto* gpu = static_cast<tracer::CudaRenderer*>(wb.gpu_renderer())) {
@@ -258,10 +262,17 @@ int run_gui(const GuiOptions& o) {
                               "); the image goes through host memory");
       }
       if (interop && gpu->samples_done() > 0) {
-        interop->write_display(*gpu, wb.display().scale(), int(wb.display().tone_map));
-        tex.upload_from_pbo();
-        uploaded = true;
-        ps.interop = true;
+        try {
+          interop->write_display(*gpu, wb.display().scale(), int(wb.display().tone_map));
+          tex.upload_from_pbo();
+          uploaded = true;
+          ps.interop = true;
+        } catch (const std::exception& e) {
+          interop.reset();
+          interop_failed = true;
+          wb.messages.push_back(std::string("error: CUDA/OpenGL interop failed (") + e.what() +
+                                "); the image goes through host memory");
+        }
       }
     } else {
       interop.reset();

@@ -295,7 +295,9 @@ void Workbench::worker_loop() {
     wake_.wait(lk, [&] {
       const bool done = (worker_target_spp_ > 0 && worker_spp_ >= worker_target_spp_) ||
                         (worker_target_s_ > 0.0 && worker_render_s_ >= worker_target_s_);
-      return quit_ || worker_reset_ || (active && !worker_paused_ && !done);
+      // After an edit (cancel_ set) wait for the new scene instead of spinning on cancelled
+      // passes until update() hands it over.
+      return quit_ || worker_reset_ || (active && !worker_paused_ && !done && !cancel_);
     });
     if (quit_) return;
     if (worker_reset_) {

@@ -209,7 +209,10 @@ struct CudaRenderer::Impl {
       mark(timed, kShade);
       launch_shadow(sp, view, w, q, c, first, film_view(sample), stream);
       mark(timed, kShadow);
-      if (b + 1 == iterations) break;
+      if (b + 1 == iterations) {
+        if (walks) launch_flush(w, first, film_view(sample), stream);
+        break;
+      }
       if (opts.compaction) {
         launch_compact(w, queue.get(), count.get(), cub_temp.get(), cub_temp.bytes(), stream);
         mark(timed, kCompact);
@@ -297,6 +300,7 @@ void CudaRenderer::set_gpu_options(const GpuOptions& o) {
 }
 
 uint32_t CudaRenderer::samples_done() const { return impl_->samples; }
+uint32_t CudaRenderer::width_times_height() const { return impl_->n(); }
 uint64_t CudaRenderer::nonfinite_total() const { return impl_->nonfinite; }
 
 std::string CudaRenderer::chosen_kernel() const {
@@ -365,7 +369,10 @@ FrameStats CudaRenderer::render(uint32_t spp) {
       ++wavefront_samples;
       // Extension rays: every path alive after bounce b traces one more segment.
       std::vector<uint32_t> alive;
-      if (!timed || k != 0) m.alive_counts.download(alive);
+      if (!timed || k != 0) {
+        TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));  // the copy runs on another stream
+        m.alive_counts.download(alive);
+      }
       else alive = st.alive_per_bounce;
       for (size_t b = 1; b < alive.size(); ++b) extension_wavefront += alive[b];
     }

@@ -25,6 +25,7 @@ class CudaRenderer final : public Renderer {
   void set_gpu_options(const GpuOptions& o) override;
   void half_images(ImageRGB* even, ImageRGB* odd) const override;
   void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const override;
+  uint32_t width_times_height() const;
   // Writes the display image (RGBA8) into device memory, e.g. a mapped OpenGL pixel buffer.
   void display_to_device(void* rgba8, float exposure_scale, ToneMap op) const;
 

@@ -29,6 +29,10 @@ void GlInteropBuffer::write_display(const CudaRenderer& renderer, float exposure
   void* ptr = nullptr;
   size_t bytes = 0;
   const cudaError_t err = cudaGraphicsResourceGetMappedPointer(&ptr, &bytes, impl_->resource);
+  if (err == cudaSuccess && bytes < size_t(4) * renderer.width_times_height()) {
+    cudaGraphicsUnmapResources(1, &impl_->resource, 0);
+    throw CudaError("the OpenGL pixel buffer is smaller than the image");
+  }
   if (err == cudaSuccess) {
     try {
       renderer.display_to_device(ptr, exposure_scale, ToneMap(tone_map));

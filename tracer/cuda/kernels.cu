@@ -120,6 +120,7 @@ __device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_
   st.sample = sample;
   st.medium = __float_as_uint(t.w);
   st.walk_steps = __float_as_uint(r.w);
+  st.origin_prim = kInvalid;  // set by shade_path when it spawns the next ray
   return st;
 }
 
@@ -148,7 +149,7 @@ __global__ void __launch_bounds__(kBlock) generate_kernel(SceneView s, Integrato
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, WavefrontState w,
                                                            const uint32_t* queue,
-                                                           const uint32_t* count) {
+                                                           const uint32_t* count, bool walks) {
   const uint32_t id = queued_path(w, queue, count);
   if (id == kInvalid) return;
   const float4 o = w.ray_o[id], d = w.ray_d[id];
@@ -160,7 +161,7 @@ __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, Wavefron
   // hit[id] still holds the hit this ray leaves from: with random walks (where a triangle can be
   // far larger than a mean free path) that triangle is skipped.
   uint32_t origin = kInvalid;
-  if (features_of<Spec>() & kFeatureSubsurface) origin = __float_as_uint(w.hit[id].y);
+  if (walks) origin = __float_as_uint(w.hit[id].y);
   const Hit h = intersect_closest<features_of<Spec>()>(
       s, ray, origin < s.tri_count ? origin : kInvalid);
   w.hit[id] = make_float4(h.t, __uint_as_float(h.prim), h.u, h.v);
@@ -184,8 +185,10 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     ShadowRequest sr;
     go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
     store_state(w, id, st);
-    if ((features_of<Spec>() & kFeatureSubsurface) && st.origin_prim == kInvalid)
-      w.hit[id].y = __uint_as_float(kInvalid);  // a medium scatter leaves from no surface
+    // A medium scatter continues from no surface; a surface bounce leaves from the triangle that
+    // hit[id] already names, which the next intersect and this bounce's shadow ray skip.
+    if ((features_of<Spec>() & kFeatureSubsurface) && go_on && st.origin_prim == kInvalid)
+      w.hit[id].y = __uint_as_float(kInvalid);
     shadow_valid = sr.valid;
     if (sr.valid) {
       w.shadow_o[id] = make_float4(sr.ray.o.x, sr.ray.o.y, sr.ray.o.z, sr.ray.tmax);
@@ -210,7 +213,7 @@ template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontState w,
                                                         const uint32_t* queue,
                                                         const uint32_t* count, bool first,
-                                                        FilmView film) {
+                                                        FilmView film, bool walks) {
   const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= (queue ? *count : w.n)) return;
   const uint32_t id = queue ? queue[i] : i;
@@ -226,7 +229,7 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontSt
     ray.d = vec3(d.x, d.y, d.z);
     ray.pad = 0.0f;
     uint32_t origin = kInvalid;
-    if (features_of<Spec>() & kFeatureSubsurface) origin = __float_as_uint(w.hit[id].y);
+    if (walks) origin = __float_as_uint(w.hit[id].y);
     if (!intersect_any<features_of<Spec>()>(s, ray, __float_as_uint(d.w),
                                            origin < s.tri_count ? origin : kInvalid)) {
       r.x += c.x;
@@ -242,6 +245,17 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontSt
     if (flags & kPathWalkCapped) atomicAdd(&w.counters[3], 1ull);
     if (flags & kPathMediumLeak) atomicAdd(&w.counters[4], 1ull);
   }
+}
+
+// Paths still alive when the wavefront's iteration limit is reached (only random walks can get
+// there): their samples end now, are added to the film, and are counted as capped walks.
+__global__ void flush_kernel(WavefrontState w, bool first, FilmView film) {
+  const uint32_t id = blockIdx.x * blockDim.x + threadIdx.x;
+  if (id >= w.n || w.alive[id] == 0) return;
+  const float4 r = w.radiance[id];
+  add_to_film(film, id, vec3(r.x, r.y, r.z), first, &w.counters[1]);
+  w.alive[id] = 0;
+  atomicAdd(&w.counters[3], 1ull);
 }
 
 __global__ void sort_keys_kernel(SceneView s, WavefrontState w, const uint32_t* queue,
@@ -394,7 +408,9 @@ void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings
 
 void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w,
                       const uint32_t* queue, const uint32_t* count, cudaStream_t stream) {
-#define CALL(S) intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count)
+#define CALL(S)                                                                    \
+  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count,     \
+                                                          (s.features & kFeatureSubsurface) != 0)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;
@@ -422,7 +438,8 @@ void launch_shadow(uint32_t spec, const SceneView& s, const WavefrontState& w,
                    const uint32_t* queue, const uint32_t* count, bool first, FilmView film,
                    cudaStream_t stream) {
 #define CALL(S) \
-  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count, first, film)
+  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count, first, film, \
+                                                       (s.features & kFeatureSubsurface) != 0)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;
@@ -452,6 +469,11 @@ void launch_compact(const WavefrontState& w, uint32_t* out_queue, uint32_t* out_
                     void* temp, size_t temp_bytes, cudaStream_t stream) {
   TRACER_CUDA_CHECK(cub::DeviceSelect::If(temp, temp_bytes, thrust::counting_iterator<uint32_t>(0),
                                           out_queue, out_count, w.n, IsAlive{w.alive}, stream));
+}
+
+void launch_flush(const WavefrontState& w, bool first, FilmView film, cudaStream_t stream) {
+  flush_kernel<<<blocks(w.n), kBlock, 0, stream>>>(w, first, film);
+  TRACER_CUDA_CHECK_LAUNCH("flush_kernel");
 }
 
 void launch_copy_hits(const float4* from, float4* to, uint32_t n, cudaStream_t stream) {

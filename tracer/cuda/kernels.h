@@ -64,6 +64,8 @@ void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const 
 size_t compaction_temp_bytes(uint32_t n);
 void launch_compact(const WavefrontState& w, uint32_t* out_queue, uint32_t* out_count,
                     void* temp, size_t temp_bytes, cudaStream_t stream);
+// Ends the samples of paths still alive after the last wavefront iteration (counted as capped).
+void launch_flush(const WavefrontState& w, bool first, FilmView film, cudaStream_t stream);
 // Copies the first-bounce hits out of / into the cache.
 void launch_copy_hits(const float4* from, float4* to, uint32_t n, cudaStream_t stream);
 // Mean radiance as float RGB from the two accumulators: a * wa + b * wb per pixel.

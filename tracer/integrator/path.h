@@ -187,7 +187,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
     const vec3 le = material_emission(m, sh.front);
     if (!is_black(le)) {
       float w = 1.0f;
-      if (cfg.nee && !(st.flags & kPathPrevSpecular)) {
+      if (cfg.nee && !(st.flags & kPathPrevSpecular) && sh.light != kInvalid) {
         // This emitter could also have been reached by light sampling at the previous vertex.
         w = cfg.mis ? power_heuristic(st.prev_pdf, light_pdf<F>(s, sh.light, st.ray.o, sh.p, sh.ng))
                     : 0.0f;
@@ -243,6 +243,9 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const float side = glm::dot(wi_world, sh.ng);
   // A reflector whose shading normal sends the ray under the true surface would leak light.
   if (!transmits && side * glm::dot(wo_world, sh.ng) <= 0.0f) return false;
+  // A rough transmitter whose shading normal disagrees with the true surface about the side of
+  // the sample: next-event estimation refuses these directions, so BSDF sampling must too.
+  if (transmits && !bs.specular && (side > 0.0f) != (bs.wi.z > 0.0f)) return false;
   if ((F & kFeatureSubsurface) && type == MaterialType::kSubsurface &&
       side * glm::dot(wo_world, sh.ng) < 0.0f) {
     if (sh.front) {  // refracted in: the random walk starts
