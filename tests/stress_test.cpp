@@ -122,7 +122,7 @@ TEST(Stress, DegenerateParametersStayFinite) {
     return ps.image_mean();
   };
   Scene box = builtin_default_scene();
-  for (float ior : {1.0001f, 4.0f}) {
+  for (float ior : {1.0f, 1.0001f, 4.0f}) {
     Scene s = box;
     Material glass;
     glass.type = MaterialType::kDielectric;
@@ -130,7 +130,15 @@ TEST(Stress, DegenerateParametersStayFinite) {
     glass.albedo = vec3(1.0f);
     s.materials.push_back({"glass", glass});
     s.spheres.push_back({vec3(278, 120, 250), 100.0f, uint32_t(s.materials.size() - 1)});
-    render(s, ior > 2 ? "ior 4" : "ior 1.0001");
+    const vec3 m = render(s, ior > 2 ? "ior 4" : ior > 1.0f ? "ior 1.0001" : "ior 1");
+    if (ior == 1.0f) {  // an index-matched sphere is invisible: the plain box's image
+      const PixelStats plain = [&] {
+        RenderSettings rs;
+        rs.width = rs.height = 16;
+        return render_pixel_stats(box, rs, 64);
+      }();
+      EXPECT_NEAR(m.x, plain.image_mean().x, 0.08f * plain.image_mean().x);
+    }
   }
   {
     Scene s = box;  // albedo exactly 0 and exactly 1

@@ -274,8 +274,8 @@ class JsonSceneReader {
       fail(json_pointer_child(ptr, "ior"), "\"ior\" in " + where + " must be in [1, 4]");
     }
     if (dielectric && mat.ior == 1.0f) {
-      fail(json_pointer_child(ptr, "ior"),
-           "\"ior\" 1 makes a dielectric invisible; use at least 1.0001");
+      scene_.diagnostics.warn(at(json_pointer_child(ptr, "ior")),
+                              "\"ior\" 1 makes " + where + " invisible", "rendered as given");
     }
     const std::string fresnel = get_string(m, ptr, "fresnel", "exact", where);
     if (fresnel == "schlick") {
