@@ -228,9 +228,10 @@ void render_panel(Workbench& wb, PanelState& ps) {
   }
   if (changed) wb.changed(Edit::kSettings);
   int target = int(wb.target_spp);
-  if (ImGui::InputInt("stop at spp (0: never)", &target)) wb.target_spp = uint32_t(std::max(0, target));
+  if (ImGui::InputInt("stop at spp", &target)) wb.target_spp = uint32_t(std::max(0, target));
   float secs = float(wb.target_seconds);
-  if (ImGui::InputFloat("stop after s (0: never)", &secs)) wb.target_seconds = std::max(0.0f, secs);
+  if (ImGui::InputFloat("stop after s", &secs)) wb.target_seconds = std::max(0.0f, secs);
+  ImGui::TextDisabled("(0: no limit)");
   ImGui::Checkbox("auto samples per frame", &wb.auto_samples_per_frame);
   if (!wb.auto_samples_per_frame) ImGui::SliderInt("samples per frame", &wb.samples_per_frame, 1, 256);
   ImGui::Checkbox("pause", &wb.paused);
