@@ -32,6 +32,7 @@ struct RenderOptions {
   // GPU switches (ignored by the CPU backend).
   std::string kernel = "auto";
   std::string compaction = "on", sort = "off", cache = "on", specialize = "on", jitter;
+  float clamp = -1.0f;  // < 0: the scene's setting
 };
 
 tracer::GpuOptions gpu_options(const RenderOptions& o) {
@@ -77,6 +78,7 @@ int run_render(const RenderOptions& o) {
   apply_switch(o.mis, rs.mis);
   apply_switch(o.rr, rs.russian_roulette);
   apply_switch(o.jitter, rs.jitter);
+  if (o.clamp >= 0.0f) rs.clamp = o.clamp;
   scene.settings = rs;
   try {
     tracer::validate_scene(scene);  // the command line may have made the image too large
@@ -129,6 +131,8 @@ int run_render(const RenderOptions& o) {
   tracer::RayCounts rays;
   double render_s = 0.0;
   std::string last_note, last_kernel, last_spec;
+  uint64_t clamped = 0;
+  double clamped_luminance = 0.0;
   for (;;) {
     const uint32_t done = renderer->samples_done();
     if (!timed && done >= target) break;
@@ -146,6 +150,8 @@ int run_render(const RenderOptions& o) {
     rays.shadow += fs.rays.shadow;
     rays.walk_capped += fs.rays.walk_capped;
     rays.medium_leaks += fs.rays.medium_leaks;
+    clamped += fs.clamped;
+    clamped_luminance += fs.clamped_luminance;
     render_s = std::chrono::duration<double>(clock::now() - r_start).count();
     const double per_spp = fs.ms / 1000.0 / n;
     double budget = 0.5;
@@ -164,6 +170,7 @@ int run_render(const RenderOptions& o) {
   }
   if (!o.quiet && tty) std::cerr << "\n";
   const uint32_t spp_done = renderer->samples_done();
+  std::string clamp_report;
   const uint64_t nonfinite = renderer->nonfinite_total();
   const tracer::ImageRGB img = renderer->image();
   try {
@@ -194,6 +201,22 @@ int run_render(const RenderOptions& o) {
     j["mrays_per_s"] = double(rays.camera + rays.extension + rays.shadow) / render_s / 1e6;
     j["nonfinite_samples"] = nonfinite;
     j["random_walks_capped"] = rays.walk_capped;
+    if (rs.clamp > 0.0f) {
+      // The bias the clamp introduced: the share of the image's luminance it removed.
+      double kept = 0.0;
+      for (size_t i = 0; i < img.pixels.size(); i += 3)
+        kept += tracer::luminance(tracer::vec3(img.pixels[i], img.pixels[i + 1], img.pixels[i + 2]));
+      kept *= double(spp_done);
+      j["clamp"] = {{"value", rs.clamp},
+                    {"samples_clamped", clamped},
+                    {"luminance_removed_fraction",
+                     clamped_luminance / std::max(1e-30, kept + clamped_luminance)}};
+      clamp_report = "clamp " + std::to_string(rs.clamp) + ": " + std::to_string(clamped) +
+                     " samples scaled down, removing " +
+                     std::to_string(100.0 * clamped_luminance /
+                                    std::max(1e-30, kept + clamped_luminance)) +
+                     "% of the image's luminance (bias)";
+    }
     j["medium_leaks"] = rays.medium_leaks;
     j["features"] = tracer::describe_features(compiled.features());
     j["warnings"] = scene.diagnostics.warnings;
@@ -208,6 +231,7 @@ int run_render(const RenderOptions& o) {
               << " spp, " << fmt_seconds(render_s) << ", " << renderer->backend_name() << ")";
     if (nonfinite) std::cerr << "; " << nonfinite << " NaN/Inf samples rejected";
     std::cerr << "\n";
+    if (!clamp_report.empty()) std::cerr << "note: " << clamp_report << "\n";
     if (rays.walk_capped)
       std::cerr << "warning: " << rays.walk_capped << " subsurface random walks stopped at "
                 << tracer::kMaxWalkSteps << " steps (their paths end there: energy is lost)\n";
@@ -248,6 +272,9 @@ Runner add_render_command(CLI::App& cmd) {
       ->check(CLI::Range(-20.0, 20.0));
   cmd.add_option("--tonemap", o->tonemap, "PNG tone mapping: none, reinhard or aces")
       ->check(CLI::IsMember({"none", "reinhard", "aces"}));
+  cmd.add_option("--clamp", o->clamp,
+                 "Clamp each sample's radiance to this per channel (0: off); reports the bias")
+      ->check(CLI::Range(0.0, 1e30));
   cmd.add_option("--jitter", o->jitter, "Jitter samples inside pixels: on or off")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");

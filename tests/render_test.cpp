@@ -168,3 +168,39 @@ TEST(Render, CpuBackendMatchesSharedPathCodeAndIsDeterministic) {
 }
 
 }  // namespace
+
+namespace {
+using namespace test;
+
+TEST(Render, RadianceClampReportsTheBiasItIntroduces) {
+  // Same seed, same paths: the clamped image differs from the plain one by exactly the luminance
+  // the clamp says it removed, and no pixel exceeds the clamp.
+  const Scene s = builtin_default_scene();
+  RenderSettings rs = s.settings;
+  rs.width = rs.height = 24;
+  const CompiledScene cs(s, rs.width, rs.height);
+  CpuRenderer plain(2), clamped(2);
+  plain.set_scene(cs, make_integrator_settings(rs));
+  rs.clamp = 1.0f;
+  clamped.set_scene(cs, make_integrator_settings(rs));
+  plain.render(32);
+  const FrameStats st = clamped.render(32);
+  EXPECT_GT(st.clamped, 0u);
+  const ImageRGB a = plain.image(), b = clamped.image();
+  double diff = 0.0;
+  for (size_t i = 0; i < a.pixels.size(); i += 3) {
+    const vec3 pa(a.pixels[i], a.pixels[i + 1], a.pixels[i + 2]);
+    const vec3 pb(b.pixels[i], b.pixels[i + 1], b.pixels[i + 2]);
+    EXPECT_LE(max_component(pb), 1.0f + 1e-5f);
+    diff += luminance(pa - pb);
+  }
+  EXPECT_NEAR(diff * 32.0, st.clamped_luminance, 1e-3 * st.clamped_luminance);
+  // A clamp above every sample changes nothing.
+  CpuRenderer loose(2);
+  rs.clamp = 1e30f;
+  loose.set_scene(cs, make_integrator_settings(rs));
+  EXPECT_EQ(loose.render(32).clamped, 0u);
+  EXPECT_EQ(loose.image().pixels, a.pixels);
+}
+
+}  // namespace

@@ -44,20 +44,28 @@ FrameStats CpuRenderer::render(uint32_t spp) {
   const uint32_t first_sample = samples_;
   std::atomic<uint32_t> next_row{0};
   std::vector<RayCounts> counts(threads_);
-  std::vector<uint64_t> bad(threads_, 0);
+  std::vector<uint64_t> bad(threads_, 0), clamped(threads_, 0);
+  std::vector<double> removed(threads_, 0.0);
   auto worker = [&](int t) {
     RayCounts rc;
-    uint64_t nonfinite = 0;
+    uint64_t nonfinite = 0, clamps = 0;
+    double lost = 0.0;
     for (uint32_t y; (y = next_row.fetch_add(1)) < h;) {
       for (uint32_t x = 0; x < w; ++x) {
         const uint32_t pixel = y * w + x;
         double acc[2][3] = {{0, 0, 0}, {0, 0, 0}};
         for (uint32_t s = 0; s < spp; ++s) {
           const uint32_t sample = first_sample + s;
-          const vec3 L = trace_path(view, cfg_, pixel, sample, &rc);
+          vec3 L = trace_path(view, cfg_, pixel, sample, &rc);
           if (!is_finite(L)) {
             ++nonfinite;  // counted and reported, never added
             continue;
+          }
+          float cut;
+          L = clamp_radiance(L, cfg_.clamp, &cut);
+          if (cut > 0.0f) {
+            ++clamps;
+            lost += cut;
           }
           double* a = acc[sample & 1];
           a[0] += L.x;
@@ -73,6 +81,8 @@ FrameStats CpuRenderer::render(uint32_t spp) {
     }
     counts[t] = rc;
     bad[t] = nonfinite;
+    clamped[t] = clamps;
+    removed[t] = lost;
   };
   std::vector<std::thread> pool;
   for (int t = 1; t < threads_; ++t) pool.emplace_back(worker, t);
@@ -98,6 +108,8 @@ FrameStats CpuRenderer::render(uint32_t spp) {
     st.rays.walk_capped += counts[t].walk_capped;
     st.rays.medium_leaks += counts[t].medium_leaks;
     st.nonfinite += bad[t];
+    st.clamped += clamped[t];
+    st.clamped_luminance += removed[t];
   }
   samples_ += spp;
   nonfinite_ += st.nonfinite;

@@ -68,7 +68,16 @@ struct CudaRenderer::Impl {
 
   uint32_t n() const { return cfg.width * cfg.height; }
   uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
-  FilmView film_view(uint32_t sample) { return FilmView{film[sample & 1].get(), n()}; }
+  DeviceBuffer<double> clamp_sum;
+  FilmView film_view(uint32_t sample) {
+    FilmView f;
+    f.accum = film[sample & 1].get();
+    f.n = n();
+    f.clamp = cfg.clamp;
+    f.clamped_luminance = clamp_sum.get();
+    f.clamped = counters.get() + 5;
+    return f;
+  }
 
   WavefrontState wavefront() {
     WavefrontState w;
@@ -120,6 +129,7 @@ struct CudaRenderer::Impl {
     count.resize(1);
     cub_temp.resize(std::max<size_t>(1, compaction_temp_bytes(count_pixels)));
     counters.resize(8);
+    clamp_sum.resize(1);
     cached_hits.resize(0);
     cache_valid = false;
     samples = 0;
@@ -332,6 +342,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   st.specialization = spec_name(m.spec());
   m.cache_allowed(&st.note);
   m.counters.zero_async(m.stream);
+  m.clamp_sum.zero_async(m.stream);
   uint64_t extension_wavefront = 0;
   uint32_t wavefront_samples = 0;
   for (uint32_t k = 0; k < spp; ++k) {
@@ -396,6 +407,9 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   }
   st.nonfinite = c[1];
   st.rays.walk_capped = c[3];
+  st.clamped = c[5];
+  TRACER_CUDA_CHECK(cudaMemcpy(&st.clamped_luminance, m.clamp_sum.get(), sizeof(double),
+                               cudaMemcpyDeviceToHost));
   st.rays.medium_leaks = c[4];
   m.nonfinite += c[1];
   m.samples += spp;

@@ -33,6 +33,12 @@ __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 
     atomicAdd(nonfinite, 1ull);
     L = vec3(0.0f);
   }
+  float cut;
+  L = clamp_radiance(L, film.clamp, &cut);
+  if (cut > 0.0f) {  // rare when the clamp is set sensibly: plain atomics
+    atomicAdd(film.clamped_luminance, double(cut));
+    atomicAdd(film.clamped, 1ull);
+  }
   const float4 old = first ? make_float4(0, 0, 0, 0) : film.accum[pixel];
   film.accum[pixel] = make_float4(old.x + L.x, old.y + L.y, old.z + L.z, 0.0f);
 }

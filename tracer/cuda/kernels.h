@@ -39,6 +39,9 @@ struct WavefrontState {
 struct FilmView {
   float4* accum = nullptr;  // running sum per pixel
   uint32_t n = 0;
+  float clamp = 0.0f;                          // the radiance clamp (0: off)
+  double* clamped_luminance = nullptr;          // what the clamp removed
+  unsigned long long* clamped = nullptr;        // how many samples it scaled
 };
 
 // counters[2] receives the path segments traced (camera rays included); next_pixel is scratch.

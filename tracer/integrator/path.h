@@ -17,7 +17,20 @@ struct IntegratorSettings {
   uint32_t seed = 0;
   uint32_t nee = 1, mis = 1, russian_roulette = 1;
   uint32_t jitter = 1;  // 0: every sample goes through the pixel centre (enables hit caching)
+  float clamp = 0.0f;   // > 0: scale each sample down to at most this much per channel (biased)
 };
+
+// The optional radiance clamp: a sample brighter than `clamp` in any channel is scaled down to
+// it. This trades fireflies for bias, so the luminance it removes is returned for reporting.
+TRACER_HD TRACER_INLINE vec3 clamp_radiance(vec3 L, float clamp, float* removed) {
+  *removed = 0.0f;
+  if (clamp <= 0.0f) return L;
+  const float m = glm::max(L.x, glm::max(L.y, L.z));
+  if (!(m > clamp)) return L;
+  const vec3 c = L * (clamp / m);
+  *removed = luminance(L - c);
+  return c;
+}
 
 enum PathFlags : uint32_t {
   kPathPrevSpecular = 1u << 0,  // the last bounce was a delta lobe: no MIS on the next emitter

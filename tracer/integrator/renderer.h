@@ -34,6 +34,8 @@ struct FrameStats {
   double ms = 0.0;
   RayCounts rays;
   uint64_t nonfinite = 0;  // samples rejected because they were NaN or infinite
+  uint64_t clamped = 0;         // samples the radiance clamp scaled down
+  double clamped_luminance = 0;  // luminance the clamp removed (sum over samples): its bias
   StageTimes stages;
   std::vector<uint32_t> alive_per_bounce;  // paths entering each bounce (first call's wave)
   std::string kernel;                      // "wavefront", "megakernel", "cpu"

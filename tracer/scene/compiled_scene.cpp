@@ -20,6 +20,7 @@ IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
   cfg.mis = rs.mis;
   cfg.russian_roulette = rs.russian_roulette;
   cfg.jitter = rs.jitter;
+  cfg.clamp = rs.clamp;
   return cfg;
 }
 

@@ -177,7 +177,7 @@ class JsonSceneReader {
     require_object(r, ptr, where);
     check_keys(r, ptr,
                {"width", "height", "spp", "time_limit_s", "max_depth", "nee", "mis",
-                "russian_roulette", "rr_start_depth", "seed", "jitter"},
+                "russian_roulette", "rr_start_depth", "seed", "jitter", "clamp"},
                where);
     RenderSettings& s = scene_.settings;
     s.width = int(get_int(r, ptr, "width", s.width, 1, 16384, where));
@@ -193,6 +193,8 @@ class JsonSceneReader {
     s.rr_start_depth = int(get_int(r, ptr, "rr_start_depth", s.rr_start_depth, 1, 1 << 20, where));
     s.seed = uint32_t(get_int(r, ptr, "seed", s.seed, 0, 0xffffffffll, where));
     s.jitter = get_bool(r, ptr, "jitter", s.jitter, where);
+    s.clamp = get_float(r, ptr, "clamp", s.clamp, where);
+    if (!(s.clamp >= 0.0f)) fail(json_pointer_child(ptr, "clamp"), "\"clamp\" must be >= 0");
   }
 
   void read_materials(const json& ms, const std::string& ptr) {

@@ -32,6 +32,7 @@ struct RenderSettings {
   int rr_start_depth = 3;  // roulette applies from this path depth on
   uint32_t seed = 0;
   bool jitter = true;  // jitter samples inside each pixel (antialiasing)
+  float clamp = 0.0f;  // > 0: clamp each sample's radiance to this (removes fireflies; biased)
 };
 
 struct NamedMaterial {
