@@ -43,30 +43,40 @@ struct MediumEvent {
   vec3 weight;     // multiplies the path throughput
 };
 
+// The probabilities of driving the free-flight distance by each channel: the path throughput.
+TRACER_HD TRACER_INLINE vec3 channel_probabilities(vec3 throughput) {
+  const float sum = throughput.x + throughput.y + throughput.z;
+  return sum > 0.0f ? throughput / sum : vec3(1.0f / 3.0f);
+}
+
+// The event "flew past the boundary at t_boundary": transmittance over its probability.
+TRACER_HD TRACER_INLINE MediumEvent medium_boundary_event(const Material& m, vec3 throughput,
+                                                          float t_boundary) {
+  const vec3 tr = glm::exp(-(m.scattering + m.absorption) * t_boundary);
+  const float prob = glm::dot(channel_probabilities(throughput), tr);
+  MediumEvent ev;
+  ev.scattered = false;
+  ev.t = t_boundary;
+  ev.weight = prob > 0.0f ? tr / prob : vec3(0.0f);
+  return ev;
+}
+
 // Samples the next event along a segment of length t_boundary inside medium m. The channel that
 // drives the distance is chosen in proportion to the path throughput.
 TRACER_HD inline MediumEvent sample_medium(const Material& m, vec3 throughput, float t_boundary,
                                            float u_channel, float u_distance) {
   const vec3 sigma_t = m.scattering + m.absorption;
-  const float sum = throughput.x + throughput.y + throughput.z;
-  vec3 p = sum > 0.0f ? throughput / sum : vec3(1.0f / 3.0f);
+  const vec3 p = channel_probabilities(throughput);
   const int c = u_channel < p.x ? 0 : (u_channel < p.x + p.y ? 1 : 2);
   const float st = sigma_t[c];
   const float t = st > 0.0f ? -glm::log(1.0f - u_distance) / st : kInfinity;
+  if (!(t < t_boundary)) return medium_boundary_event(m, throughput, t_boundary);
+  const vec3 tr = glm::exp(-sigma_t * t);
+  const float pdf = glm::dot(p, sigma_t * tr);  // mixture of the per-channel exponentials
   MediumEvent ev;
-  if (t < t_boundary) {
-    const vec3 tr = glm::exp(-sigma_t * t);
-    const float pdf = glm::dot(p, sigma_t * tr);  // mixture of the per-channel exponentials
-    ev.scattered = true;
-    ev.t = t;
-    ev.weight = pdf > 0.0f ? m.scattering * tr / pdf : vec3(0.0f);
-  } else {
-    const vec3 tr = glm::exp(-sigma_t * t_boundary);
-    const float prob = glm::dot(p, tr);  // probability of flying past the boundary
-    ev.scattered = false;
-    ev.t = t_boundary;
-    ev.weight = prob > 0.0f ? tr / prob : vec3(0.0f);
-  }
+  ev.scattered = true;
+  ev.t = t;
+  ev.weight = pdf > 0.0f ? m.scattering * tr / pdf : vec3(0.0f);
   return ev;
 }
 

@@ -143,13 +143,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
       const SurfaceHit b = make_surface_hit<F>(s, st.ray, hit);
       const vec3 outward = b.front ? -b.ng : b.ng;  // the ray leaves through a back face
       if (glm::dot(st.ray.o + ev.t * st.ray.d - b.p, outward) >= 0.0f) {
-        ev.scattered = false;
-        const vec3 sigma_t = med.scattering + med.absorption;
-        const vec3 tr = glm::exp(-sigma_t * hit.t);
-        const float sum = st.throughput.x + st.throughput.y + st.throughput.z;
-        const vec3 pc = sum > 0.0f ? st.throughput / sum : vec3(1.0f / 3.0f);
-        const float prob = glm::dot(pc, tr);
-        ev.weight = prob > 0.0f ? tr / prob : vec3(0.0f);
+        ev = medium_boundary_event(med, st.throughput, hit.t);
       }
     }
     st.throughput *= ev.weight;
