@@ -8,6 +8,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "bench_error.h"
 #include "commands.h"
 #include "cpu/cpu_backend.h"
 #include "image/image.h"
@@ -22,11 +23,13 @@ namespace {
 
 struct BenchOptions {
   std::string scene;
-  int width = 1920, height = 1080, max_depth = 8, spp = 16, cpu_spp = 1;
+  int width = 0, height = 0, max_depth = 0;  // 0: 1920x1080 depth 8 (speed), the scene's (--error)
+  int spp = 16, cpu_spp = 1;
   std::string backend = "auto";
   std::string json_out;
   bool jitter_off_configs = true;
   std::string nee = "on";
+  ErrorBenchOptions error;
 };
 
 struct Config {
@@ -107,9 +110,9 @@ int run_bench(const BenchOptions& o) {
   tracer::Scene scene;
   if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
   tracer::RenderSettings rs = scene.settings;
-  rs.width = o.width;
-  rs.height = o.height;
-  rs.max_depth = o.max_depth;
+  rs.width = o.width > 0 ? o.width : 1920;
+  rs.height = o.height > 0 ? o.height : 1080;
+  rs.max_depth = o.max_depth > 0 ? o.max_depth : 8;
   rs.nee = o.nee == "on";
   scene.settings = rs;
   try {
@@ -285,9 +288,13 @@ Runner add_bench_command(CLI::App& cmd) {
   auto o = std::make_shared<BenchOptions>();
   cmd.add_option("scene", o->scene, "Scene file; default: built-in Cornell box")
       ->check(CLI::ExistingFile);
-  cmd.add_option("--width", o->width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
-  cmd.add_option("--height", o->height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
-  cmd.add_option("--max-depth", o->max_depth, "Maximum path segments")->check(CLI::Range(1, 1024))->capture_default_str();
+  cmd.add_option("--width", o->width, "Image width (default 1920; with --error the scene's)")
+      ->check(CLI::Range(1, 16384));
+  cmd.add_option("--height", o->height, "Image height (default 1080; with --error the scene's)")
+      ->check(CLI::Range(1, 16384));
+  cmd.add_option("--max-depth", o->max_depth,
+                 "Maximum path segments (default 8; with --error the scene's)")
+      ->check(CLI::Range(1, 1024));
   cmd.add_option("--spp", o->spp, "Timed samples per GPU configuration (median reported)")
       ->check(CLI::Range(1, 100000))->capture_default_str();
   cmd.add_option("--cpu-spp", o->cpu_spp, "Timed samples for the CPU backend (0: skip)")
@@ -296,7 +303,17 @@ Runner add_bench_command(CLI::App& cmd) {
   cmd.add_option("--json", o->json_out, "Also write the figures to this JSON file");
   cmd.add_option("--nee", o->nee, "Next-event estimation: on or off")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  return [o] { return run_bench(*o); };
+  add_error_bench_options(cmd, &o->error);
+  return [o] {
+    if (!o->error.enabled) return run_bench(*o);
+    ErrorBenchScene s;
+    s.scene = o->scene;
+    s.width = o->width;
+    s.height = o->height;
+    s.max_depth = o->max_depth;
+    s.backend = o->backend;
+    return run_error_bench(s, o->error);
+  };
 }
 
 }  // namespace app

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <thread>
 
+#include "cpu/cpu_backend.h"
 #include "image/image.h"
 #include "scene/loader.h"
 #include "test_util.h"
@@ -138,6 +139,42 @@ TEST(Workbench, BadSceneKeepsTheCurrentOne) {
   EXPECT_NE(err.find("unknown_key.json"), std::string::npos) << err;
   EXPECT_EQ(wb->scene().source, "<built-in>");
   EXPECT_NE(wb->export_image("/proc/forbidden/x.png"), "");
+}
+
+TEST(Workbench, ErrorCurveAgainstAReferenceFallsAsOneOverTime) {
+  // A 48x48 reference of the built-in box (independent seed, 1024 spp) with its variance.
+  tracer::Scene scene = tracer::builtin_default_scene();
+  scene.settings.width = scene.settings.height = 48;
+  scene.settings.seed = 99;
+  const tracer::CompiledScene cs(scene, 48, 48);
+  tracer::CpuRenderer cpu;
+  cpu.set_scene(cs, tracer::make_integrator_settings(scene.settings));
+  cpu.render(1024);
+  tracer::ImageRGB even, odd;
+  cpu.half_images(&even, &odd);
+  const std::string ref = tmpdir() + "/curve_ref.exr";
+  tracer::write_image(ref, cpu.image());
+  tracer::write_image(tmpdir() + "/curve_ref.variance.exr", tracer::variance_from_halves(even, odd));
+
+  auto wb = small_cornell(128);
+  wb->update();
+  std::string err;
+  ASSERT_TRUE(wb->load_reference(ref, &err)) << err;
+  converge(*wb);
+  for (int i = 0; i < 3; ++i) wb->update();  // the estimate after the last pass
+  const auto& curve = wb->stats().error_curve;
+  ASSERT_GE(curve.size(), 4u);
+  EXPECT_LT(curve.back().error.relmse, curve.front().error.relmse / 8)
+      << curve.front().spp << " spp -> " << curve.back().spp << " spp";
+  const tracer::ConvergenceSummary sum = tracer::summarize(curve);
+  EXPECT_NEAR(sum.slope, -1.0, 0.25) << sum.verdict;
+  // An edit resets the curve; a reference of another size is refused with the reason.
+  ASSERT_TRUE(wb->apply("camera.vfov=45", &err)) << err;
+  wb->update();
+  EXPECT_LE(wb->stats().error_curve.size(), 1u);
+  ASSERT_TRUE(wb->apply("render.width=40", &err)) << err;
+  EXPECT_FALSE(wb->load_reference(ref, &err));
+  EXPECT_NE(err.find("48x48"), std::string::npos) << err;
 }
 
 }  // namespace

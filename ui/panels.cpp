@@ -255,6 +255,55 @@ void render_panel(Workbench& wb, PanelState& ps) {
   }
 }
 
+// relMSE against time since the last reset, log-log, as `pathtracer bench --error` plots it:
+// decade grid, the 1e-2 and 1e-3 levels dashed, and the fitted slope (-1 when unbiased).
+void error_curve_plot(const std::vector<tracer::Checkpoint>& curve) {
+  double x0 = 1e300, x1 = 0, y0 = 1e300, y1 = 0;
+  for (const auto& c : curve) {
+    if (!(c.seconds > 0) || !(c.error.relmse > 0)) continue;
+    x0 = std::min(x0, c.seconds), x1 = std::max(x1, c.seconds);
+    y0 = std::min(y0, c.error.relmse), y1 = std::max(y1, c.error.relmse);
+  }
+  if (!(x1 > x0) || !(y1 > 0)) return;
+  const double lx0 = std::floor(std::log10(x0)), lx1 = std::max(lx0 + 1, std::ceil(std::log10(x1)));
+  const double ly0 = std::floor(std::log10(std::min(y0, 1e-3))), ly1 = std::max(ly0 + 1, std::ceil(std::log10(y1)));
+  const ImVec2 size(ImGui::GetContentRegionAvail().x, 140.0f);
+  const ImVec2 p0 = ImGui::GetCursorScreenPos();
+  const ImVec2 p1(p0.x + size.x, p0.y + size.y);
+  ImDrawList* dl = ImGui::GetWindowDrawList();
+  dl->AddRectFilled(p0, p1, IM_COL32(20, 20, 24, 255));
+  auto pt = [&](double x, double y) {
+    return ImVec2(p0.x + float((std::log10(x) - lx0) / (lx1 - lx0)) * size.x,
+                  p1.y - float((std::log10(y) - ly0) / (ly1 - ly0)) * size.y);
+  };
+  for (double k = lx0; k <= lx1; k += 1) {
+    const float x = pt(std::pow(10.0, k), 1.0).x;
+    dl->AddLine(ImVec2(x, p0.y), ImVec2(x, p1.y), IM_COL32(70, 70, 80, 255));
+  }
+  for (double k = ly0; k <= ly1; k += 1) {
+    const float y = pt(1.0, std::pow(10.0, k)).y;
+    dl->AddLine(ImVec2(p0.x, y), ImVec2(p1.x, y), IM_COL32(70, 70, 80, 255));
+  }
+  for (double level : {1e-2, 1e-3}) {
+    const float y = pt(1.0, level).y;
+    for (float x = p0.x; x < p1.x; x += 8.0f)
+      dl->AddLine(ImVec2(x, y), ImVec2(std::min(x + 4.0f, p1.x), y), IM_COL32(200, 200, 120, 255));
+  }
+  std::vector<ImVec2> line;
+  for (const auto& c : curve)
+    if (c.seconds > 0 && c.error.relmse > 0) line.push_back(pt(c.seconds, c.error.relmse));
+  dl->AddPolyline(line.data(), int(line.size()), IM_COL32(90, 170, 255, 255), 0, 2.0f);
+  ImGui::Dummy(size);
+  const tracer::ConvergenceSummary sum = tracer::summarize(curve);
+  ImGui::TextDisabled("relMSE 1e%.0f..1e%.0f against time 1e%.0f..1e%.0f s", ly0, ly1, lx0, lx1);
+  ImGui::TextDisabled("log-log; dashed: relMSE 1e-2 and 1e-3");
+  if (sum.slope_points >= 3) ImGui::TextWrapped("%s", sum.verdict.c_str());
+  if (sum.to_1e2.seconds >= 0 && !sum.to_1e2.extrapolated)
+    ImGui::Text("relMSE 1e-2 after %.3g s", sum.to_1e2.seconds);
+  if (sum.to_1e3.seconds >= 0 && !sum.to_1e3.extrapolated)
+    ImGui::Text("relMSE 1e-3 after %.3g s", sum.to_1e3.seconds);
+}
+
 void stats_panel(Workbench& wb, PanelState& ps) {
   if (!ImGui::CollapsingHeader("Stats", ImGuiTreeNodeFlags_DefaultOpen)) return;
   const WorkbenchStats& s = wb.stats();
@@ -266,6 +315,7 @@ void stats_panel(Workbench& wb, PanelState& ps) {
   if (s.relmse_halves >= 0) ImGui::Text("relMSE between half buffers: %.3g", s.relmse_halves);
   else ImGui::TextDisabled("relMSE between half buffers: needs more samples");
   if (s.relmse_reference >= 0) ImGui::Text("relMSE against the reference: %.3g", s.relmse_reference);
+  if (s.error_curve.size() >= 2) error_curve_plot(s.error_curve);
   ImGui::Text("kernel: %s%s", s.last.kernel.c_str(), ps.interop ? " (CUDA/GL interop)" : "");
   if (!s.last.specialization.empty()) ImGui::TextWrapped("variant: %s", s.last.specialization.c_str());
   if (!s.last.note.empty()) ImGui::TextWrapped("%s", s.last.note.c_str());

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -137,6 +138,7 @@ void Workbench::reset_stats() {
   stats_ = WorkbenchStats();
   stats_.resets = resets;
   since_reset_s_ = 0.0;
+  next_curve_spp_ = 1;
   display_dirty_ = true;
 }
 
@@ -193,17 +195,14 @@ void Workbench::update() {
     worker_target_spp_ = target_spp;
     worker_target_s_ = target_seconds;
     wake_.notify_all();  // targets or pause may have changed
-    if (reference_ && ++frames_since_estimate_ >= 30 && !published_mean_.empty()) {
+    if (reference_ && (++frames_since_estimate_ >= 30 || stats_.spp >= next_curve_spp_) &&
+        !published_mean_.empty() && stats_.spp > 0) {
       frames_since_estimate_ = 0;
       tracer::ImageRGB img;
       img.width = published_w_;
       img.height = published_h_;
       img.pixels = published_mean_;
-      try {
-        stats_.relmse_reference = tracer::compare_images(img, *reference_).relmse;
-      } catch (const std::exception&) {
-        stats_.relmse_reference = -1.0;  // a reference of another size
-      }
+      record_reference_error(img);
     }
     return;
   }
@@ -230,14 +229,29 @@ void Workbench::update() {
   if (++frames_since_estimate_ >= 30) {
     frames_since_estimate_ = 0;
     stats_.relmse_halves = tracer::half_buffer_relmse(*renderer_);
-    if (reference_) {
-      try {
-        stats_.relmse_reference = tracer::compare_images(renderer_->image(), *reference_).relmse;
-      } catch (const std::exception&) {
-        stats_.relmse_reference = -1.0;
-      }
-    }
+    if (reference_) record_reference_error(renderer_->image());
+  } else if (reference_ && stats_.spp >= next_curve_spp_) {
+    record_reference_error(renderer_->image());
   }
+}
+
+void Workbench::record_reference_error(const tracer::ImageRGB& img) {
+  while (next_curve_spp_ <= stats_.spp) next_curve_spp_ *= 2;
+  if (img.width != reference_->mean.width || img.height != reference_->mean.height) {
+    stats_.relmse_reference = -1.0;  // the render was resized after the reference was loaded
+    return;
+  }
+  tracer::Checkpoint cp;
+  cp.spp = stats_.spp;
+  cp.seconds = stats_.elapsed_s;
+  cp.error = tracer::error_terms(img, *reference_);
+  stats_.relmse_reference = cp.error.relmse;
+  auto& curve = stats_.error_curve;
+  // Log spacing: a new point once time or samples have grown by 5%, at most 1,000 points.
+  if (curve.empty() || (cp.spp > curve.back().spp && curve.size() < 1000 &&
+                        (cp.seconds > 1.05 * curve.back().seconds ||
+                         cp.spp >= 1.05 * curve.back().spp)))
+    curve.push_back(cp);
 }
 
 bool Workbench::fetch_display(std::vector<uint32_t>& rgba, int& width, int& height) {
@@ -522,11 +536,30 @@ bool Workbench::load_scene(const std::string& path, std::string* error) {
 
 bool Workbench::load_reference(const std::string& path, std::string* error) {
   try {
-    reference_ = std::make_unique<tracer::ImageRGB>(tracer::read_image(path));
+    auto ref = std::make_unique<tracer::ReferenceImage>();
+    ref->mean = tracer::read_image(path);
+    if (ref->mean.width != width() || ref->mean.height != height()) {
+      if (error)
+        *error = path + ": the reference is " + std::to_string(ref->mean.width) + "x" +
+                 std::to_string(ref->mean.height) + " but the render is " +
+                 std::to_string(width()) + "x" + std::to_string(height()) +
+                 "; not loaded (set the size first, or render a reference of this size)";
+      return false;
+    }
+    const std::filesystem::path p(path);
+    const std::string var = (p.parent_path() / (p.stem().string() + ".variance.exr")).string();
+    if (std::filesystem::exists(var)) {
+      ref->variance = tracer::read_image(var);
+      if (ref->variance.width != ref->mean.width || ref->variance.height != ref->mean.height)
+        ref->variance = tracer::ImageRGB();
+    }
+    reference_ = std::move(ref);
   } catch (const std::exception& e) {
     if (error) *error = e.what();
     return false;
   }
+  stats_.error_curve.clear();
+  next_curve_spp_ = 1;
   return true;
 }
 

@@ -12,6 +12,7 @@
 #include <thread>
 #include <vector>
 
+#include "image/convergence.h"
 #include "integrator/renderer.h"
 #include "scene/compiled_scene.h"
 #include "scene/scene.h"
@@ -40,6 +41,9 @@ struct WorkbenchStats {
   tracer::FrameStats last;         // stage times, alive per bounce, kernel, notes
   double relmse_halves = -1.0;     // convergence estimate (half buffers), < 0 when unknown
   double relmse_reference = -1.0;  // against a loaded reference image, < 0 when none
+  // relMSE against the reference over time since the last reset: a point at every doubling of
+  // the sample count and every estimate after it (the Stats panel draws it log-log).
+  std::vector<tracer::Checkpoint> error_curve;
   uint64_t resets = 0;             // how many times the accumulator was cleared
 };
 
@@ -86,6 +90,8 @@ class Workbench {
   // JSON sidecar, atomically. Returns "" or the error.
   std::string export_image(const std::string& path);
   std::string save_scene(const std::string& path);  // JSON that reloads every edit
+  // An EXR/PNG of the current render size; "<stem>.variance.exr" beside it (written by
+  // `pathtracer bench --error`) is loaded too, and its noise is subtracted from the relMSE.
   bool load_reference(const std::string& path, std::string* error);
 
   // Camera navigation (orbit about look_at, pan, dolly, fly) and picking in image coordinates
@@ -120,8 +126,10 @@ class Workbench {
   bool dirty_ = true, geometry_dirty_ = true, display_dirty_ = true;
   WorkbenchStats stats_;
   double since_reset_s_ = 0.0;
-  std::unique_ptr<tracer::ImageRGB> reference_;
+  void record_reference_error(const tracer::ImageRGB& img);
+  std::unique_ptr<tracer::ReferenceImage> reference_;
   int frames_since_estimate_ = 0;
+  uint32_t next_curve_spp_ = 1;
 
   // CPU backend: a worker thread renders passes while the UI runs.
   bool async_ = false;

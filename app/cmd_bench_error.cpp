@@ -1,0 +1,569 @@
+// `pathtracer bench --error`: renders (or loads) a reference with its per-pixel variance, then
+// sweeps each configuration over doubling sample counts and measures relMSE, RMSE and LDR-FLIP
+// against wall-clock time; prints a table, writes CSVs and log-log plots (SVG).
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "bench_error.h"
+#include "commands.h"
+#include "cpu/cpu_backend.h"
+#include "image/convergence.h"
+#include "image/flip.h"
+#include "image/image.h"
+#include "image/svg_plot.h"
+#include "scene/compiled_scene.h"
+#include "scene/diagnostics.h"
+#include "scene/loader.h"
+#if defined(TRACER_CUDA_BACKEND)
+#include "cuda/cuda_renderer.h"
+#endif
+
+namespace app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+// The reference's samples are seeded apart from every configuration's, so that they are
+// independent estimates (the same seed would trace the same first paths).
+constexpr uint32_t kReferenceSeedOffset = 0x5EED0001u;
+
+// One configuration of the sweep: a backend (and GPU kernel) plus modifiers, e.g.
+// "megakernel+no-rr", "cpu+depth=4", "wavefront+no-compaction".
+struct Config {
+  std::string name;
+  bool cpu = false;
+  tracer::GpuOptions gpu;
+  bool nee = true, mis = true, rr = true, schlick = false;
+  int max_depth = 0;  // 0: the bench's
+  float clamp = 0;
+};
+
+const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
+const std::vector<std::string> kModifiers = {"no-compaction", "sorting", "general",
+                                             "no-rr",         "no-nee",  "no-mis",
+                                             "schlick",       "depth=N", "clamp=X"};
+
+// Throws std::invalid_argument with a message naming the bad token.
+Config parse_config(const std::string& text) {
+  Config c;
+  c.name = text;
+  std::vector<std::string> tokens;
+  std::stringstream ss(text);
+  for (std::string t; std::getline(ss, t, '+');) tokens.push_back(t);
+  if (tokens.empty() || tokens[0].empty()) throw std::invalid_argument("empty configuration");
+  const std::string& base = tokens[0];
+  using K = tracer::KernelMode;
+  if (base == "cpu")
+    c.cpu = true;
+  else if (base == "megakernel")
+    c.gpu.kernel = K::kMegakernel;
+  else if (base == "wavefront")
+    c.gpu.kernel = K::kWavefront;
+  else if (base == "auto")
+    c.gpu.kernel = K::kAuto;
+  else {
+    const std::string guess = tracer::did_you_mean(base, kBases);
+    throw std::invalid_argument("configuration \"" + text +
+                                "\" must start with cpu, megakernel, "
+                                "wavefront or auto, not \"" +
+                                base + "\"" +
+                                (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)"));
+  }
+  c.gpu.first_bounce_cache = false;  // jitter stays on: the cache would never apply
+  for (size_t i = 1; i < tokens.size(); ++i) {
+    const std::string& m = tokens[i];
+    auto number = [&](const std::string& prefix, double lo, double hi) {
+      const std::string v = m.substr(prefix.size());
+      char* end = nullptr;
+      const double x = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(x >= lo && x <= hi))
+        throw std::invalid_argument("\"" + m + "\" in \"" + text + "\": " + prefix +
+                                    " takes a "
+                                    "number in [" +
+                                    std::to_string(lo) + ", " + std::to_string(hi) + "]");
+      return x;
+    };
+    if (m == "no-compaction")
+      c.gpu.compaction = false;
+    else if (m == "sorting")
+      c.gpu.sort_materials = true;
+    else if (m == "general")
+      c.gpu.specialize = false;
+    else if (m == "no-rr")
+      c.rr = false;
+    else if (m == "no-nee")
+      c.nee = false;
+    else if (m == "no-mis")
+      c.mis = false;
+    else if (m == "schlick")
+      c.schlick = true;
+    else if (m.rfind("depth=", 0) == 0)
+      c.max_depth = int(number("depth=", 1, 1024));
+    else if (m.rfind("clamp=", 0) == 0)
+      c.clamp = float(number("clamp=", 1e-6, 1e9));
+    else {
+      const std::string guess = tracer::did_you_mean(m, kModifiers);
+      throw std::invalid_argument("unknown modifier \"" + m + "\" in \"" + text + "\"" +
+                                  (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") +
+                                  "; modifiers: no-compaction, sorting, general, no-rr, no-nee, "
+                                  "no-mis, schlick, depth=N, clamp=X");
+    }
+  }
+  return c;
+}
+
+std::string default_suite(bool gpu) {
+  if (gpu)
+    return "megakernel,wavefront,wavefront+no-compaction,wavefront+sorting,megakernel+general,"
+           "megakernel+no-rr,megakernel+no-nee,megakernel+no-mis,megakernel+schlick,"
+           "megakernel+depth=4,megakernel+clamp=10,cpu";
+  return "cpu,cpu+no-rr,cpu+no-nee,cpu+no-mis,cpu+schlick,cpu+depth=4,cpu+clamp=10";
+}
+
+struct Sweep {
+  Config config;
+  std::vector<tracer::Checkpoint> points;
+  tracer::ConvergenceSummary summary;
+  std::string kernel, specialization, device;
+  uint64_t nonfinite = 0;
+};
+
+// Pending FLIP jobs, oldest first: (checkpoint index, mean FLIP).
+using FlipJobs = std::deque<std::future<std::pair<size_t, double>>>;
+
+// Waits for pending FLIP jobs, oldest first, until at most `keep` remain.
+void collect_flips(FlipJobs& jobs, Sweep& sw, size_t keep) {
+  while (jobs.size() > keep) {
+    const auto [index, value] = jobs.front().get();
+    sw.points[index].flip = value;
+    jobs.pop_front();
+  }
+}
+
+std::string exr_variance_path(const std::string& ref) {
+  std::filesystem::path p(ref);
+  return (p.parent_path() / (p.stem().string() + ".variance.exr")).string();
+}
+
+// Loads the reference (and its variance image when present) or renders it with `r`.
+bool obtain_reference(const std::string& path, int spp, const tracer::CompiledScene& cs,
+                      tracer::IntegratorSettings cfg, tracer::Renderer& r,
+                      const nlohmann::json& settings, tracer::ReferenceImage* ref) {
+  const std::string var_path = exr_variance_path(path);
+  if (std::filesystem::exists(path)) {
+    ref->mean = tracer::read_image(path);
+    if (ref->mean.width != int(cfg.width) || ref->mean.height != int(cfg.height)) {
+      std::cerr << "error: " << path << ": the reference is " << ref->mean.width << "x"
+                << ref->mean.height << " but the bench renders " << cfg.width << "x" << cfg.height
+                << "; pass another --reference or delete it to re-render\n";
+      return false;
+    }
+    std::ifstream side(path + ".json");
+    if (side) {
+      const nlohmann::json j = nlohmann::json::parse(side, nullptr, false);
+      if (!j.is_discarded() && j.contains("settings") && j["settings"] != settings) {
+        std::cerr << "warning: " << path << ".json: the reference was rendered with settings "
+                  << j["settings"].dump() << ", the bench uses " << settings.dump()
+                  << "; errors include that difference\n";
+      }
+    }
+    if (std::filesystem::exists(var_path)) {
+      ref->variance = tracer::read_image(var_path);
+      if (ref->variance.width != ref->mean.width || ref->variance.height != ref->mean.height) {
+        std::cerr << "error: " << var_path << ": size differs from " << path << "\n";
+        return false;
+      }
+    } else {
+      std::cerr << "warning: " << var_path << " is missing: the reference's own noise is not "
+                << "subtracted from the errors\n";
+    }
+    std::printf("reference: %s (loaded)\n", path.c_str());
+    return true;
+  }
+  cfg.seed += kReferenceSeedOffset;
+  r.set_scene(cs, cfg);
+  const auto t0 = Clock::now();
+  const uint32_t chunk = r.backend_name() == "cpu" ? 4u : 256u;
+  uint64_t nonfinite = 0;
+  while (r.samples_done() < uint32_t(spp)) {
+    const uint32_t n = std::min<uint32_t>(chunk, uint32_t(spp) - r.samples_done());
+    nonfinite += r.render(n).nonfinite;
+    const double s = std::chrono::duration<double>(Clock::now() - t0).count();
+    if (isatty(2))
+      std::fprintf(stderr, "\rreference: %u / %d spp, %.1f s, ETA %.0f s   ", r.samples_done(), spp,
+                   s, s / r.samples_done() * (spp - r.samples_done()));
+  }
+  const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  if (isatty(2)) std::fprintf(stderr, "\n");
+  ref->mean = r.image();
+  tracer::ImageRGB even, odd;
+  r.half_images(&even, &odd);
+  ref->variance = tracer::variance_from_halves(even, odd);
+  tracer::write_image(path, ref->mean);
+  tracer::write_image(var_path, ref->variance);
+  nlohmann::json side = {{"settings", settings},
+                         {"spp", spp},
+                         {"seed", cfg.seed},
+                         {"backend", r.backend_name()},
+                         {"device", r.device_name()},
+                         {"seconds", seconds},
+                         {"nonfinite_samples", nonfinite}};
+  tracer::write_text_atomic(path + ".json", side.dump(2) + "\n");
+  std::printf("reference: %s (%d spp on %s in %.1f s; variance in %s)\n", path.c_str(), spp,
+              r.device_name().c_str(), seconds, var_path.c_str());
+  return true;
+}
+
+Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScene& cs,
+                tracer::IntegratorSettings cfg, const tracer::ReferenceImage& ref, int max_spp,
+                double time_limit, bool flip) {
+  Sweep sw;
+  sw.config = c;
+  cfg.nee = c.nee;
+  cfg.mis = c.mis;
+  cfg.russian_roulette = c.rr;
+  if (c.max_depth > 0) cfg.max_depth = uint32_t(c.max_depth);
+  cfg.clamp = c.clamp;
+  r.set_gpu_options(c.gpu);
+  r.set_scene(cs, cfg);
+  r.render(c.gpu.kernel == tracer::KernelMode::kAuto ? 4 : 1);  // warm-up (and auto's timing)
+  r.reset();
+  sw.device = r.device_name();
+  double seconds = 0;
+  uint32_t done = 0;
+  FlipJobs flips;
+  for (uint32_t next = 1; next <= uint32_t(max_spp); next *= 2) {
+    // Stop before a doubling that would overrun the budget (it costs about what was spent).
+    if (done > 0 && seconds * (double(next) / done) > time_limit) break;
+    const auto t0 = Clock::now();
+    const tracer::FrameStats st = r.render(next - done);
+    seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    done = next;
+    sw.nonfinite += st.nonfinite;
+    if (sw.kernel.empty()) {
+      sw.kernel = st.kernel;
+      sw.specialization = st.specialization;
+    }
+    tracer::Checkpoint cp;
+    cp.spp = done;
+    cp.seconds = seconds;
+    const tracer::ImageRGB img = r.image();
+    if (done >= 2) {
+      tracer::ImageRGB even, odd;
+      r.half_images(&even, &odd);
+      cp.error = tracer::error_terms(img, ref, &even, &odd);
+    } else {
+      cp.error = tracer::error_terms(img, ref);
+    }
+    sw.points.push_back(cp);
+    if (flip) {
+      // FLIP costs about a second at 1080p on one core: on the GPU it runs on other cores while
+      // the next samples render; on the CPU backend it waits, so it never steals render time.
+      const size_t index = sw.points.size() - 1;
+      auto job = std::make_shared<tracer::ImageRGB>(img);
+      flips.push_back(std::async(std::launch::async, [job, &ref, index] {
+        return std::make_pair(index, tracer::ldr_flip(*job, ref.mean).mean);
+      }));
+      if (c.cpu || flips.size() >= 8) collect_flips(flips, sw, c.cpu ? 0 : 4);
+    }
+    if (isatty(2))
+      std::fprintf(stderr, "\r%-32s %6u spp %8.3f s relMSE %.3e   ", c.name.c_str(), done, seconds,
+                   cp.error.relmse);
+  }
+  const tracer::Checkpoint& last = sw.points.back();
+  collect_flips(flips, sw, 0);
+  std::fprintf(stderr, "%s%-32s %6u spp %8.3f s relMSE %.3e\n", isatty(2) ? "\r" : "",
+               c.name.c_str(), last.spp, last.seconds, last.error.relmse);
+  sw.summary = tracer::summarize(sw.points);
+  return sw;
+}
+
+std::string fmt_time(const tracer::TimeToError& t) {
+  if (t.seconds < 0) return "never";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%s%.3g", t.extrapolated ? "~" : "", t.seconds);
+  return buf;
+}
+
+std::string csv_quote(const std::string& s) {
+  return "\"" + s + "\"";
+}
+
+void write_outputs(const std::string& dir, const std::vector<Sweep>& sweeps,
+                   const std::string& title, nlohmann::json meta) {
+  std::filesystem::create_directories(dir);
+  std::string pts =
+      "config,spp,seconds,relmse,relmse_raw,reference_floor,rmse,flip,variance,"
+      "bias2,bias2_stderr\n";
+  std::string sum =
+      "config,backend_kernel,specialization,final_spp,seconds,relmse,rmse,flip,"
+      "time_to_1e-2_s,extrapolated_1e-2,time_to_1e-3_s,extrapolated_1e-3,"
+      "efficiency,slope,slope_stderr,biased,nonfinite,verdict\n";
+  char buf[512];
+  nlohmann::json arr = nlohmann::json::array();
+  tracer::PlotSpec relp, flipp;
+  relp.title = title;
+  relp.x_label = "render time (s)";
+  relp.y_label = "relMSE against the reference";
+  relp.y_marks = {{1e-2, "relMSE 1e-2"}, {1e-3, "relMSE 1e-3"}};
+  flipp = relp;
+  flipp.y_label = "mean LDR-FLIP";
+  flipp.y_marks.clear();
+  flipp.slope_guide = false;
+  for (const Sweep& s : sweeps) {
+    tracer::PlotSeries a{s.config.name, {}}, b{s.config.name, {}};
+    for (const auto& p : s.points) {
+      std::snprintf(buf, sizeof(buf), "%s,%u,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
+                    csv_quote(s.config.name).c_str(), p.spp, p.seconds, p.error.relmse,
+                    p.error.relmse_raw, p.error.reference_floor, p.error.rmse, p.flip,
+                    p.error.variance, p.error.bias2, p.error.bias2_stderr);
+      pts += buf;
+      a.points.push_back({p.seconds, p.error.relmse});
+      b.points.push_back({p.seconds, p.flip});
+    }
+    relp.series.push_back(a);
+    flipp.series.push_back(b);
+    const auto& last = s.points.back();
+    const auto& m = s.summary;
+    std::snprintf(
+        buf, sizeof(buf), "%s,%s,%s,%u,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%.6g,%d,%.6g,%.4f,%.4f,%d,%llu,",
+        csv_quote(s.config.name).c_str(), s.kernel.c_str(), csv_quote(s.specialization).c_str(),
+        last.spp, last.seconds, last.error.relmse, last.error.rmse, last.flip, m.to_1e2.seconds,
+        int(m.to_1e2.extrapolated), m.to_1e3.seconds, int(m.to_1e3.extrapolated), m.efficiency,
+        m.slope, m.slope_stderr, int(m.biased), static_cast<unsigned long long>(s.nonfinite));
+    sum += buf + csv_quote(m.verdict) + "\n";
+    nlohmann::json cps = nlohmann::json::array();
+    for (const auto& p : s.points)
+      cps.push_back({{"spp", p.spp},
+                     {"seconds", p.seconds},
+                     {"relmse", p.error.relmse},
+                     {"relmse_raw", p.error.relmse_raw},
+                     {"rmse", p.error.rmse},
+                     {"flip", p.flip},
+                     {"variance", p.error.variance},
+                     {"bias2", p.error.bias2},
+                     {"bias2_stderr", p.error.bias2_stderr}});
+    arr.push_back({{"config", s.config.name},
+                   {"kernel", s.kernel},
+                   {"specialization", s.specialization},
+                   {"device", s.device},
+                   {"time_to_1e-2_s", m.to_1e2.seconds},
+                   {"time_to_1e-3_s", m.to_1e3.seconds},
+                   {"extrapolated_1e-2", m.to_1e2.extrapolated},
+                   {"extrapolated_1e-3", m.to_1e3.extrapolated},
+                   {"efficiency", m.efficiency},
+                   {"slope", m.slope},
+                   {"slope_stderr", m.slope_stderr},
+                   {"biased", m.biased},
+                   {"verdict", m.verdict},
+                   {"nonfinite", s.nonfinite},
+                   {"checkpoints", cps}});
+  }
+  meta["configs"] = arr;
+  tracer::write_text_atomic(dir + "/error_vs_time.csv", pts);
+  tracer::write_text_atomic(dir + "/summary.csv", sum);
+  tracer::write_text_atomic(dir + "/error_vs_time.svg", tracer::loglog_svg(relp));
+  tracer::write_text_atomic(dir + "/flip_vs_time.svg", tracer::loglog_svg(flipp));
+  tracer::write_text_atomic(dir + "/bench.json", meta.dump(2) + "\n");
+}
+
+}  // namespace
+
+void add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
+  const std::string g = "Error against time (--error)";
+  cmd.add_flag("--error", o->enabled,
+               "Measure error against time instead of speed: sweep each configuration over "
+               "doubling sample counts against a reference")
+      ->group(g);
+  cmd.add_option("--reference", o->reference,
+                 "Reference EXR (with NAME.variance.exr beside it); rendered there when missing. "
+                 "Default: OUT/reference-SCENE-WxH-dDEPTH.exr")
+      ->group(g);
+  cmd.add_option("--reference-spp", o->reference_spp,
+                 "Samples for a new reference (default 32768 on the GPU, 1024 on the CPU)")
+      ->check(CLI::Range(2, 1 << 24))
+      ->group(g);
+  cmd.add_option("--configs", o->configs,
+                 "Comma-separated configurations: cpu|megakernel|wavefront|auto, each with "
+                 "+modifiers: no-compaction, sorting, general, no-rr, no-nee, no-mis, schlick, "
+                 "depth=N, clamp=X. Default: a suite for the backends present")
+      ->group(g);
+  cmd.add_option("--max-spp", o->max_spp,
+                 "Last sample count of each sweep (default 4096 GPU, "
+                 "256 CPU); counts double from 1")
+      ->check(CLI::Range(1, 1 << 24))
+      ->group(g);
+  cmd.add_option("--time-limit", o->time_limit, "Seconds of rendering per configuration")
+      ->check(CLI::Range(0.001, 1e6))
+      ->capture_default_str()
+      ->group(g);
+  cmd.add_option("--out", o->out_dir, "Directory for the CSVs, plots and JSON")
+      ->capture_default_str()
+      ->group(g);
+  cmd.add_option("--flip", o->flip, "Compute mean LDR-FLIP at every checkpoint: on or off")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str()
+      ->group(g);
+  cmd.add_option("--threads", o->threads, "CPU backend threads (0: all cores)")
+      ->check(CLI::Range(0, 1024))
+      ->group(g);
+}
+
+int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
+  tracer::Scene scene;
+  if (!load_scene_or_report(bs.scene, &scene)) return kExitInputError;
+  tracer::RenderSettings& rs = scene.settings;
+  if (bs.width > 0) rs.width = bs.width;
+  if (bs.height > 0) rs.height = bs.height;
+  if (bs.max_depth > 0) rs.max_depth = bs.max_depth;
+  try {
+    tracer::validate_scene(scene);
+  } catch (const tracer::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  // Renderers: the GPU when asked for and present, the CPU when a configuration needs it.
+  std::unique_ptr<tracer::Renderer> gpu;
+  std::string why = "built without CUDA";
+#if defined(TRACER_CUDA_BACKEND)
+  if (bs.backend != "cpu") gpu = tracer::make_cuda_renderer(&why);
+#endif
+  if (!gpu && bs.backend == "cuda") {
+    std::cerr << "error: --backend cuda: " << why << "\n";
+    return kExitInputError;
+  }
+  if (!gpu && bs.backend == "auto") {
+    std::printf("no GPU (%s): CPU configurations only\n", why.c_str());
+    std::fflush(stdout);
+  }
+  std::vector<Config> configs;
+  try {
+    std::stringstream ss(o.configs.empty() ? default_suite(gpu != nullptr) : o.configs);
+    for (std::string t; std::getline(ss, t, ',');) {
+      if (t.empty()) continue;
+      configs.push_back(parse_config(t));
+      if (!configs.back().cpu && !gpu)
+        throw std::invalid_argument("configuration \"" + t + "\" needs the GPU: " + why);
+    }
+    if (configs.empty()) throw std::invalid_argument("--configs names no configuration");
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "error: --configs: " << e.what() << "\n";
+    return kExitUsage;
+  }
+  tracer::CpuRenderer cpu(o.threads);
+
+  const tracer::CompiledScene cs(scene, rs.width, rs.height);
+  std::unique_ptr<tracer::CompiledScene> cs_schlick;  // every boundary with Schlick's Fresnel
+  const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(rs);
+  const std::string stem =
+      bs.scene.empty() ? "cornell_box" : std::filesystem::path(bs.scene).stem().string();
+  const nlohmann::json settings = {{"scene", bs.scene.empty() ? "<built-in>" : bs.scene},
+                                   {"width", rs.width},
+                                   {"height", rs.height},
+                                   {"max_depth", rs.max_depth},
+                                   {"nee", rs.nee},
+                                   {"mis", rs.mis},
+                                   {"russian_roulette", rs.russian_roulette},
+                                   {"clamp", rs.clamp}};
+  const std::string ref_path =
+      !o.reference.empty()
+          ? o.reference
+          : o.out_dir + "/reference-" + stem + "-" + std::to_string(rs.width) + "x" +
+                std::to_string(rs.height) + "-d" + std::to_string(rs.max_depth) + ".exr";
+  std::printf("scene %s: %dx%d, max depth %d; features: %s\n",
+              settings["scene"].get<std::string>().c_str(), rs.width, rs.height, rs.max_depth,
+              tracer::describe_features(cs.features()).c_str());
+  tracer::ReferenceImage ref;
+  try {
+    tracer::Renderer& rr = gpu ? *gpu : static_cast<tracer::Renderer&>(cpu);
+    if (gpu) gpu->set_gpu_options(tracer::GpuOptions{});
+    const int ref_spp = o.reference_spp > 0 ? o.reference_spp : (gpu ? 32768 : 1024);
+    if (!obtain_reference(ref_path, ref_spp, cs, cfg, rr, settings, &ref)) return kExitInputError;
+  } catch (const tracer::InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  const tracer::ErrorTerms floor_terms = tracer::error_terms(ref.mean, ref);
+  std::printf("reference noise floor: relMSE %.2e (subtracted from every figure below)\n",
+              floor_terms.reference_floor);
+  std::fflush(stdout);
+
+  std::vector<Sweep> sweeps;
+  for (const Config& c : configs) {
+    const tracer::CompiledScene* scs = &cs;
+    if (c.schlick) {
+      if (!cs_schlick) {
+        tracer::Scene s2 = scene;
+        for (auto& m : s2.materials)
+          if (m.material.type == tracer::MaterialType::kDielectric ||
+              m.material.type == tracer::MaterialType::kSubsurface)
+            m.material.flags |= tracer::kMaterialSchlickFresnel;
+        cs_schlick = std::make_unique<tracer::CompiledScene>(s2, rs.width, rs.height);
+      }
+      scs = cs_schlick.get();
+    }
+    const int max_spp = o.max_spp > 0 ? o.max_spp : (c.cpu ? 256 : 4096);
+    tracer::Renderer& r = c.cpu ? static_cast<tracer::Renderer&>(cpu) : *gpu;
+    sweeps.push_back(run_sweep(c, r, *scs, cfg, ref, max_spp, o.time_limit, o.flip == "on"));
+  }
+
+  // The table.
+  std::printf("\n%-30s %7s %8s %10s %9s %7s %9s %9s %9s %7s  %s\n", "configuration", "spp",
+              "time s", "relMSE", "RMSE", "FLIP", "t(1e-2)", "t(1e-3)", "1/(e*t)", "slope",
+              "verdict");
+  const Sweep* fastest3 = nullptr;
+  for (const Sweep& s : sweeps) {
+    const auto& p = s.points.back();
+    const auto& m = s.summary;
+    std::printf("%-30s %7u %8.3f %10.3e %9.3e %7.4f %9s %9s %9.3g %7.2f  %s\n",
+                s.config.name.c_str(), p.spp, p.seconds, p.error.relmse, p.error.rmse, p.flip,
+                fmt_time(m.to_1e2).c_str(), fmt_time(m.to_1e3).c_str(), m.efficiency, m.slope,
+                m.verdict.c_str());
+    if (s.nonfinite)
+      std::printf("%-30s   %llu NaN/Inf samples rejected\n", "",
+                  static_cast<unsigned long long>(s.nonfinite));
+    if (!m.biased && m.to_1e3.seconds >= 0 &&
+        (!fastest3 || m.to_1e3.seconds < fastest3->summary.to_1e3.seconds))
+      fastest3 = &s;
+  }
+  std::printf(
+      "times: s of rendering to reach the relMSE (~: extrapolated as error ~ 1/time); "
+      "relMSE excludes the reference's own noise.\n");
+  if (fastest3)
+    std::printf("fastest unbiased configuration to relMSE 1e-3: %s, %s s\n",
+                fastest3->config.name.c_str(), fmt_time(fastest3->summary.to_1e3).c_str());
+
+  nlohmann::json meta = {{"settings", settings},
+                         {"reference", ref_path},
+                         {"reference_floor_relmse", floor_terms.reference_floor},
+                         {"time_limit_s", o.time_limit}};
+  if (gpu) meta["gpu"] = gpu->device_name();
+  meta["cpu"] = cpu.device_name();
+  try {
+    write_outputs(o.out_dir, sweeps,
+                  "relMSE against time: " + stem + ", " + std::to_string(rs.width) + "x" +
+                      std::to_string(rs.height) + ", depth " + std::to_string(rs.max_depth),
+                  meta);
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInputError;
+  }
+  std::printf(
+      "wrote %s/{error_vs_time.csv, summary.csv, error_vs_time.svg, flip_vs_time.svg, "
+      "bench.json}\n",
+      o.out_dir.c_str());
+  return 0;
+}
+
+}  // namespace app

@@ -1,0 +1,182 @@
+// The error-against-time analysis: noise/bias split of the error with half buffers and a
+// reference variance, time to an error, the log-log slope and its verdict, the SVG plot; and
+// `pathtracer bench --error` end to end on the CPU (unbiased vs biased configurations).
+#include "image/convergence.h"
+
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "image/svg_plot.h"
+#include "scene/diagnostics.h"
+#include "test_util.h"
+
+namespace {
+
+using tracer::Checkpoint;
+using tracer::ImageRGB;
+
+struct Halves {
+  ImageRGB even, odd, mean;
+};
+
+// Two independent half estimates of `truth + bias` with Gaussian noise of `sigma` each.
+Halves noisy(const ImageRGB& truth, double sigma, double bias, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, sigma);
+  Halves h{truth, truth, truth};
+  for (size_t i = 0; i < truth.pixels.size(); ++i) {
+    h.even.pixels[i] = float(truth.pixels[i] + bias + n(rng));
+    h.odd.pixels[i] = float(truth.pixels[i] + bias + n(rng));
+    h.mean.pixels[i] = 0.5f * (h.even.pixels[i] + h.odd.pixels[i]);
+  }
+  return h;
+}
+
+TEST(Convergence, VarianceFromHalvesIsUnbiased) {
+  const ImageRGB truth = tracer::make_image(200, 200, tracer::vec3(0.5f));
+  const Halves h = noisy(truth, 0.1, 0.0, 1);
+  const ImageRGB v = tracer::variance_from_halves(h.even, h.odd);
+  double mean = 0;
+  for (float x : v.pixels) mean += x;
+  mean /= v.pixels.size();
+  // Var of the mean of two N(0, 0.1^2) halves: 0.005; relative standard error ~ sqrt(2/120000).
+  EXPECT_NEAR(mean, 0.005, 0.005 * 0.02);
+}
+
+TEST(Convergence, SplitsErrorIntoNoiseAndBias) {
+  const ImageRGB truth = tracer::make_image(200, 200, tracer::vec3(0.5f));
+  tracer::ReferenceImage ref{truth, {}};
+  const double w = 1.0 / (0.51 * 0.51);
+  // Unbiased: all error is noise; the bias estimate is within its standard error of 0.
+  Halves h = noisy(truth, 0.1, 0.0, 2);
+  tracer::ErrorTerms e = tracer::error_terms(h.mean, ref, &h.even, &h.odd);
+  EXPECT_NEAR(e.relmse, 0.005 * w, 0.005 * w * 0.03);
+  EXPECT_NEAR(e.variance, 0.005 * w, 0.005 * w * 0.03);
+  EXPECT_LT(std::abs(e.bias2), 4 * e.bias2_stderr);
+  EXPECT_FALSE(e.significant_bias());
+  // A bias of 0.05 adds 0.0025 / 0.51^2 and is detected.
+  h = noisy(truth, 0.1, 0.05, 3);
+  e = tracer::error_terms(h.mean, ref, &h.even, &h.odd);
+  EXPECT_NEAR(e.bias2, 0.0025 * w, 0.0025 * w * 0.1);
+  EXPECT_TRUE(e.significant_bias());
+  // Without halves nothing is claimed about bias.
+  e = tracer::error_terms(h.mean, ref);
+  EXPECT_FALSE(e.has_variance());
+  EXPECT_FALSE(e.significant_bias());
+}
+
+TEST(Convergence, SubtractsTheReferenceNoise) {
+  // A noisy reference with its variance image: the test (the truth itself) shows error only
+  // from the reference, and the floor removes it.
+  const ImageRGB truth = tracer::make_image(200, 200, tracer::vec3(0.5f));
+  const Halves r = noisy(truth, 0.05, 0.0, 4);
+  tracer::ReferenceImage ref{r.mean, tracer::variance_from_halves(r.even, r.odd)};
+  const tracer::ErrorTerms e = tracer::error_terms(truth, ref);
+  EXPECT_GT(e.relmse_raw, 0.0);
+  EXPECT_NEAR(e.reference_floor, e.relmse_raw, 0.05 * e.relmse_raw);
+  EXPECT_NEAR(e.relmse, 0.0, 0.05 * e.relmse_raw);
+  EXPECT_THROW(tracer::error_terms(tracer::make_image(3, 3), ref), tracer::InputError);
+}
+
+// A sweep with relMSE = a / spp at 10 ms per sample, optionally with a bias floor.
+std::vector<Checkpoint> sweep(double a, double floor, uint32_t max_spp) {
+  std::vector<Checkpoint> out;
+  for (uint32_t spp = 1; spp <= max_spp; spp *= 2) {
+    Checkpoint c;
+    c.spp = spp;
+    c.seconds = 0.01 * spp;
+    c.error.variance = a / spp;
+    c.error.bias2 = floor;
+    c.error.bias2_stderr = floor > 0 ? floor / 100 : 1e-9;
+    c.error.relmse = a / spp + floor;
+    out.push_back(c);
+  }
+  return out;
+}
+
+TEST(Convergence, TimeToErrorInterpolatesAndExtrapolates) {
+  // relMSE = 1/spp reaches 1e-2 at 100 spp = 1 s (between the 64 and 128 checkpoints).
+  tracer::TimeToError t = tracer::time_to_error(sweep(1.0, 0.0, 1024), 1e-2);
+  EXPECT_NEAR(t.seconds, 1.0, 1e-9);
+  EXPECT_FALSE(t.extrapolated);
+  // 1e-3 needs 1000 spp; the sweep stops at 256 and extrapolates along 1/time.
+  t = tracer::time_to_error(sweep(1.0, 0.0, 256), 1e-3);
+  EXPECT_NEAR(t.seconds, 10.0, 1e-9);
+  EXPECT_TRUE(t.extrapolated);
+  // A bias floor above the target: never.
+  t = tracer::time_to_error(sweep(1.0, 2e-3, 1024), 1e-3);
+  EXPECT_LT(t.seconds, 0.0);
+}
+
+TEST(Convergence, SlopeAndVerdict) {
+  tracer::ConvergenceSummary s = tracer::summarize(sweep(1.0, 0.0, 1024));
+  EXPECT_NEAR(s.slope, -1.0, 1e-9);
+  EXPECT_FALSE(s.biased);
+  EXPECT_NE(s.verdict.find("unbiased"), std::string::npos) << s.verdict;
+  EXPECT_NEAR(s.efficiency, 1.0 / (1.0 / 1024 * 10.24), 1e-9);
+  s = tracer::summarize(sweep(1.0, 1e-2, 1024));
+  EXPECT_TRUE(s.biased);
+  EXPECT_GT(s.slope, -0.8);
+  EXPECT_EQ(s.verdict.rfind("biased", 0), 0u) << s.verdict;
+}
+
+TEST(Convergence, SvgPlotHasEverySeriesAndEscapesNames) {
+  tracer::PlotSpec p;
+  p.title = "a <title> & more";
+  p.series = {{"one", {{0.01, 1.0}, {0.1, 0.1}}}, {"two<", {{0.02, 0.5}, {0.2, 0.0}}}};
+  p.y_marks = {{1e-2, "1e-2"}};
+  const std::string svg = tracer::loglog_svg(p);
+  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
+  EXPECT_NE(svg.find("</svg>"), std::string::npos);
+  EXPECT_NE(svg.find("a &lt;title&gt; &amp; more"), std::string::npos);
+  EXPECT_NE(svg.find("two&lt;"), std::string::npos);
+  EXPECT_EQ(svg.find("two<"), std::string::npos);
+  size_t paths = 0;
+  for (size_t i = svg.find("<path"); i != std::string::npos; i = svg.find("<path", i + 1)) ++paths;
+  EXPECT_EQ(paths, 2u);  // the zero y of "two" is skipped, its other point still draws
+}
+
+TEST(BenchError, CpuSweepSeparatesUnbiasedFromBiased) {
+  char tmpl[] = "/tmp/pathtracer_bench_XXXXXX";
+  const std::string dir = mkdtemp(tmpl);
+  std::string log;
+  const std::string cmd = test::pathtracer_exe() +
+                          " bench --error --backend cpu --width 32 --height 32 --reference-spp 512"
+                          " --max-spp 64 --configs cpu,cpu+depth=2,cpu+no-nee --out " +
+                          dir;
+  ASSERT_EQ(test::run_command(cmd, &log), 0) << log;
+  std::ifstream f(dir + "/bench.json");
+  ASSERT_TRUE(f.good()) << log;
+  const auto j = nlohmann::json::parse(f);
+  ASSERT_EQ(j["configs"].size(), 3u);
+  const auto& cpu = j["configs"][0];
+  const auto& shallow = j["configs"][1];
+  const auto& no_nee = j["configs"][2];
+  EXPECT_FALSE(cpu["biased"].get<bool>()) << cpu["verdict"];
+  EXPECT_NEAR(cpu["slope"].get<double>(), -1.0, 0.15);
+  EXPECT_TRUE(shallow["biased"].get<bool>()) << shallow["verdict"];  // depth 2 misses light
+  EXPECT_FALSE(no_nee["biased"].get<bool>()) << no_nee["verdict"];
+  // NEE makes the same error cheaper.
+  EXPECT_GT(cpu["efficiency"].get<double>(), 5 * no_nee["efficiency"].get<double>());
+  struct stat st;
+  for (const char* name :
+       {"/error_vs_time.csv", "/summary.csv", "/error_vs_time.svg", "/flip_vs_time.svg"})
+    EXPECT_EQ(stat((dir + name).c_str(), &st), 0) << name;
+  // The reference is reused on a second run, and a bad configuration is a usage error.
+  ASSERT_EQ(test::run_command(cmd, &log), 0) << log;
+  EXPECT_NE(log.find("(loaded)"), std::string::npos) << log;
+  EXPECT_EQ(test::run_command(test::pathtracer_exe() +
+                                  " bench --error --backend cpu --configs "
+                                  "cpu+no-nea --out " +
+                                  dir,
+                              &log),
+            2)
+      << log;
+  EXPECT_NE(log.find("no-nee"), std::string::npos) << log;
+}
+
+}  // namespace

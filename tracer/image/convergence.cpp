@@ -1,0 +1,186 @@
+// Error terms against a reference with its variance, and the convergence summary of a sweep.
+#include "image/convergence.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "scene/diagnostics.h"
+
+namespace tracer {
+namespace {
+
+constexpr double kRelEpsilon = 0.01;  // as in metrics.cpp (pbrt-v4's MRSE)
+
+void require_size(const ImageRGB& img, const ImageRGB& ref, const char* what) {
+  if (img.width != ref.width || img.height != ref.height ||
+      img.pixels.size() != ref.pixels.size()) {
+    throw InputError(SourceLoc{"image comparison", 0},
+                     std::string("the ") + what + " is " + std::to_string(img.width) + "x" +
+                         std::to_string(img.height) + " but the reference is " +
+                         std::to_string(ref.width) + "x" + std::to_string(ref.height),
+                     "nothing was compared");
+  }
+}
+
+std::string fmt(const char* f, double a, double b = 0, double c = 0) {
+  char buf[160];
+  std::snprintf(buf, sizeof(buf), f, a, b, c);
+  return buf;
+}
+
+}  // namespace
+
+ImageRGB variance_from_halves(const ImageRGB& even, const ImageRGB& odd) {
+  require_size(odd, even, "odd half");
+  ImageRGB out = make_image(even.width, even.height);
+  for (size_t i = 0; i < even.pixels.size(); ++i) {
+    const double d = double(even.pixels[i]) - double(odd.pixels[i]);
+    out.pixels[i] = static_cast<float>(0.25 * d * d);
+  }
+  return out;
+}
+
+ErrorTerms error_terms(const ImageRGB& test, const ReferenceImage& ref, const ImageRGB* even,
+                       const ImageRGB* odd) {
+  require_size(test, ref.mean, "test image");
+  const bool ref_var = !ref.variance.pixels.empty();
+  if (ref_var) require_size(ref.variance, ref.mean, "reference's variance image");
+  const bool halves = even && odd;
+  if (halves) {
+    require_size(*even, ref.mean, "even half");
+    require_size(*odd, ref.mean, "odd half");
+  }
+  // Doubles throughout: a 1080p image has 6.2 M values.
+  double sum_rel = 0, sum_sq = 0, sum_floor = 0, sum_var = 0, sum_d = 0, sum_d2 = 0;
+  long n = 0;
+  for (size_t i = 0; i < test.pixels.size(); ++i) {
+    const double t = test.pixels[i], r = ref.mean.pixels[i];
+    if (!std::isfinite(t) || !std::isfinite(r)) continue;  // counted by the renderer and loader
+    const double w = 1.0 / ((r + kRelEpsilon) * (r + kRelEpsilon));
+    if (!std::isfinite(w)) continue;
+    const double sq = (t - r) * (t - r);
+    const double floor = ref_var ? double(ref.variance.pixels[i]) * w : 0.0;
+    double var = 0.0;
+    if (halves) {
+      const double d = double((*even).pixels[i]) - double((*odd).pixels[i]);
+      var = 0.25 * d * d * w;
+    }
+    ++n;
+    sum_sq += sq;
+    sum_rel += sq * w;
+    sum_floor += floor;
+    sum_var += var;
+    // Per value: error - its expected noise = an unbiased estimate of the squared bias.
+    const double bias_i = sq * w - floor - var;
+    sum_d += bias_i;
+    sum_d2 += bias_i * bias_i;
+  }
+  ErrorTerms e;
+  if (n == 0) return e;
+  e.relmse_raw = sum_rel / n;
+  e.reference_floor = sum_floor / n;
+  e.relmse = e.relmse_raw - e.reference_floor;
+  e.rmse = std::sqrt(sum_sq / n);
+  if (halves) {
+    e.variance = sum_var / n;
+    e.bias2 = sum_d / n;
+    const double mean = sum_d / n;
+    const double var_d = std::max(0.0, sum_d2 / n - mean * mean);
+    // Three channels of one pixel share the path: count pixels, not values, as independent.
+    e.bias2_stderr = std::sqrt(var_d / std::max(1.0, n / 3.0));
+  }
+  return e;
+}
+
+TimeToError time_to_error(const std::vector<Checkpoint>& sweep, double target) {
+  TimeToError out;
+  if (sweep.empty() || !(target > 0)) return out;
+  auto err = [](const Checkpoint& c) { return std::max(c.error.relmse, 1e-30); };
+  for (size_t i = 0; i < sweep.size(); ++i) {
+    if (err(sweep[i]) > target) continue;
+    if (i == 0) {  // already below at the first checkpoint: scale back along error ~ 1/time
+      out.seconds = sweep[0].seconds * err(sweep[0]) / target;
+      out.extrapolated = true;
+      return out;
+    }
+    const Checkpoint &a = sweep[i - 1], &b = sweep[i];
+    const double la = std::log(err(a)), lb = std::log(err(b)), lt = std::log(target);
+    const double ta = std::log(std::max(a.seconds, 1e-12)),
+                 tb = std::log(std::max(b.seconds, 1e-12));
+    const double f = la == lb ? 1.0 : (la - lt) / (la - lb);
+    out.seconds = std::exp(ta + f * (tb - ta));
+    return out;
+  }
+  const Checkpoint& last = sweep.back();
+  if (last.error.significant_bias() && last.error.bias2 >= target) return out;  // never
+  out.seconds = last.seconds * err(last) / target;
+  out.extrapolated = true;
+  return out;
+}
+
+ConvergenceSummary summarize(const std::vector<Checkpoint>& sweep) {
+  ConvergenceSummary s;
+  if (sweep.empty()) {
+    s.verdict = "no checkpoints";
+    return s;
+  }
+  // Least squares of log relMSE on log spp over the checkpoints with two samples or more (the
+  // first sample has no half-buffer variance and sits furthest from the asymptote).
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  std::vector<std::pair<double, double>> pts;
+  for (const Checkpoint& c : sweep) {
+    if (c.spp < 2 || !(c.error.relmse > 0)) continue;
+    pts.push_back({std::log(double(c.spp)), std::log(c.error.relmse)});
+  }
+  s.slope_points = int(pts.size());
+  if (pts.size() >= 2) {
+    for (auto [x, y] : pts) {
+      sx += x;
+      sy += y;
+      sxx += x * x;
+      sxy += x * y;
+    }
+    const double m = double(pts.size());
+    const double den = m * sxx - sx * sx;
+    s.slope = den > 0 ? (m * sxy - sx * sy) / den : 0.0;
+    const double icpt = (sy - s.slope * sx) / m;
+    if (pts.size() >= 3 && den > 0) {
+      double rss = 0;
+      for (auto [x, y] : pts) rss += (y - icpt - s.slope * x) * (y - icpt - s.slope * x);
+      s.slope_stderr = std::sqrt(rss / (m - 2) * m / den);
+    }
+  }
+  s.to_1e2 = time_to_error(sweep, 1e-2);
+  s.to_1e3 = time_to_error(sweep, 1e-3);
+  const Checkpoint& last = sweep.back();
+  if (last.error.relmse > 0 && last.seconds > 0)
+    s.efficiency = 1.0 / (last.error.relmse * last.seconds);
+
+  const bool flat = s.slope_points >= 4 && s.slope > -0.8;
+  if (last.error.significant_bias()) {
+    s.biased = true;
+    s.verdict =
+        fmt("biased: the error plateaus near relMSE %.2g (bias is %.0f%% of the error at "
+            "the last point)",
+            last.error.bias2, 100.0 * last.error.bias2 / last.error.relmse);
+    if (s.slope_points >= 2) s.verdict += fmt("; slope %.2f", s.slope);
+  } else if (flat) {
+    s.biased = true;
+    s.verdict =
+        fmt("slope %.2f +- %.2f is flatter than -1: bias, or a reference that is not "
+            "converged",
+            s.slope, s.slope_stderr);
+  } else if (s.slope_points >= 2) {
+    const bool near = std::abs(s.slope + 1.0) <= std::max(0.1, 2.0 * s.slope_stderr);
+    s.verdict = near ? fmt("unbiased (slope %.2f +- %.2f)", s.slope, s.slope_stderr)
+                     : fmt("no significant bias; slope %.2f +- %.2f is off -1 (outliers or "
+                           "too few samples)",
+                           s.slope, s.slope_stderr);
+  } else {
+    s.verdict = "too few checkpoints for a slope";
+  }
+  return s;
+}
+
+}  // namespace tracer
