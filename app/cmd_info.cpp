@@ -42,7 +42,10 @@ int run_info(const InfoOptions& o) {
                     {"emissive", emissive}};
   j["lights"] = v.light_count;
   j["bvh"] = {{"nodes", st.node_count},
+              {"width", tracer::kBvhWidth},
+              {"binary_nodes", st.binary_node_count},
               {"leaves", st.leaf_count},
+              {"max_stack", st.max_stack},
               {"depth", st.max_depth},
               {"sah_cost", st.sah_cost},
               {"build_ms", st.build_ms},
@@ -60,14 +63,15 @@ int run_info(const InfoOptions& o) {
             << "objects     " << scene.objects.size() << "\n"
             << "primitives  " << v.tri_count + v.sphere_count << " (" << v.tri_count
             << " triangles, " << v.sphere_count << " spheres)\n"
-            << "materials   " << scene.materials.size() << " ("
-            << by_type[0] << " diffuse, " << by_type[1] << " mirror, " << by_type[2]
-            << " dielectric; " << emissive << " emissive)\n"
+            << "materials   " << scene.materials.size() << " (" << by_type[0] << " diffuse, "
+            << by_type[1] << " mirror, " << by_type[2] << " dielectric; " << emissive
+            << " emissive)\n"
             << "lights      " << v.light_count << " emissive primitives\n"
-            << "bvh         " << st.node_count << " nodes (" << st.leaf_count << " leaves, "
-            << st.node_count * sizeof(tracer::BvhNode) / 1024.0 << " KiB), depth " << st.max_depth
-            << ", SAH cost " << std::fixed << std::setprecision(2) << st.sah_cost
-            << ", built in " << std::setprecision(2) << st.build_ms << " ms\n"
+            << "bvh         " << st.node_count << " " << tracer::kBvhWidth << "-wide nodes ("
+            << st.leaf_count << " leaves, " << st.node_count * sizeof(tracer::BvhNode) / 1024.0
+            << " KiB), depth " << st.max_depth << ", SAH cost " << std::fixed
+            << std::setprecision(2) << st.sah_cost << ", built in " << std::setprecision(2)
+            << st.build_ms << " ms\n"
             << "features    " << tracer::describe_features(cs.features()) << "\n"
             << "render      " << scene.settings.width << "x" << scene.settings.height << ", "
             << scene.settings.spp << " spp, max depth " << scene.settings.max_depth << "\n";

@@ -87,7 +87,9 @@ void check_against_brute_force(const Scene& scene, int rays, const std::string& 
   EXPECT_GT(hits, rays / 10) << what << ": the rays should hit something often";
 }
 
-TEST(Bvh, NodesAre32Bytes) { EXPECT_EQ(sizeof(BvhNode), 32u); }
+TEST(Bvh, NodesAreOneCacheLine) {
+  EXPECT_EQ(sizeof(BvhNode), 128u);
+}
 
 TEST(Bvh, RandomTrianglesAndSpheresMatchBruteForce) {
   std::mt19937 rng(7);
@@ -112,6 +114,36 @@ TEST(Bvh, DegenerateInputs) {
   check_against_brute_force(s, 500, "concentric spheres");
   const CompiledScene cs(s, 4, 4);
   EXPECT_LT(cs.bvh_stats().max_depth, uint32_t(kBvhStackSize));
+  EXPECT_LE(cs.bvh_stats().max_stack, uint32_t(kBvhStackSize));
+}
+
+TEST(Bvh, SinglePrimitive) {
+  // The binary tree is one leaf; the 4-wide root holds it in its only slot.
+  Scene s;
+  s.materials.push_back({"m", diffuse(vec3(0.5f))});
+  add_triangle(s.mesh, vec3(-1, -1, -1), vec3(1, -1, 0), vec3(0, 1, 1), 0);
+  check_against_brute_force(s, 200, "one triangle");
+  const CompiledScene cs(s, 4, 4);
+  EXPECT_EQ(cs.bvh_stats().node_count, 1u);
+  EXPECT_EQ(cs.bvh_stats().leaf_count, 1u);
+}
+
+TEST(Bvh, DeepUnbalancedTreeStaysWithinTheStack) {
+  // Triangles at geometrically growing distances make SAH peel off one small group per level,
+  // so the binary tree reaches its depth cap; collapsing it must keep the traversal stack
+  // within kBvhStackSize and still find every hit.
+  Scene s;
+  s.materials.push_back({"m", diffuse(vec3(0.5f))});
+  float x = 1.0f;
+  for (int i = 0; i < 400; ++i, x *= 1.03f) {
+    const float h = 2.0f * x;
+    add_triangle(s.mesh, vec3(x, -h, -h), vec3(x, h, -h), vec3(x, 0, h), 0);
+    add_triangle(s.mesh, vec3(-x, -h, -h), vec3(-x, 0, h), vec3(-x, h, -h), 0);
+  }
+  check_against_brute_force(s, 3000, "geometric series");
+  const CompiledScene cs(s, 4, 4);
+  EXPECT_LE(cs.bvh_stats().max_stack, uint32_t(kBvhStackSize));
+  EXPECT_GT(cs.bvh_stats().max_depth, 4u) << "the input should make a deep tree";
 }
 
 TEST(Bvh, EmptyScene) {

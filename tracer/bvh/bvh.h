@@ -1,5 +1,5 @@
-// The BVH layout shared by both backends: 32-byte nodes in one flat array (tinybvh's layout) and a
-// primitive index array that leaves point into. Traversal lives in scene/scene_view.h because it
+// The BVH layout shared by both backends: 4-wide 128-byte nodes in one flat array and a primitive
+// index array that leaves point into. Traversal lives in scene/scene_view.h because it
 // needs the primitives; the host-side binned-SAH builder is declared here.
 #pragma once
 
@@ -29,31 +29,53 @@ struct Aabb {
   }
 };
 
-// 32 bytes. count == 0: interior node whose children are nodes left_first and left_first + 1.
-// count > 0: leaf holding prim_indices[left_first, left_first + count).
-struct alignas(16) BvhNode {
-  vec3 lo;
-  uint32_t left_first;
-  vec3 hi;
-  uint32_t count;
-  TRACER_HD bool is_leaf() const { return count > 0; }
-};
-static_assert(sizeof(BvhNode) == 32, "BvhNode must stay 32 bytes");
+// The tree is 4-wide: fewer, larger steps per ray than a binary tree, and one 128-byte fetch
+// brings the boxes of all four children (Wald, Benthin & Boulos, "Getting Rid of Packets", 2008;
+// Ylitie, Karras & Laine, "Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide
+// BVHs", HPG 2017, who go further and quantise the boxes).
+constexpr int kBvhWidth = 4;
 
-// Loads a node as two 16-byte reads through the read-only cache on the GPU (plain float loads
+// A child reference. Inner nodes: the node's index. Leaves (kBvhLeafBit set): the index of the
+// leaf's first entry in prim_indices; the leaf's last entry carries kBvhLastPrimBit, so leaves
+// of any size fit in one 32-bit reference.
+constexpr uint32_t kBvhLeafBit = 0x80000000u;
+constexpr uint32_t kBvhLastPrimBit = 0x80000000u;
+TRACER_HD TRACER_INLINE bool is_leaf_ref(uint32_t ref) {
+  return (ref & kBvhLeafBit) != 0;
+}
+
+// One child of a node: its box and its reference, 32 bytes (tinybvh's binary node layout). An
+// unused slot has an empty box (lo = +inf, hi = -inf) that no ray enters.
+struct alignas(16) BvhSlot {
+  vec3 lo;
+  uint32_t ref;
+  vec3 hi;
+  uint32_t pad;
+};
+static_assert(sizeof(BvhSlot) == 32, "BvhSlot must stay 32 bytes");
+
+// Slots are stored child by child (array of structures) rather than axis by axis: a child's box
+// is two 16-byte loads, tested as soon as it arrives, so the traversal holds two values per
+// child (distance, reference) instead of the 24 coordinates of all four boxes.
+struct alignas(16) BvhNode {
+  BvhSlot child[kBvhWidth];
+};
+static_assert(sizeof(BvhNode) == 128, "BvhNode must stay one 128-byte cache line");
+
+// Loads one slot as two 16-byte reads through the read-only cache on the GPU (plain float loads
 // of a vec3 layout would take eight 4-byte instructions).
-TRACER_HD TRACER_INLINE BvhNode load_node(const BvhNode* nodes, uint32_t i) {
+TRACER_HD TRACER_INLINE BvhSlot load_slot(const BvhNode* nodes, uint32_t node, int i) {
 #if defined(__CUDA_ARCH__)
-  const float4* p = reinterpret_cast<const float4*>(nodes + i);
+  const float4* p = reinterpret_cast<const float4*>(&nodes[node].child[i]);
   const float4 a = __ldg(p), b = __ldg(p + 1);
-  BvhNode n;
-  n.lo = vec3(a.x, a.y, a.z);
-  n.left_first = __float_as_uint(a.w);
-  n.hi = vec3(b.x, b.y, b.z);
-  n.count = __float_as_uint(b.w);
-  return n;
+  BvhSlot c;
+  c.lo = vec3(a.x, a.y, a.z);
+  c.ref = __float_as_uint(a.w);
+  c.hi = vec3(b.x, b.y, b.z);
+  c.pad = 0;
+  return c;
 #else
-  return nodes[i];
+  return nodes[node].child[i];
 #endif
 }
 
@@ -82,13 +104,18 @@ TRACER_HD TRACER_INLINE float intersect_aabb(vec3 lo, vec3 hi, vec3 o, vec3 inv_
   return t_near <= t_far ? t_near : kInfinity;
 }
 
+// Entries of the traversal stack; the builder keeps every tree within it
+// (BvhBuildStats::max_stack).
 constexpr int kBvhStackSize = 64;
 
 struct BvhBuildStats {
-  uint32_t node_count = 0;
+  uint32_t node_count = 0;         // 4-wide nodes; the root is node 0 and is never a leaf
+  uint32_t binary_node_count = 0;  // nodes of the binary tree it was collapsed from
   uint32_t leaf_count = 0;
-  uint32_t max_depth = 0;
-  float sah_cost = 0.0f;  // expected cost, traversal 1, primitive 1, relative to the root's area
+  uint32_t max_depth = 0;  // of the 4-wide tree
+  uint32_t max_stack = 0;  // most stack entries a traversal can hold, <= kBvhStackSize
+  float sah_cost =
+      0.0f;  // of the binary tree: traversal 1, primitive 1, relative to the root's area
   double build_ms = 0.0;
 };
 
@@ -99,7 +126,8 @@ struct Bvh {
 };
 
 // Binned SAH build (Wald, "On fast Construction of SAH-based Bounding Volume Hierarchies", 2007)
-// over primitives given by their bounds and centroids. Depth is capped below kBvhStackSize.
+// of a binary tree over primitives given by their bounds and centroids, collapsed into a 4-wide
+// tree whose traversal stack cannot overflow kBvhStackSize.
 Bvh build_bvh(const std::vector<Aabb>& prim_bounds, int max_leaf_size = 4);
 
 }  // namespace tracer

@@ -13,9 +13,9 @@ namespace tracer {
 
 // Cold per-triangle data, read only after a hit.
 struct TriangleShading {
-  vec3 n0, n1, n2;     // vertex normals; zero when the mesh has none
+  vec3 n0, n1, n2;  // vertex normals; zero when the mesh has none
   uint32_t material;
-  uint32_t light;      // index into the light list, kInvalid when not emissive
+  uint32_t light;  // index into the light list, kInvalid when not emissive
   uint32_t has_normals;
 };
 
@@ -40,7 +40,7 @@ struct SceneView {
   const Sphere* spheres = nullptr;
   const Material* materials = nullptr;
   const Light* lights = nullptr;
-  const float* light_cdf = nullptr;  // light_count + 1 entries, 0 .. 1
+  const float* light_cdf = nullptr;       // light_count + 1 entries, 0 .. 1
   const TriangleUv* tri_uvs = nullptr;    // tri_count entries, or null when the mesh has none
   const TextureDesc* textures = nullptr;  // texture_count entries
   const uint32_t* texels = nullptr;       // RGBA8 texels of all textures, one after another
@@ -59,44 +59,59 @@ TRACER_HD TRACER_INLINE bool warp_all(bool pred) {
 #endif
 }
 
-// Tests the primitives of one leaf; returns true when an any-hit query may stop.
+// Tests the primitives of the leaf `ref` (a leaf reference, see bvh.h); returns true when an
+// any-hit query may stop.
 template <uint32_t F, bool kAnyHit>
 TRACER_HD TRACER_INLINE bool intersect_leaf(const SceneView& s, const Ray& ray,
-                                            const RayTriSetup& setup, const BvhNode& leaf,
-                                            uint32_t skip, uint32_t skip2, float& tmax,
-                                            Hit& hit) {
-  for (uint32_t i = 0; i < leaf.count; ++i) {
-    const uint32_t prim = s.prim_indices[leaf.left_first + i];
-    if (prim == skip || prim == skip2) continue;
-    float t, b1 = 0.0f, b2 = 0.0f;
-    bool h;
-    if (!(F & kFeatureSpheres) || prim < s.tri_count) {
-      const TriangleVerts tv = load_triangle(s.tri_verts, prim);
-      h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
-    } else {
-      const Sphere sph = load_sphere(s.spheres, prim - s.tri_count);
-      h = intersect_sphere(ray, sph.center, sph.radius, tmax, t);
+                                            const RayTriSetup& setup, uint32_t ref, uint32_t skip,
+                                            uint32_t skip2, float& tmax, Hit& hit) {
+  for (uint32_t i = ref & ~kBvhLeafBit;; ++i) {
+    const uint32_t entry = s.prim_indices[i];
+    const uint32_t prim = entry & ~kBvhLastPrimBit;
+    if (prim != skip && prim != skip2) {
+      float t, b1 = 0.0f, b2 = 0.0f;
+      bool h;
+      if (!(F & kFeatureSpheres) || prim < s.tri_count) {
+        const TriangleVerts tv = load_triangle(s.tri_verts, prim);
+        h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
+      } else {
+        const Sphere sph = load_sphere(s.spheres, prim - s.tri_count);
+        h = intersect_sphere(ray, sph.center, sph.radius, tmax, t);
+      }
+      if (h) {
+        tmax = t;
+        hit.t = t;
+        hit.prim = prim;
+        hit.u = b1;
+        hit.v = b2;
+        if (kAnyHit) return true;
+      }
     }
-    if (h) {
-      tmax = t;
-      hit.t = t;
-      hit.prim = prim;
-      hit.u = b1;
-      hit.v = b2;
-      if (kAnyHit) return true;
-    }
+    if (entry & kBvhLastPrimBit) return false;
   }
-  return false;
 }
 
-// BVH traversal in the "while-while" form with postponed leaves of Aila & Laine, "Understanding
-// the Efficiency of Ray Traversal on GPUs" (HPG 2009): a lane that reaches a leaf parks it and
-// keeps descending inner nodes until every lane of the warp holds a leaf, then all test their
-// leaves together. This keeps the lanes of a warp on the same kind of work. Children are visited
-// near-first. kAnyHit stops at the first hit in (0, ray.tmax). Primitives `skip` and `skip2` are
-// ignored: the light a shadow ray aims at, and the triangle a ray leaves from (a ray cannot
-// re-enter the plane it left; this backs up the origin offset where a triangle is much larger
-// than the distances involved).
+// Orders two (distance, reference) pairs nearest first.
+TRACER_HD TRACER_INLINE void order_pair(float& da, uint32_t& ra, float& db, uint32_t& rb) {
+  const bool swap = db < da;
+  const float d = swap ? db : da;
+  const uint32_t r = swap ? rb : ra;
+  db = swap ? da : db;
+  rb = swap ? ra : rb;
+  da = d;
+  ra = r;
+}
+
+// Traversal of the 4-wide BVH in the "while-while" form with postponed leaves of Aila & Laine,
+// "Understanding the Efficiency of Ray Traversal on GPUs" (HPG 2009): a lane that reaches a leaf
+// parks it and keeps descending inner nodes until every lane of the warp holds a leaf, then all
+// test their leaves together. This keeps the lanes of a warp on the same kind of work. Each step
+// tests the four child boxes of one node; closest-hit queries visit them near-first (a five-
+// comparator sorting network), any-hit queries in stored order, since any blocker will do.
+// kAnyHit stops at the first hit in (0, ray.tmax). Primitives `skip` and `skip2` are ignored:
+// the light a shadow ray aims at, and the triangle a ray leaves from (a ray cannot re-enter the
+// plane it left; this backs up the origin offset where a triangle is much larger than the
+// distances involved). The stack holds child references; the builder bounds its depth.
 template <uint32_t F, bool kAnyHit>
 TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
   Hit hit;
@@ -106,47 +121,64 @@ TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip,
   float tmax = ray.tmax;
   uint32_t stack[kBvhStackSize];
   int sp = 0;
-  BvhNode node = load_node(s.nodes, 0);
-  bool have_node = intersect_aabb(node.lo, node.hi, ray.o, inv_d, tmax) != kInfinity;
-  BvhNode leaf;
+  uint32_t next = 0;  // the next child reference to visit; the root is an inner node
+  bool have_next = true;
+  uint32_t leaf = 0;
   bool have_leaf = false;
-  while (have_node || have_leaf) {
+  while (have_next || have_leaf) {
     // Descend inner nodes; park the first leaf found and go on until the whole warp has one.
-    while (have_node && !node.is_leaf()) {
-      const uint32_t c0 = node.left_first, c1 = node.left_first + 1;
-      const BvhNode n0 = load_node(s.nodes, c0), n1 = load_node(s.nodes, c1);
-      const float d0 = intersect_aabb(n0.lo, n0.hi, ray.o, inv_d, tmax);
-      const float d1 = intersect_aabb(n1.lo, n1.hi, ray.o, inv_d, tmax);
-      const bool swap = d1 < d0;
-      if ((swap ? d1 : d0) == kInfinity) {
-        have_node = sp > 0;
-        if (have_node) node = load_node(s.nodes, stack[--sp]);
-      } else {
-        if ((swap ? d0 : d1) != kInfinity) stack[sp++] = swap ? c0 : c1;
-        node = swap ? n1 : n0;
+    while (have_next && !is_leaf_ref(next)) {
+      float d[kBvhWidth];
+      uint32_t r[kBvhWidth];
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+      for (int i = 0; i < kBvhWidth; ++i) {
+        const BvhSlot c = load_slot(s.nodes, next, i);
+        d[i] = intersect_aabb(c.lo, c.hi, ray.o, inv_d, tmax);
+        r[i] = c.ref;
       }
-      if (have_node && node.is_leaf() && !have_leaf) {
-        leaf = node;
+      if (!kAnyHit) {
+        order_pair(d[0], r[0], d[1], r[1]);
+        order_pair(d[2], r[2], d[3], r[3]);
+        order_pair(d[0], r[0], d[2], r[2]);
+        order_pair(d[1], r[1], d[3], r[3]);
+        order_pair(d[1], r[1], d[2], r[2]);
+      }
+      // Push the farther children that were hit, farthest first; go on with the nearest.
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+      for (int i = kBvhWidth - 1; i > 0; --i)
+        if (d[i] != kInfinity) stack[sp++] = r[i];
+      if (d[0] != kInfinity) {
+        next = r[0];
+      } else {
+        have_next = sp > 0;
+        if (have_next) next = stack[--sp];
+      }
+      if (have_next && is_leaf_ref(next) && !have_leaf) {
+        leaf = next;
         have_leaf = true;
-        have_node = sp > 0;
-        if (have_node) node = load_node(s.nodes, stack[--sp]);
+        have_next = sp > 0;
+        if (have_next) next = stack[--sp];
       }
       if (warp_all(have_leaf)) break;
     }
-    if (!have_leaf && have_node && node.is_leaf()) {
-      leaf = node;
+    if (!have_leaf && have_next && is_leaf_ref(next)) {
+      leaf = next;
       have_leaf = true;
-      have_node = sp > 0;
-      if (have_node) node = load_node(s.nodes, stack[--sp]);
+      have_next = sp > 0;
+      if (have_next) next = stack[--sp];
     }
     // Test the parked leaf, then any leaf that is next in line.
     while (have_leaf) {
       if (intersect_leaf<F, kAnyHit>(s, ray, setup, leaf, skip, skip2, tmax, hit)) return hit;
-      have_leaf = have_node && node.is_leaf();
+      have_leaf = have_next && is_leaf_ref(next);
       if (have_leaf) {
-        leaf = node;
-        have_node = sp > 0;
-        if (have_node) node = load_node(s.nodes, stack[--sp]);
+        leaf = next;
+        have_next = sp > 0;
+        if (have_next) next = stack[--sp];
       }
     }
   }
@@ -171,10 +203,10 @@ TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t
 
 // Everything the shading stage needs to know about a hit point.
 struct SurfaceHit {
-  vec3 p;         // position
-  vec3 ng;        // unit geometric normal (triangle winding / sphere outward)
-  vec3 ns;        // unit shading normal, on the same side as ng
-  vec2 uv;        // texture coordinates (F with kFeatureTextures only; else zero)
+  vec3 p;   // position
+  vec3 ng;  // unit geometric normal (triangle winding / sphere outward)
+  vec3 ns;  // unit shading normal, on the same side as ng
+  vec2 uv;  // texture coordinates (F with kFeatureTextures only; else zero)
   uint32_t material;
   uint32_t light;  // kInvalid when not emissive
   bool front;      // the ray arrived on the ng side
