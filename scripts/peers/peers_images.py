@@ -77,6 +77,8 @@ def regions(args):
     ta, tb, ra, rb = [read(f) for f in files]
     t, r = (ta + tb) / 2, (ra + rb) / 2
     tvar, rvar = (ta - tb) ** 2 / 4, (ra - rb) ** 2 / 4  # per-pixel variance of the means
+    tgvar = (ta - tb).mean(axis=2) ** 2 / 4
+    rgvar = (ra - rb).mean(axis=2) ** 2 / 4
     h, w, _ = t.shape
     rows = []
 
@@ -87,7 +89,8 @@ def regions(args):
         tse = np.sqrt(tvar[ys, xs].reshape(-1, 3).sum(axis=0)) / n
         rse = np.sqrt(rvar[ys, xs].reshape(-1, 3).sum(axis=0)) / n
         tl, rl = tm.mean(), rm.mean()  # grey = mean of RGB
-        dse = np.sqrt((tse ** 2 + rse ** 2).mean() / 3)  # s.e. of the grey difference (approx.)
+        # s.e. of the grey difference, from the grey per pixel (the channels are correlated)
+        dse = np.sqrt(tgvar[ys, xs].sum() + rgvar[ys, xs].sum()) / n
         rows.append((name, tl, rl, tl / rl - 1 if rl > 0 else float("nan"),
                      (tl - rl) / dse if dse > 0 else float("nan"), tm, rm, tse, rse))
 
