@@ -33,7 +33,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}
+MODE=${1:-all}  # all | tests | render | gui | bench | error
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -84,5 +84,27 @@ if [ "$MODE" = all ] || [ "$MODE" = bench ]; then
     echo >> "$OUT/bench.jsonl"
   done
   rm -f "$OUT/b.json"
+fi
+if [ "$MODE" = all ] || [ "$MODE" = error ]; then
+  # Error against time (issue 6): references of 32768 samples (GPU), then each configuration's
+  # sweep. Everything of a run goes into one tarball ($OUT holds at most 8 files).
+  echo "== error against time"
+  E=/tmp/error-bench
+  rm -rf $E
+  echo "---- cornell_box 1920x1080 depth 8 (the GPU target: relMSE 1e-3 in under 1 s)"
+  $DIST/pathtracer bench --error "$(scene cornell_box)" --width 1920 --height 1080 --max-depth 8 \
+    --reference-spp 32768 --max-spp 4096 --time-limit 10 --out $E/cornell_1080p
+  echo "---- cornell_box 512x512 depth 8 (the reference for the CPU and peer comparison)"
+  $DIST/pathtracer bench --error "$(scene cornell_box)" --width 512 --height 512 --max-depth 8 \
+    --reference-spp 32768 --max-spp 8192 --time-limit 5 \
+    --configs megakernel,wavefront,megakernel+no-nee,megakernel+depth=4,cpu --out $E/cornell_512
+  echo "---- cornell_spheres 960x540 depth 8 (glass and mirror: caustics, Schlick)"
+  $DIST/pathtracer bench --error "$(scene cornell_spheres)" --width 960 --height 540 \
+    --max-depth 8 --reference-spp 32768 --max-spp 4096 --time-limit 5 \
+    --configs megakernel,wavefront,wavefront+sorting,megakernel+no-mis,megakernel+schlick,megakernel+clamp=10 \
+    --out $E/spheres_540p
+  # The 512x512 reference comes back (the CPU and peer comparison use it); larger ones stay there.
+  tar czf "$OUT/error-bench.tgz" -C /tmp --exclude='*1920x1080*.exr' --exclude='*960x540*.exr' \
+    error-bench
 fi
 echo "== done"

@@ -66,6 +66,43 @@ TEST(RayOffset, NoSelfIntersectionOnPlanesAndSpheres) {
   }
 }
 
+// smallpt's walls: spheres of radius 1e5 whose near surface is a few units from the origin. The
+// hit must land on the surface (in float it cancelled to 0.01 units off) and a ray leaving it
+// must not hit it again, or the walls show self-shadowing bands.
+TEST(RayOffset, HugeSphereWallsAsInSmallpt) {
+  Scene s;
+  s.materials.push_back({"m", diffuse(vec3(0.5f))});
+  const vec3 centers[] = {{100001.0f, 40.8f, 81.6f}, {-99901.0f, 40.8f, 81.6f},
+                          {50.0f, 40.8f, 100000.0f}, {50.0f, 100000.0f, 81.6f},
+                          {50.0f, -99918.4f, 81.6f}};
+  for (vec3 c : centers) s.spheres.push_back({c, 1e5f, 0});
+  const CompiledScene cs(s, 4, 4);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  int self_hits = 0, tested = 0;
+  double worst = 0.0;
+  for (int i = 0; i < 20000; ++i) {
+    Ray r;
+    r.o = vec3(10.0f + 80.0f * u(rng), 5.0f + 70.0f * u(rng), 10.0f + 140.0f * u(rng));
+    r.d = sample_uniform_sphere(vec2(u(rng), u(rng)));
+    r.tmax = kInfinity;
+    r.pad = 0;
+    const Hit h = intersect_closest(cs.view(), r);
+    if (!h.valid()) continue;  // out through the open front
+    const SurfaceHit sh = make_surface_hit(cs.view(), r, h);
+    const SphereDesc& sp = s.spheres[h.prim];  // no triangles: prim is the sphere index
+    const glm::dvec3 e = glm::dvec3(sh.p) - glm::dvec3(sp.center);
+    worst = std::max(worst, std::abs(glm::length(e) - 1e5));  // distance off the surface
+    const vec3 n = sh.front ? sh.ng : -sh.ng;
+    const Hit h2 = intersect_closest(cs.view(), spawn_ray(sh.p, sh.ng, hemisphere_dir(rng, n)));
+    if (h2.valid() && h2.prim == h.prim) ++self_hits;
+    ++tested;
+  }
+  EXPECT_GT(tested, 15000);
+  EXPECT_EQ(self_hits, 0);
+  EXPECT_LT(worst, 2e-3) << "hit points off the wall surface";
+}
+
 TEST(RayOffset, RaysInsideSpheresReachTheFarSide) {
   for (const Case& c : cases()) {
     Scene s;

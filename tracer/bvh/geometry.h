@@ -125,27 +125,36 @@ TRACER_HD inline bool intersect_triangle(const Ray& ray, const RayTriSetup& s, v
 // Nearest root of |o + t d - c| = r in (0, tmax).
 TRACER_HD inline bool intersect_sphere(const Ray& ray, vec3 center, float radius, float tmax,
                                        float& t_out) {
-  const vec3 f = ray.o - center;
-  const float b = -glm::dot(f, ray.d);
-  const vec3 l = f + b * ray.d;  // f minus its projection on d, computed without cancellation
-  const float r2 = radius * radius;
-  const float disc = r2 - glm::dot(l, l);
-  if (disc < 0.0f) return false;
-  const float c = glm::dot(f, f) - r2;
-  const float q = b + (b >= 0.0f ? glm::sqrt(disc) : -glm::sqrt(disc));  // never cancels
-  if (q == 0.0f) return false;
-  float t0 = c / q, t1 = q;
+  // Double precision: with the huge spheres used as walls (smallpt's are of radius 1e5, 100
+  // units from the camera) |f|^2 - r^2 cancels 1e10-sized terms, and in float the hit lands up to
+  // 0.01 units off the surface, below the ray offset's reach: walls show self-hit bands. Hopper
+  // runs FP64 at half the FP32 rate, and this is a few dozen operations per sphere test.
+  const double fx = double(ray.o.x) - double(center.x), fy = double(ray.o.y) - double(center.y),
+               fz = double(ray.o.z) - double(center.z);
+  const double dx = ray.d.x, dy = ray.d.y, dz = ray.d.z;
+  const double dd = dx * dx + dy * dy + dz * dz;  // directions are unit length up to rounding
+  const double b = -(fx * dx + fy * dy + fz * dz) / dd;
+  // f minus its projection on d, computed without cancellation (Haines et al., Ray Tracing Gems
+  // ch. 7): the discriminant is r^2 - |l|^2.
+  const double lx = fx + b * dx, ly = fy + b * dy, lz = fz + b * dz;
+  const double r2 = double(radius) * double(radius);
+  const double disc = r2 - (lx * lx + ly * ly + lz * lz);
+  if (disc < 0.0) return false;
+  const double c = (fx * fx + fy * fy + fz * fz - r2) / dd;
+  const double q = b + (b >= 0.0 ? sqrt(disc / dd) : -sqrt(disc / dd));  // never cancels
+  if (q == 0.0) return false;
+  double t0 = c / q, t1 = q;
   if (t0 > t1) {
-    const float tmp = t0;
+    const double tmp = t0;
     t0 = t1;
     t1 = tmp;
   }
-  if (t0 > 0.0f && t0 < tmax) {
-    t_out = t0;
+  if (t0 > 0.0 && t0 < double(tmax)) {
+    t_out = float(t0);
     return true;
   }
-  if (t1 > 0.0f && t1 < tmax) {
-    t_out = t1;
+  if (t1 > 0.0 && t1 < double(tmax)) {
+    t_out = float(t1);
     return true;
   }
   return false;

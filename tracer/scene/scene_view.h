@@ -239,9 +239,16 @@ TRACER_HD inline SurfaceHit make_surface_hit(const SceneView& s, const Ray& ray,
   } else {
     const Sphere& sph = s.spheres[hit.prim - s.tri_count];
     const vec3 p = ray.o + hit.t * ray.d;
-    sh.ng = glm::normalize(p - sph.center);
-    // Re-project onto the surface to remove the error of o + t d (pbrt-v4 sec. 6.8.5).
-    sh.p = sph.center + sph.radius * sh.ng;
+    // Re-project onto the surface to remove the error of o + t d (pbrt-v4 sec. 6.8.5), in double:
+    // in float, centre + radius * n of a radius-1e5 wall is off by ulp(1e5) = 0.008, more than
+    // the ray offset at a point 100 units from the origin.
+    const double ex = double(p.x) - double(sph.center.x), ey = double(p.y) - double(sph.center.y),
+                 ez = double(p.z) - double(sph.center.z);
+    const double inv = 1.0 / sqrt(ex * ex + ey * ey + ez * ez);
+    sh.ng = vec3(float(ex * inv), float(ey * inv), float(ez * inv));
+    const double k = double(sph.radius) * inv;
+    sh.p = vec3(float(double(sph.center.x) + k * ex), float(double(sph.center.y) + k * ey),
+                float(double(sph.center.z) + k * ez));
     sh.ns = sh.ng;
     sh.uv = vec2(0.0f);  // spheres have no texture coordinates
     sh.material = sph.material;
