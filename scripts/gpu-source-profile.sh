@@ -15,10 +15,14 @@ NCU=$(command -v ncu || ls /opt/nvidia/nsight-compute/*/ncu /usr/local/cuda/bin/
 nvidia-smi --query-gpu=name,clocks.sm,clocks.max.sm,driver_version --format=csv,noheader
 date -u
 # Line-info disassembly of every kernel, with the chain of inlined call sites per instruction.
+# (cuobjdump and nvdisasm are also on PyPI as nvidia-cuda-cuobjdump / nvidia-cuda-nvdisasm, to
+# disassemble a carried binary on the build machine instead.)
+CUDA_BIN=$(dirname "$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)")
 W=/tmp/sass
-rm -rf "$W" && mkdir -p "$W" && (cd "$W" && cuobjdump -xelf all "$OLDPWD/$D/$BIN" > /dev/null)
+rm -rf "$W" && mkdir -p "$W" && (cd "$W" && "$CUDA_BIN/cuobjdump" -xelf all "$OLDPWD/$D/$BIN" > /dev/null)
 for f in "$W"/*.cubin; do
-  nvdisasm -c -gi "$f" 2>/dev/null | grep -q megakernel && nvdisasm -c -gi "$f" > "$OUT/disasm.txt"
+  "$CUDA_BIN/nvdisasm" -c -gi "$f" 2>/dev/null | grep -q megakernel &&
+    "$CUDA_BIN/nvdisasm" -c -gi "$f" > "$OUT/disasm.txt"
 done
 timeout 240 "$NCU" --clock-control none -k regex:megakernel --launch-skip 3 --launch-count 1 \
   --section SourceCounters --section InstructionStats --section WarpStateStats \
