@@ -14,14 +14,14 @@ using namespace test;
 
 Hit brute_force(const SceneView& s, const Ray& ray) {
   Hit best;
-  const RayTriSetup setup(ray.d);
+  const RayTriSetup setup(ray, 1.0f / ray.d);
   float tmax = ray.tmax;
   for (uint32_t p = 0; p < s.tri_count + s.sphere_count; ++p) {
     float t, b1 = 0, b2 = 0;
     bool h;
     if (p < s.tri_count) {
       const auto& tv = s.tri_verts[p];
-      h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
+      h = intersect_triangle(setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
     } else {
       const auto& sp = s.spheres[p - s.tri_count];
       h = intersect_sphere(ray, sp.center, sp.radius, tmax, t);

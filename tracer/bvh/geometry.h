@@ -70,36 +70,46 @@ TRACER_HD TRACER_INLINE Sphere load_sphere(const Sphere* spheres, uint32_t i) {
 #endif
 }
 
+// v[k] for a run-time k in {0, 1, 2}, as two selects. GLM's operator[] is a switch, which nvcc
+// compiles to branches: in the triangle test below they were over half of its warp instructions,
+// at 6 of 32 lanes (Nsight source counters, docs/PERFORMANCE.md).
+TRACER_HD TRACER_INLINE float pick(vec3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
+
 // Per-ray constants of the watertight test: the axis permutation and shear that map the ray
-// direction to +z.
+// direction to +z, and the origin in permuted order. inv_d is 1/d, as the box tests use it.
 struct RayTriSetup {
   int kx, ky, kz;
   float sx, sy, sz;
-  TRACER_HD explicit RayTriSetup(vec3 d) {
+  vec3 o;  // (o[kx], o[ky], o[kz])
+  TRACER_HD RayTriSetup(const Ray& ray, vec3 inv_d) {
+    const vec3 d = ray.d;
     const vec3 a = glm::abs(d);
     kz = (a.x > a.y) ? (a.x > a.z ? 0 : 2) : (a.y > a.z ? 1 : 2);
     kx = (kz + 1) % 3;
     ky = (kx + 1) % 3;
-    if (d[kz] < 0.0f) {  // keep the winding so that U, V, W signs stay meaningful
+    if (pick(d, kz) < 0.0f) {  // keep the winding so that U, V, W signs stay meaningful
       const int tmp = kx;
       kx = ky;
       ky = tmp;
     }
-    sx = d[kx] / d[kz];
-    sy = d[ky] / d[kz];
-    sz = 1.0f / d[kz];
+    sx = pick(d, kx) / pick(d, kz);
+    sy = pick(d, ky) / pick(d, kz);
+    sz = pick(inv_d, kz);  // 1 / d[kz], the same float
+    o = permute(ray.o);
   }
+  // (v[kx], v[ky], v[kz]).
+  TRACER_HD vec3 permute(vec3 v) const { return vec3(pick(v, kx), pick(v, ky), pick(v, kz)); }
 };
 
 // Returns true and fills t, b1, b2 when the ray hits the triangle at 0 < t < tmax.
 // Edges shared by two triangles are hit by exactly one or both of them, never neither.
-TRACER_HD inline bool intersect_triangle(const Ray& ray, const RayTriSetup& s, vec3 p0, vec3 p1,
-                                         vec3 p2, float tmax, float& t_out, float& b1_out,
-                                         float& b2_out) {
-  const vec3 A = p0 - ray.o, B = p1 - ray.o, C = p2 - ray.o;
-  const float ax = A[s.kx] - s.sx * A[s.kz], ay = A[s.ky] - s.sy * A[s.kz];
-  const float bx = B[s.kx] - s.sx * B[s.kz], by = B[s.ky] - s.sy * B[s.kz];
-  const float cx = C[s.kx] - s.sx * C[s.kz], cy = C[s.ky] - s.sy * C[s.kz];
+// Coordinates are permuted before the origin is subtracted: the same floats as (p - o)[k].
+TRACER_HD inline bool intersect_triangle(const RayTriSetup& s, vec3 p0, vec3 p1, vec3 p2,
+                                         float tmax, float& t_out, float& b1_out, float& b2_out) {
+  const vec3 A = s.permute(p0) - s.o, B = s.permute(p1) - s.o, C = s.permute(p2) - s.o;
+  const float ax = A.x - s.sx * A.z, ay = A.y - s.sy * A.z;
+  const float bx = B.x - s.sx * B.z, by = B.y - s.sy * B.z;
+  const float cx = C.x - s.sx * C.z, cy = C.y - s.sy * C.z;
   float U = cx * by - cy * bx;
   float V = ax * cy - ay * cx;
   float W = bx * ay - by * ax;
@@ -112,7 +122,7 @@ TRACER_HD inline bool intersect_triangle(const Ray& ray, const RayTriSetup& s, v
   if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
   const float det = U + V + W;
   if (det == 0.0f) return false;
-  const float az = s.sz * A[s.kz], bz = s.sz * B[s.kz], cz = s.sz * C[s.kz];
+  const float az = s.sz * A.z, bz = s.sz * B.z, cz = s.sz * C.z;
   const float T = U * az + V * bz + W * cz;
   if (det < 0.0f ? (T >= 0.0f || T < tmax * det) : (T <= 0.0f || T > tmax * det)) return false;
   const float inv_det = 1.0f / det;

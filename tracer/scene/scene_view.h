@@ -73,7 +73,7 @@ TRACER_HD TRACER_INLINE bool intersect_leaf(const SceneView& s, const Ray& ray,
       bool h;
       if (!(F & kFeatureSpheres) || prim < s.tri_count) {
         const TriangleVerts tv = load_triangle(s.tri_verts, prim);
-        h = intersect_triangle(ray, setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
+        h = intersect_triangle(setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2);
       } else {
         const Sphere sph = load_sphere(s.spheres, prim - s.tri_count);
         h = intersect_sphere(ray, sph.center, sph.radius, tmax, t);
@@ -116,8 +116,8 @@ template <uint32_t F, bool kAnyHit>
 TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
   Hit hit;
   if (s.node_count == 0) return hit;
-  const RayTriSetup setup(ray.d);
   const vec3 inv_d = 1.0f / ray.d;  // infinities are handled by intersect_aabb
+  const RayTriSetup setup(ray, inv_d);
   float tmax = ray.tmax;
   uint32_t stack[kBvhStackSize];
   int sp = 0;
