@@ -41,7 +41,7 @@ fi
 
 if [ "$MODE" = all ] || [ "$MODE" = render ]; then
   echo "== renders (CUDA backend); sidecars stay in /tmp (8 files come back at most)"
-  for s in cornell_spheres subsurface rough_materials cornell_bunnies; do
+  for s in cornell_spheres subsurface rough_materials cornell_bunnies smallpt; do
     $DIST/pathtracer render "$(scene $s)" --backend cuda --spp 1024 --out "/tmp/$s.png"
     cp "/tmp/$s.png" "$OUT/"
   done
