@@ -526,8 +526,10 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
   for (const Sweep& s : sweeps) {
     const auto& p = s.points.back();
     const auto& m = s.summary;
-    std::printf("%-30s %7u %8.3f %10.3e %9.3e %7.4f %9s %9s %9.3g %7.2f  %s\n",
-                s.config.name.c_str(), p.spp, p.seconds, p.error.relmse, p.error.rmse, p.flip,
+    char flip[16] = "      -";  // not computed (--flip off)
+    if (p.flip >= 0) std::snprintf(flip, sizeof(flip), "%7.4f", p.flip);
+    std::printf("%-30s %7u %8.3f %10.3e %9.3e %s %9s %9s %9.3g %7.2f  %s\n",
+                s.config.name.c_str(), p.spp, p.seconds, p.error.relmse, p.error.rmse, flip,
                 fmt_time(m.to_1e2).c_str(), fmt_time(m.to_1e3).c_str(), m.efficiency, m.slope,
                 m.verdict.c_str());
     if (s.nonfinite)
