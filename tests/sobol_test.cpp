@@ -42,6 +42,19 @@ TEST(Sobol, FirstDimensionsAreTheSobolSequence) {
     EXPECT_EQ(sobol_dim1(i), expected1[i]) << i;
     EXPECT_EQ(sobol_dim0(i), reverse_bits32(i));
   }
+  Pcg32 rng(3u, 4u);
+  for (int t = 0; t < 10000; ++t) {
+    const uint32_t i = t < 64 ? uint32_t(t) : rng.next_u32();
+    ASSERT_EQ(sobol_dim1_reversed(i), reverse_bits32(sobol_dim1(i))) << i;
+  }
+  // The vertex's points are the scrambles written out in full (sobol.h cancels reversals).
+  const SobolVertex v(9, 13, 2, 4);
+  const uint64_t k = v.pair_key(3);
+  const uint32_t shuffled = nested_uniform_scramble(13 >> 1, uint32_t(k));
+  EXPECT_EQ(v.get_2d(3).x,
+            fraction_to_float(nested_uniform_scramble(sobol_dim0(shuffled), uint32_t(k >> 32))));
+  EXPECT_EQ(v.get_2d(3).y, fraction_to_float(nested_uniform_scramble(
+                               sobol_dim1(shuffled), uint32_t(mix64(k ^ 0x5851f42d4c957f2dull)))));
   EXPECT_EQ(reverse_bits32(1u), 0x80000000u);
   EXPECT_EQ(reverse_bits32(0x12345678u), 0x1e6a2c48u);
 }

@@ -16,8 +16,12 @@ TRACER_HD TRACER_INLINE uint32_t reverse_bits32(uint32_t x) {
 #if defined(__CUDA_ARCH__)
   return __brev(x);
 #else
+#if defined(__GNUC__)
+  x = __builtin_bswap32(x);
+#else
   x = (x << 16) | (x >> 16);
   x = ((x & 0x00ff00ffu) << 8) | ((x & 0xff00ff00u) >> 8);
+#endif
   x = ((x & 0x0f0f0f0fu) << 4) | ((x & 0xf0f0f0f0u) >> 4);
   x = ((x & 0x33333333u) << 2) | ((x & 0xccccccccu) >> 2);
   x = ((x & 0x55555555u) << 1) | ((x & 0xaaaaaaaau) >> 1);
@@ -37,6 +41,19 @@ TRACER_HD TRACER_INLINE uint32_t sobol_dim1(uint32_t index) {
   uint32_t v = 0x80000000u, x = 0;
   for (; index; index >>= 1, v ^= v >> 1)
     if (index & 1u) x ^= v;
+  return x;
+}
+
+// sobol_dim1(index) with its bits reversed, without a loop. Column k of the Pascal matrix mod 2,
+// reversed, has bit j set when C(k, j) is odd, that is (Lucas) when the bits of j are a subset
+// of those of k. So bit j of the result is the parity of the index bits k that are supersets
+// of j: a superset-sum transform over the five bits of the position, one shift-xor per bit.
+TRACER_HD TRACER_INLINE uint32_t sobol_dim1_reversed(uint32_t x) {
+  x ^= (x >> 1) & 0x55555555u;
+  x ^= (x >> 2) & 0x33333333u;
+  x ^= (x >> 4) & 0x0f0f0f0fu;
+  x ^= (x >> 8) & 0x00ff00ffu;
+  x ^= (x >> 16) & 0x0000ffffu;
   return x;
 }
 
@@ -63,16 +80,24 @@ TRACER_HD TRACER_INLINE float fraction_to_float(uint32_t x) {
   return float(x >> 8) * 0x1p-24f;
 }
 
-// The point of sequence index `index` for one dimension pair, whose scrambles come from `key`.
-// Shuffling the index by a nested scramble maps the first 2^m indices onto one aligned block
-// of 2^m indices, so each pair's first 2^m points still form a (0,m,2)-net, while different
-// pairs visit the block in unrelated orders (Burley 2020, sec. 4: padding by shuffling).
-TRACER_HD TRACER_INLINE vec2 sobol_owen_2d(uint32_t index, uint64_t key) {
-  const uint32_t shuffled = nested_uniform_scramble(index, uint32_t(key));
-  const uint64_t k2 = mix64(key ^ 0x5851f42d4c957f2dull);
-  const uint32_t x = nested_uniform_scramble(sobol_dim0(shuffled), uint32_t(key >> 32));
-  const uint32_t y = nested_uniform_scramble(sobol_dim1(shuffled), uint32_t(k2));
-  return vec2(fraction_to_float(x), fraction_to_float(y));
+// The point of sequence index `index` for one dimension pair, whose scrambles come from `key`;
+// `index_reversed` is reverse_bits32(index), shared by every pair of a vertex. Shuffling the
+// index by a nested scramble maps the first 2^m indices onto one aligned block of 2^m indices,
+// so each pair's first 2^m points still form a (0,m,2)-net, while different pairs visit the
+// block in unrelated orders (Burley 2020, sec. 4: padding by shuffling).
+//
+// Written out, x = scramble(sobol_dim0(shuffle(index))) is
+// rev(LK(rev(rev(rev(LK(rev(index))))))); the inner reversals cancel, which leaves three
+// reversals per 2D point (two for a 1D draw) instead of six.
+TRACER_HD TRACER_INLINE uint32_t shuffled_index(uint32_t index_reversed, uint64_t key) {
+  return reverse_bits32(laine_karras_permutation(index_reversed, uint32_t(key)));
+}
+TRACER_HD TRACER_INLINE uint32_t owen_sobol_x(uint32_t shuffled, uint64_t key) {
+  return reverse_bits32(laine_karras_permutation(shuffled, uint32_t(key >> 32)));
+}
+TRACER_HD TRACER_INLINE uint32_t owen_sobol_y(uint32_t shuffled, uint64_t key) {
+  const uint32_t seed = uint32_t(mix64(key ^ 0x5851f42d4c957f2dull));
+  return reverse_bits32(laine_karras_permutation(sobol_dim1_reversed(shuffled), seed));
 }
 
 // The samples of one path vertex: dimension pair d of sample n at (pixel, bounce) is a point of
@@ -82,11 +107,11 @@ TRACER_HD TRACER_INLINE vec2 sobol_owen_2d(uint32_t index, uint64_t key) {
 // (relMSE between halves, bench --error's noise/bias split) assume. A single sequence would
 // not give that: its even and odd points interleave to fill each other's gaps.
 struct SobolVertex {
-  uint32_t index;
+  uint32_t index_reversed;
   uint64_t key;
 
   TRACER_HD SobolVertex(uint32_t pixel, uint32_t sample, uint32_t bounce, uint32_t seed) {
-    index = sample >> 1;
+    index_reversed = reverse_bits32(sample >> 1);
     key = mix64((uint64_t(pixel) << 32 | bounce) ^
                 mix64((uint64_t(seed) << 1 | (sample & 1u)) + 0x9e3779b97f4a7c15ull));
   }
@@ -94,12 +119,16 @@ struct SobolVertex {
   TRACER_HD uint64_t pair_key(uint32_t pair) const {
     return mix64(key + (uint64_t(pair) + 1u) * 0xbf58476d1ce4e5b9ull);
   }
-  TRACER_HD vec2 get_2d(uint32_t pair) const { return sobol_owen_2d(index, pair_key(pair)); }
+  TRACER_HD vec2 get_2d(uint32_t pair) const {
+    const uint64_t k = pair_key(pair);
+    const uint32_t shuffled = shuffled_index(index_reversed, k);
+    return vec2(fraction_to_float(owen_sobol_x(shuffled, k)),
+                fraction_to_float(owen_sobol_y(shuffled, k)));
+  }
   // A 1D draw is the first coordinate of its own pair (a (0,1)-sequence, stratified alone).
   TRACER_HD float get_1d(uint32_t pair) const {
     const uint64_t k = pair_key(pair);
-    const uint32_t shuffled = nested_uniform_scramble(index, uint32_t(k));
-    return fraction_to_float(nested_uniform_scramble(sobol_dim0(shuffled), uint32_t(k >> 32)));
+    return fraction_to_float(owen_sobol_x(shuffled_index(index_reversed, k), k));
   }
 };
 

@@ -34,35 +34,33 @@ enum VertexDims : uint32_t {
 };
 
 // The random numbers of one surface vertex, from either sampler. The random sampler draws them
-// in this order from the vertex's PCG32 stream, as before the Sobol sampler existed.
-struct VertexRandoms {
-  float pick;
-  vec2 light;
-  vec2 bsdf;
-  float lobe;
-  float rr;
-};
+// all at once, in this order, from the vertex's PCG32 stream (as before the Sobol sampler
+// existed); the Sobol sampler computes each only where it is used (a point costs about as much
+// as a ray-box test, and the light, lobe and roulette draws are often not needed).
+struct VertexSampler {
+  bool sobol;
+  SobolVertex q;
+  float pcg_pick, pcg_lobe, pcg_rr;
+  vec2 pcg_light, pcg_bsdf;
 
-TRACER_HD TRACER_INLINE VertexRandoms vertex_randoms(const IntegratorSettings& cfg, uint32_t pixel,
-                                                     uint32_t sample, uint32_t bounce) {
-  VertexRandoms u;
-  if (cfg.sampler == kSamplerSobol) {
-    const SobolVertex q(pixel, sample, bounce, cfg.seed);
-    u.pick = q.get_1d(kDimLightPick);
-    u.light = q.get_2d(kDimLightPoint);
-    u.bsdf = q.get_2d(kDimBsdf);
-    u.lobe = q.get_1d(kDimLobe);
-    u.rr = q.get_1d(kDimRoulette);
-  } else {
-    Pcg32 rng = make_path_rng(pixel, sample, bounce, cfg.seed);
-    u.pick = rng.next_float();
-    u.light = rng.next_2d();
-    u.bsdf = rng.next_2d();
-    u.lobe = rng.next_float();
-    u.rr = rng.next_float();
+  TRACER_HD VertexSampler(const IntegratorSettings& cfg, uint32_t pixel, uint32_t sample,
+                          uint32_t bounce)
+      : sobol(cfg.sampler == kSamplerSobol), q(pixel, sample, bounce, cfg.seed) {
+    if (!sobol) {
+      Pcg32 rng = make_path_rng(pixel, sample, bounce, cfg.seed);
+      pcg_pick = rng.next_float();
+      pcg_light = rng.next_2d();
+      pcg_bsdf = rng.next_2d();
+      pcg_lobe = rng.next_float();
+      pcg_rr = rng.next_float();
+    }
   }
-  return u;
-}
+  TRACER_HD float pick() const { return sobol ? q.get_1d(kDimLightPick) : pcg_pick; }
+  TRACER_HD vec2 light() const { return sobol ? q.get_2d(kDimLightPoint) : pcg_light; }
+  TRACER_HD vec2 bsdf() const { return sobol ? q.get_2d(kDimBsdf) : pcg_bsdf; }
+  TRACER_HD float lobe() const { return sobol ? q.get_1d(kDimLobe) : pcg_lobe; }
+  TRACER_HD float rr() const { return sobol ? q.get_1d(kDimRoulette) : pcg_rr; }
+};
 
 // The optional radiance clamp: a sample brighter than `clamp` in any channel is scaled down to
 // it. This trades fireflies for bias, so the luminance it removes is returned for reporting.
@@ -258,7 +256,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   }
   if (st.depth >= cfg.max_depth) return false;
 
-  const VertexRandoms u = vertex_randoms(cfg, st.pixel, st.sample, st.depth);
+  const VertexSampler u(cfg, st.pixel, st.sample, st.depth);
 
   const vec3 wo_world = -st.ray.d;
   const bool transmits = bsdf_transmits(type);
@@ -268,7 +266,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const vec3 ng_viewer = sh.front ? sh.ng : -sh.ng;
 
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
-    const LightSample ls = sample_light<F>(s, sh.p, sh.ng, u.pick, u.light);
+    const LightSample ls = sample_light<F>(s, sh.p, sh.ng, u.pick(), u.light());
     if (ls.valid && !is_black(ls.le)) {
       const vec3 to = ls.p - sh.p;
       const vec3 wi_world = glm::normalize(to);
@@ -293,7 +291,9 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
     }
   }
 
-  const BsdfSample bs = bsdf_sample<F>(m, wo, u.bsdf, u.lobe);
+  // Only dielectric and subsurface boundaries choose a lobe (reflect or refract).
+  const bool two_lobes = type == MaterialType::kDielectric || type == MaterialType::kSubsurface;
+  const BsdfSample bs = bsdf_sample<F>(m, wo, u.bsdf(), two_lobes ? u.lobe() : 0.5f);
   if (!bs.valid) return false;
   const vec3 wi_world = glm::normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wi_world, sh.ng);
@@ -322,7 +322,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
 
   if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
     const float q = glm::min(1.0f, max_component(st.throughput));
-    if (u.rr >= q) return false;
+    if (u.rr() >= q) return false;
     st.throughput /= q;
   }
   st.depth += 1;
