@@ -47,12 +47,13 @@ struct Config {
   bool nee = true, mis = true, rr = true, schlick = false;
   int max_depth = 0;  // 0: the bench's
   float clamp = 0;
+  int sampler = -1;  // tracer::kSamplerRandom or kSamplerSobol; < 0: the scene's
 };
 
 const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
-const std::vector<std::string> kModifiers = {"no-compaction", "sorting", "general",
-                                             "no-rr",         "no-nee",  "no-mis",
-                                             "schlick",       "depth=N", "clamp=X"};
+const std::vector<std::string> kModifiers = {"no-compaction", "sorting", "general", "no-rr",
+                                             "no-nee",        "no-mis",  "schlick", "depth=N",
+                                             "clamp=X",       "random",  "sobol"};
 
 // Throws std::invalid_argument with a message naming the bad token.
 Config parse_config(const std::string& text) {
@@ -108,6 +109,10 @@ Config parse_config(const std::string& text) {
       c.mis = false;
     else if (m == "schlick")
       c.schlick = true;
+    else if (m == "random")
+      c.sampler = int(tracer::kSamplerRandom);
+    else if (m == "sobol")
+      c.sampler = int(tracer::kSamplerSobol);
     else if (m.rfind("depth=", 0) == 0)
       c.max_depth = int(number("depth=", 1, 1024));
     else if (m.rfind("clamp=", 0) == 0)
@@ -117,7 +122,7 @@ Config parse_config(const std::string& text) {
       throw std::invalid_argument("unknown modifier \"" + m + "\" in \"" + text + "\"" +
                                   (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") +
                                   "; modifiers: no-compaction, sorting, general, no-rr, no-nee, "
-                                  "no-mis, schlick, depth=N, clamp=X");
+                                  "no-mis, schlick, depth=N, clamp=X, random, sobol");
     }
   }
   return c;
@@ -127,8 +132,8 @@ std::string default_suite(bool gpu) {
   if (gpu)
     return "megakernel,wavefront,wavefront+no-compaction,wavefront+sorting,megakernel+general,"
            "megakernel+no-rr,megakernel+no-nee,megakernel+no-mis,megakernel+schlick,"
-           "megakernel+depth=4,megakernel+clamp=10,cpu";
-  return "cpu,cpu+no-rr,cpu+no-nee,cpu+no-mis,cpu+schlick,cpu+depth=4,cpu+clamp=10";
+           "megakernel+depth=4,megakernel+clamp=10,megakernel+random,cpu";
+  return "cpu,cpu+random,cpu+no-rr,cpu+no-nee,cpu+no-mis,cpu+schlick,cpu+depth=4,cpu+clamp=10";
 }
 
 struct Sweep {
@@ -215,6 +220,7 @@ bool obtain_reference(const std::string& path, int spp, const tracer::CompiledSc
   nlohmann::json side = {{"settings", settings},
                          {"spp", spp},
                          {"seed", cfg.seed},
+                         {"sampler", tracer::sampler_name(cfg.sampler)},
                          {"backend", r.backend_name()},
                          {"device", r.device_name()},
                          {"seconds", seconds},
@@ -235,6 +241,7 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
   cfg.russian_roulette = c.rr;
   if (c.max_depth > 0) cfg.max_depth = uint32_t(c.max_depth);
   cfg.clamp = c.clamp;
+  if (c.sampler >= 0) cfg.sampler = uint32_t(c.sampler);
   r.set_gpu_options(c.gpu);
   r.set_scene(cs, cfg);
   r.render(c.gpu.kernel == tracer::KernelMode::kAuto ? 4 : 1);  // warm-up (and auto's timing)
@@ -397,7 +404,8 @@ void add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
   cmd.add_option("--configs", o->configs,
                  "Comma-separated configurations: cpu|megakernel|wavefront|auto, each with "
                  "+modifiers: no-compaction, sorting, general, no-rr, no-nee, no-mis, schlick, "
-                 "depth=N, clamp=X. Default: a suite for the backends present")
+                 "depth=N, clamp=X, random, sobol (the sampler). Default: a suite for the "
+                 "backends present")
       ->group(g);
   cmd.add_option("--max-spp", o->max_spp,
                  "Last sample count of each sweep (default 4096 GPU, "

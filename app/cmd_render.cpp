@@ -26,6 +26,7 @@ struct RenderOptions {
   double time = 0.0;
   long long seed = -1;
   std::string nee, mis, rr;  // "on"/"off" or empty: keep the scene's setting
+  std::string sampler;       // "random"/"sobol" or empty: keep the scene's setting
   float exposure = 0.0f;
   std::string tonemap = "none";
   bool quiet = false;
@@ -79,6 +80,7 @@ int run_render(const RenderOptions& o) {
   apply_switch(o.rr, rs.russian_roulette);
   apply_switch(o.jitter, rs.jitter);
   if (o.clamp >= 0.0f) rs.clamp = o.clamp;
+  if (!o.sampler.empty()) tracer::parse_sampler(o.sampler, &rs.sampler);
   scene.settings = rs;
   try {
     tracer::validate_scene(scene);  // the command line may have made the image too large
@@ -188,6 +190,7 @@ int run_render(const RenderOptions& o) {
                      {"rr_start_depth", rs.rr_start_depth}, {"seed", rs.seed},
                      {"exposure", o.exposure},    {"tonemap", tracer::tone_map_name(op)},
                      {"jitter", rs.jitter}};
+    j["settings"]["sampler"] = tracer::sampler_name(rs.sampler);
     if (renderer->backend_name() == "cuda") {
       j["gpu"] = {{"kernel_option", o.kernel}, {"kernel", last_kernel},
                   {"specialization", last_spec}, {"compaction", o.compaction},
@@ -277,6 +280,9 @@ Runner add_render_command(CLI::App& cmd) {
       ->check(CLI::Range(0.0, 1e30));
   cmd.add_option("--jitter", o->jitter, "Jitter samples inside pixels: on or off")
       ->check(CLI::IsMember({"on", "off"}));
+  cmd.add_option("--sampler", o->sampler,
+                 "Sample points: sobol (Owen-scrambled Sobol, stratified) or random (PCG32)")
+      ->check(CLI::IsMember({"random", "sobol"}));
   cmd.add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
   const char* gpu = "GPU (CUDA backend)";
   cmd.add_option("--kernel", o->kernel, "auto (time both, keep the faster), wavefront or megakernel")

@@ -34,12 +34,25 @@ TEST(Cli, RenderWritesPngAndReproducibleSidecar) {
   EXPECT_EQ(j["spp"], 4);
   EXPECT_EQ(j["settings"]["width"], 24);
   EXPECT_EQ(j["settings"]["seed"], 3);
+  EXPECT_EQ(j["settings"]["sampler"], "sobol");  // the default
   EXPECT_EQ(j["backend"], "cpu");
   EXPECT_TRUE(j.contains("device"));
   EXPECT_TRUE(j.contains("version"));
   EXPECT_TRUE(j.contains("wall_time_s"));
   EXPECT_EQ(j["scene"], "<built-in>");
   EXPECT_NE(log.find("wrote"), std::string::npos);
+}
+
+TEST(Cli, SamplerOptionIsRecordedAndChecked) {
+  const std::string out = tmpdir() + "/sampler.png";
+  std::string log;
+  ASSERT_EQ(test::run_command(exe() + " render -q --spp 2 --width 8 --height 8 --backend cpu "
+                                      "--sampler random --out " + out, &log), 0) << log;
+  std::ifstream f(out + ".json");
+  ASSERT_TRUE(f.good());
+  EXPECT_EQ(nlohmann::json::parse(f)["settings"]["sampler"], "random");
+  EXPECT_NE(test::run_command(exe() + " render -q --spp 2 --sampler halton --out " + out, &log),
+            0);
 }
 
 TEST(Cli, ExrIsLinearAndMatchesPng) {

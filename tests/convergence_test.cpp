@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -122,6 +123,18 @@ TEST(Convergence, SlopeAndVerdict) {
   EXPECT_TRUE(s.biased);
   EXPECT_GT(s.slope, -0.8);
   EXPECT_EQ(s.verdict.rfind("biased", 0), 0u) << s.verdict;
+  // Stratified samples: relMSE ~ spp^-1.3 with no bias reads as unbiased, steeper than -1.
+  std::vector<Checkpoint> qmc = sweep(1.0, 0.0, 1024);
+  for (Checkpoint& c : qmc) c.error.relmse = c.error.variance = std::pow(double(c.spp), -1.3);
+  s = tracer::summarize(qmc);
+  EXPECT_NEAR(s.slope, -1.3, 1e-9);
+  EXPECT_FALSE(s.biased);
+  EXPECT_EQ(s.verdict.rfind("unbiased (slope -1.30", 0), 0u) << s.verdict;
+  EXPECT_NE(s.verdict.find("steeper than -1: stratified samples"), std::string::npos) << s.verdict;
+  // Flatter than -1 but not flat: still flagged as off -1.
+  for (Checkpoint& c : qmc) c.error.relmse = c.error.variance = std::pow(double(c.spp), -0.85);
+  s = tracer::summarize(qmc);
+  EXPECT_NE(s.verdict.find("is off -1"), std::string::npos) << s.verdict;
 }
 
 TEST(Convergence, SvgPlotHasEverySeriesAndEscapesNames) {
@@ -146,18 +159,21 @@ TEST(BenchError, CpuSweepSeparatesUnbiasedFromBiased) {
   std::string log;
   const std::string cmd = test::pathtracer_exe() +
                           " bench --error --backend cpu --width 32 --height 32 --reference-spp 512"
-                          " --max-spp 64 --configs cpu,cpu+depth=2,cpu+no-nee --out " +
+                          " --max-spp 64 --configs cpu+random,cpu+depth=2,cpu+no-nee+random,cpu --out " +
                           dir;
   ASSERT_EQ(test::run_command(cmd, &log), 0) << log;
   std::ifstream f(dir + "/bench.json");
   ASSERT_TRUE(f.good()) << log;
   const auto j = nlohmann::json::parse(f);
-  ASSERT_EQ(j["configs"].size(), 3u);
-  const auto& cpu = j["configs"][0];
+  ASSERT_EQ(j["configs"].size(), 4u);
+  const auto& cpu = j["configs"][0];  // independent samples: relMSE ~ 1/spp
   const auto& shallow = j["configs"][1];
   const auto& no_nee = j["configs"][2];
+  const auto& sobol = j["configs"][3];
   EXPECT_FALSE(cpu["biased"].get<bool>()) << cpu["verdict"];
   EXPECT_NEAR(cpu["slope"].get<double>(), -1.0, 0.15);
+  EXPECT_FALSE(sobol["biased"].get<bool>()) << sobol["verdict"];
+  EXPECT_LT(sobol["slope"].get<double>(), -0.85) << sobol["verdict"];
   EXPECT_TRUE(shallow["biased"].get<bool>()) << shallow["verdict"];  // depth 2 misses light
   EXPECT_FALSE(no_nee["biased"].get<bool>()) << no_nee["verdict"];
   // NEE makes the same error cheaper.

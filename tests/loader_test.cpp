@@ -201,6 +201,7 @@ TEST(Loader, BadFilesFailWithFileLineAndHint) {
       {"absurd_width.json", 3, {"\"width\"", "1000000", "1..16384"}},
       {"bad_ior.json", 4, {"\"ior\""}},
       {"bad_vfov.json", 3, {"\"vfov\""}},
+      {"unknown_sampler.json", 3, {"unknown sampler \"sobel\"", "did you mean \"sobol\""}},
       {"duplicate_key.json", 4, {"duplicate key \"white\"", "line 3"}},
       {"no_objects.json", 3, {"no objects"}},
       {"sphere_nonuniform.json", 5, {"non-uniformly"}},

@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "cpu/cpu_backend.h"
+#include "image/convergence.h"
 #include "image/image.h"
 #include "scene/loader.h"
 #include "scene_builders.h"
@@ -65,10 +66,14 @@ Agreement agreement(const PixelStats& a, const PixelStats& b) {
   return g;
 }
 
+// The z-tests below take each pixel's sample variance over spp as the variance of its mean,
+// which holds for independent samples only: they use the random sampler. Stratified (Sobol)
+// samples are checked against independent replicas instead (SobolSamplerKeepsTheMean).
 RenderSettings small(const Scene& s) {
   RenderSettings rs = s.settings;
   rs.width = 32;
   rs.height = 32;
+  rs.sampler = kSamplerRandom;
   return rs;
 }
 
@@ -201,6 +206,108 @@ TEST(Render, RadianceClampReportsTheBiasItIntroduces) {
   loose.set_scene(cs, make_integrator_settings(rs));
   EXPECT_EQ(loose.render(32).clamped, 0u);
   EXPECT_EQ(loose.image().pixels, a.pixels);
+}
+
+}  // namespace
+
+namespace {
+using namespace test;
+
+// The mean of `replicas` renders of `spp` samples with independent randomizations (seeds), as
+// PixelStats whose var / spp is the variance of that mean: the spread of the replica means.
+// Unlike the spread of single samples, this holds for stratified samples too.
+PixelStats replica_stats(const Scene& s, RenderSettings rs, int replicas, uint32_t spp) {
+  std::vector<PixelStats> runs;
+  for (int r = 0; r < replicas; ++r) {
+    rs.seed = 1000u + uint32_t(r);
+    runs.push_back(render_pixel_stats(s, rs, spp));
+  }
+  PixelStats ps = runs[0];
+  ps.spp = uint32_t(replicas);
+  for (size_t i = 0; i < ps.mean.size(); ++i) {
+    glm::dvec3 m(0.0), m2(0.0);
+    for (const PixelStats& r : runs) {
+      m += glm::dvec3(r.mean[i]);
+      m2 += glm::dvec3(r.mean[i]) * glm::dvec3(r.mean[i]);
+    }
+    m /= double(replicas);
+    ps.mean[i] = vec3(m);
+    ps.var[i] =
+        vec3(glm::max((m2 - double(replicas) * m * m) / double(replicas - 1), glm::dvec3(0.0)));
+  }
+  for (size_t k = 1; k < runs.size(); ++k) ps.nonfinite += runs[k].nonfinite;
+  return ps;
+}
+
+TEST(Render, SobolSamplerKeepsTheMean) {
+  const Scene s = builtin_default_scene();
+  RenderSettings rs = small(s);
+  rs.sampler = kSamplerSobol;
+  const PixelStats test = replica_stats(s, rs, 16, 16);
+  EXPECT_EQ(test.nonfinite, 0u);
+  const Agreement g = agreement(test, reference());
+  EXPECT_LT(g.chi2_per_dof, g.chi2_limit);
+  EXPECT_GT(g.chi2_per_dof, 2.0 - g.chi2_limit);
+  EXPECT_LE(g.outliers, 1);
+  EXPECT_LT(g.relmse, 1.5 * g.relmse_expected);
+  std::printf("sobol: chi2/dof %.3f (limit %.3f), relMSE %.3g (noise alone %.3g)\n", g.chi2_per_dof,
+              g.chi2_limit, g.relmse, g.relmse_expected);
+}
+
+struct SamplerError {
+  double relmse = 0;     // against the reference, its own noise subtracted
+  double predicted = 0;  // from the even/odd half buffers
+};
+
+// relMSE of `seeds` renders of the 64x64 box at 64 spp, summed over the renders.
+SamplerError sampler_error(const CompiledScene& cs, RenderSettings rs, const ReferenceImage& ref,
+                           int seeds) {
+  SamplerError e;
+  for (int k = 0; k < seeds; ++k) {
+    rs.seed = 77u + uint32_t(k);
+    CpuRenderer r;
+    r.set_scene(cs, make_integrator_settings(rs));
+    r.render(64);
+    ImageRGB even, odd;
+    r.half_images(&even, &odd);
+    const ErrorTerms t = error_terms(r.image(), ref, &even, &odd);
+    e.relmse += t.relmse / seeds;
+    e.predicted += t.variance / seeds;
+  }
+  return e;
+}
+
+TEST(Render, SobolSamplerLowersTheErrorAndHalfBuffersStillPredictIt) {
+  const Scene s = builtin_default_scene();
+  RenderSettings rs = s.settings;
+  rs.width = rs.height = 64;
+  const CompiledScene cs(s, rs.width, rs.height);
+  ReferenceImage ref;
+  {
+    RenderSettings rr = rs;
+    rr.sampler = kSamplerRandom;
+    rr.seed = 0x5EED0001u;
+    CpuRenderer r;
+    r.set_scene(cs, make_integrator_settings(rr));
+    r.render(4096);
+    ref.mean = r.image();
+    ImageRGB even, odd;
+    r.half_images(&even, &odd);
+    ref.variance = variance_from_halves(even, odd);
+  }
+  constexpr int kSeeds = 4;
+  rs.sampler = kSamplerRandom;
+  const SamplerError random = sampler_error(cs, rs, ref, kSeeds);
+  rs.sampler = kSamplerSobol;
+  const SamplerError sobol = sampler_error(cs, rs, ref, kSeeds);
+  std::printf(
+      "64x64, 64 spp: relMSE random %.4g (halves %.4g), sobol %.4g (halves %.4g), "
+      "ratio %.2f\n",
+      random.relmse, random.predicted, sobol.relmse, sobol.predicted, random.relmse / sobol.relmse);
+  EXPECT_GT(random.relmse, 1.3 * sobol.relmse);
+  // The two halves are independent estimates, so their difference measures the error.
+  EXPECT_NEAR(sobol.predicted / sobol.relmse, 1.0, 0.3);
+  EXPECT_NEAR(random.predicted / random.relmse, 1.0, 0.3);
 }
 
 }  // namespace

@@ -54,6 +54,11 @@ TEST(Workbench, ApplyRejectsBadEditsWithReasons) {
   EXPECT_NE(err.find("did you mean"), std::string::npos) << err;
   EXPECT_FALSE(wb->apply("no equals sign", &err));
   EXPECT_FALSE(wb->apply("render.nee=maybe", &err));
+  EXPECT_FALSE(wb->apply("render.sampler=halton", &err));
+  EXPECT_TRUE(wb->apply("render.sampler=random", &err)) << err;
+  EXPECT_EQ(wb->settings().sampler, tracer::kSamplerRandom);
+  EXPECT_TRUE(wb->apply("render.sampler=sobol", &err)) << err;
+  EXPECT_EQ(wb->settings().sampler, tracer::kSamplerSobol);
   EXPECT_FALSE(wb->apply("camera.position=1,2", &err));
   EXPECT_FALSE(wb->apply("materials.white.ior=nan", &err));
 }

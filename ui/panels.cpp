@@ -220,6 +220,11 @@ void render_panel(Workbench& wb, PanelState& ps) {
   ImGui::SetNextItemWidth(100);
   changed |= ImGui::SliderInt("from depth", &rs.rr_start_depth, 1, 16);
   changed |= ImGui::Checkbox("pixel jitter", &rs.jitter);
+  int sampler = int(rs.sampler);
+  if (ImGui::Combo("sampler", &sampler, "random (PCG32)\0sobol (Owen-scrambled)\0")) {
+    rs.sampler = uint32_t(sampler);
+    changed = true;
+  }
   changed |= ImGui::DragFloat("radiance clamp (0: off)", &rs.clamp, 0.1f, 0.0f, 1e6f, "%.2f");
   int size[2] = {rs.width, rs.height};
   if (ImGui::InputInt2("image size", size, ImGuiInputTextFlags_EnterReturnsTrue)) {

@@ -346,7 +346,7 @@ std::vector<std::string> Workbench::settable_keys() {
           "camera.focus_distance", "render.max_depth", "render.spp", "render.time",
           "render.width", "render.height", "render.nee", "render.mis", "render.russian_roulette",
           "render.rr_start_depth", "render.seed", "render.jitter", "render.samples_per_frame",
-          "render.clamp",
+          "render.clamp", "render.sampler",
           "display.exposure", "display.tonemap", "gpu.kernel", "gpu.compaction", "gpu.sort",
           "gpu.cache", "gpu.specialize", "backend", "materials.NAME.type",
           "materials.NAME.albedo", "materials.NAME.emission", "materials.NAME.emission_strength",
@@ -403,6 +403,9 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
     if (!parse_bool(value, &b)) return fail("expected on or off");
     (key == "render.nee" ? rs.nee : key == "render.mis" ? rs.mis
      : key == "render.jitter" ? rs.jitter : rs.russian_roulette) = b;
+    changed(Edit::kSettings);
+  } else if (key == "render.sampler") {
+    if (!tracer::parse_sampler(value, &rs.sampler)) return fail("expected random or sobol");
     changed(Edit::kSettings);
   } else if (key == "render.clamp") {
     if (!number(0.0f, 1e30f)) return fail("expected a radiance >= 0 (0: off)");
@@ -590,7 +593,8 @@ std::string Workbench::export_image(const std::string& path) {
                      {"max_depth", rs.max_depth}, {"nee", rs.nee},
                      {"mis", rs.mis},             {"russian_roulette", rs.russian_roulette},
                      {"rr_start_depth", rs.rr_start_depth}, {"seed", rs.seed},
-                     {"jitter", rs.jitter},       {"exposure", display_.exposure},
+                     {"jitter", rs.jitter},       {"sampler", tracer::sampler_name(rs.sampler)},
+                     {"exposure", display_.exposure},
                      {"tonemap", tracer::tone_map_name(display_.tone_map)}};
     j["camera"] = {{"position", vec_json(scene_.camera.position)},
                    {"look_at", vec_json(scene_.camera.look_at)},
@@ -651,7 +655,8 @@ std::string Workbench::save_scene(const std::string& path) {
                    {"max_depth", rs.max_depth}, {"nee", rs.nee},
                    {"mis", rs.mis},             {"russian_roulette", rs.russian_roulette},
                    {"rr_start_depth", rs.rr_start_depth}, {"seed", rs.seed},
-                   {"jitter", rs.jitter}, {"clamp", rs.clamp}};
+                   {"jitter", rs.jitter}, {"clamp", rs.clamp},
+                   {"sampler", tracer::sampler_name(rs.sampler)}};
     if (json_source && j.contains("materials")) {
       for (auto it = j["materials"].begin(); it != j["materials"].end(); ++it) {
         const uint32_t idx = scene_.find_material(it.key());

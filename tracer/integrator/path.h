@@ -5,6 +5,7 @@
 #pragma once
 
 #include "core/rng.h"
+#include "core/sobol.h"
 #include "integrator/lights.h"
 #include "integrator/medium.h"
 
@@ -18,6 +19,47 @@ struct IntegratorSettings {
   uint32_t nee = 1, mis = 1, russian_roulette = 1;
   uint32_t jitter = 1;  // 0: every sample goes through the pixel centre (enables hit caching)
   float clamp = 0.0f;   // > 0: scale each sample down to at most this much per channel (biased)
+  uint32_t sampler = kSamplerSobol;  // kSamplerRandom (PCG32) or kSamplerSobol (core/sobol.h)
+};
+
+// The dimension pairs of the Sobol sampler: each draw of a vertex has its own (a 1D draw takes
+// the first coordinate of its pair). The camera vertex is bounce 0, surface vertex k bounce k.
+enum CameraDims : uint32_t { kDimJitter = 0, kDimLens = 1 };
+enum VertexDims : uint32_t {
+  kDimLightPick = 0,
+  kDimLightPoint = 1,
+  kDimBsdf = 2,
+  kDimLobe = 3,
+  kDimRoulette = 4
+};
+
+// The random numbers of one surface vertex, from either sampler. The random sampler draws them
+// all at once, in this order, from the vertex's PCG32 stream (as before the Sobol sampler
+// existed); the Sobol sampler computes each only where it is used (a point costs about as much
+// as a ray-box test, and the light, lobe and roulette draws are often not needed).
+struct VertexSampler {
+  bool sobol;
+  SobolVertex q;
+  float pcg_pick, pcg_lobe, pcg_rr;
+  vec2 pcg_light, pcg_bsdf;
+
+  TRACER_HD VertexSampler(const IntegratorSettings& cfg, uint32_t pixel, uint32_t sample,
+                          uint32_t bounce)
+      : sobol(cfg.sampler == kSamplerSobol), q(pixel, sample, bounce, cfg.seed) {
+    if (!sobol) {
+      Pcg32 rng = make_path_rng(pixel, sample, bounce, cfg.seed);
+      pcg_pick = rng.next_float();
+      pcg_light = rng.next_2d();
+      pcg_bsdf = rng.next_2d();
+      pcg_lobe = rng.next_float();
+      pcg_rr = rng.next_float();
+    }
+  }
+  TRACER_HD float pick() const { return sobol ? q.get_1d(kDimLightPick) : pcg_pick; }
+  TRACER_HD vec2 light() const { return sobol ? q.get_2d(kDimLightPoint) : pcg_light; }
+  TRACER_HD vec2 bsdf() const { return sobol ? q.get_2d(kDimBsdf) : pcg_bsdf; }
+  TRACER_HD float lobe() const { return sobol ? q.get_1d(kDimLobe) : pcg_lobe; }
+  TRACER_HD float rr() const { return sobol ? q.get_1d(kDimRoulette) : pcg_rr; }
 };
 
 // The optional radiance clamp: a sample brighter than `clamp` in any channel is scaled down to
@@ -65,9 +107,16 @@ struct ShadowRequest {
 template <uint32_t F = kAllFeatures>
 TRACER_HD inline void generate_path(const SceneView& s, const IntegratorSettings& cfg,
                                     uint32_t pixel, uint32_t sample, PathState& st) {
-  Pcg32 rng = make_path_rng(pixel, sample, 0, cfg.seed);
-  const vec2 jitter = cfg.jitter ? rng.next_2d() : vec2(0.5f);
-  const vec2 lens = rng.next_2d();
+  vec2 jitter, lens;
+  if (cfg.sampler == kSamplerSobol) {
+    const SobolVertex q(pixel, sample, 0, cfg.seed);
+    jitter = cfg.jitter ? q.get_2d(kDimJitter) : vec2(0.5f);
+    lens = q.get_2d(kDimLens);
+  } else {
+    Pcg32 rng = make_path_rng(pixel, sample, 0, cfg.seed);
+    jitter = cfg.jitter ? rng.next_2d() : vec2(0.5f);
+    lens = rng.next_2d();
+  }
   st.ray = s.camera.template generate_ray<F>(pixel % cfg.width, pixel / cfg.width, jitter, lens);
   st.throughput = vec3(1.0f);
   st.radiance = vec3(0.0f);
@@ -129,6 +178,9 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
       return false;
     }
     const Material& med = s.materials[st.medium];
+    // Random-walk steps draw from PCG32 with either sampler: a walk has hundreds of steps, whose
+    // dimensions no low-dimensional stratification reaches (Cycles does the same past its
+    // first few bounces). The surface vertices around the walk stay stratified.
     Pcg32 rng = make_path_rng(st.pixel, st.sample, st.depth + (st.walk_steps + 1u) * 4096u,
                               cfg.seed);
     const float u_channel = rng.next_float(), u_distance = rng.next_float();
@@ -204,12 +256,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   }
   if (st.depth >= cfg.max_depth) return false;
 
-  Pcg32 rng = make_path_rng(st.pixel, st.sample, st.depth, cfg.seed);
-  const float u_pick = rng.next_float();
-  const vec2 u_light = rng.next_2d();
-  const vec2 u_bsdf = rng.next_2d();
-  const float u_lobe = rng.next_float();
-  const float u_rr = rng.next_float();
+  const VertexSampler u(cfg, st.pixel, st.sample, st.depth);
 
   const vec3 wo_world = -st.ray.d;
   const bool transmits = bsdf_transmits(type);
@@ -219,7 +266,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const vec3 ng_viewer = sh.front ? sh.ng : -sh.ng;
 
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
-    const LightSample ls = sample_light<F>(s, sh.p, sh.ng, u_pick, u_light);
+    const LightSample ls = sample_light<F>(s, sh.p, sh.ng, u.pick(), u.light());
     if (ls.valid && !is_black(ls.le)) {
       const vec3 to = ls.p - sh.p;
       const vec3 wi_world = glm::normalize(to);
@@ -244,7 +291,9 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
     }
   }
 
-  const BsdfSample bs = bsdf_sample<F>(m, wo, u_bsdf, u_lobe);
+  // Only dielectric and subsurface boundaries choose a lobe (reflect or refract).
+  const bool two_lobes = type == MaterialType::kDielectric || type == MaterialType::kSubsurface;
+  const BsdfSample bs = bsdf_sample<F>(m, wo, u.bsdf(), two_lobes ? u.lobe() : 0.5f);
   if (!bs.valid) return false;
   const vec3 wi_world = glm::normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wi_world, sh.ng);
@@ -273,7 +322,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
 
   if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
     const float q = glm::min(1.0f, max_component(st.throughput));
-    if (u_rr >= q) return false;
+    if (u.rr() >= q) return false;
     st.throughput /= q;
   }
   st.depth += 1;

@@ -21,6 +21,7 @@ IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
   cfg.russian_roulette = rs.russian_roulette;
   cfg.jitter = rs.jitter;
   cfg.clamp = rs.clamp;
+  cfg.sampler = rs.sampler;
   return cfg;
 }
 

@@ -177,7 +177,7 @@ class JsonSceneReader {
     require_object(r, ptr, where);
     check_keys(r, ptr,
                {"width", "height", "spp", "time_limit_s", "max_depth", "nee", "mis",
-                "russian_roulette", "rr_start_depth", "seed", "jitter", "clamp"},
+                "russian_roulette", "rr_start_depth", "seed", "jitter", "clamp", "sampler"},
                where);
     RenderSettings& s = scene_.settings;
     s.width = int(get_int(r, ptr, "width", s.width, 1, 16384, where));
@@ -195,6 +195,14 @@ class JsonSceneReader {
     s.jitter = get_bool(r, ptr, "jitter", s.jitter, where);
     s.clamp = get_float(r, ptr, "clamp", s.clamp, where);
     if (!(s.clamp >= 0.0f)) fail(json_pointer_child(ptr, "clamp"), "\"clamp\" must be >= 0");
+    const std::string sampler = get_string(r, ptr, "sampler", sampler_name(s.sampler), where);
+    if (!parse_sampler(sampler, &s.sampler)) {
+      const std::string guess = did_you_mean(sampler, {"random", "sobol"});
+      fail(json_pointer_child(ptr, "sampler"),
+           "unknown sampler " + in_quotes(sampler) + " in " + where +
+               (guess.empty() ? " (expected random or sobol)"
+                              : " (did you mean " + in_quotes(guess) + "?)"));
+    }
   }
 
   void read_materials(const json& ms, const std::string& ptr) {

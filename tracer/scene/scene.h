@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/sobol.h"
 #include "materials/material.h"
 #include "materials/texture.h"
 #include "scene/diagnostics.h"
@@ -33,7 +34,23 @@ struct RenderSettings {
   uint32_t seed = 0;
   bool jitter = true;  // jitter samples inside each pixel (antialiasing)
   float clamp = 0.0f;  // > 0: clamp each sample's radiance to this (removes fireflies; biased)
+  uint32_t sampler = kSamplerSobol;  // kSamplerRandom or kSamplerSobol (core/sobol.h)
 };
+
+// "random" / "sobol", as the scene format, the CLI and the workbench spell RenderSettings::sampler.
+inline const char* sampler_name(uint32_t sampler) {
+  return sampler == kSamplerRandom ? "random" : "sobol";
+}
+// false for an unknown name, leaving *sampler as it was.
+inline bool parse_sampler(const std::string& name, uint32_t* sampler) {
+  if (name == "random")
+    *sampler = kSamplerRandom;
+  else if (name == "sobol")
+    *sampler = kSamplerSobol;
+  else
+    return false;
+  return true;
+}
 
 struct NamedMaterial {
   std::string name;
