@@ -22,8 +22,9 @@ def main():
           "t to 1e-3 (s) | 1/(relMSE x t) | slope | verdict |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for r in rows:
+        flip = f"{float(r['flip']):.4f}" if float(r["flip"]) >= 0 else "-"
         print(f"| {r['config']} | {r['final_spp']} | {float(r['seconds']):.3g} | "
-              f"{float(r['relmse']):.3g} | {float(r['rmse']):.3g} | {float(r['flip']):.4f} | "
+              f"{float(r['relmse']):.3g} | {float(r['rmse']):.3g} | {flip} | "
               f"{fmt_time(r['time_to_1e-2_s'], r['extrapolated_1e-2'])} | "
               f"{fmt_time(r['time_to_1e-3_s'], r['extrapolated_1e-3'])} | "
               f"{float(r['efficiency']):.3g} | {float(r['slope']):.2f} | {r['verdict']} |")
