@@ -19,7 +19,8 @@ struct ErrorBenchOptions {
   int threads = 0;  // CPU backend threads (0: all cores)
 };
 
-void add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o);
+// Returns the --error flag, so that speed-only options can exclude it.
+CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o);
 
 // Settings shared with the speed bench; 0 means "the scene's own".
 struct ErrorBenchScene {

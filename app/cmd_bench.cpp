@@ -295,15 +295,18 @@ Runner add_bench_command(CLI::App& cmd) {
   cmd.add_option("--max-depth", o->max_depth,
                  "Maximum path segments (default 8; with --error the scene's)")
       ->check(CLI::Range(1, 1024));
-  cmd.add_option("--spp", o->spp, "Timed samples per GPU configuration (median reported)")
+  CLI::Option* spp = cmd.add_option("--spp", o->spp, "Timed samples per GPU configuration (median reported)")
       ->check(CLI::Range(1, 100000))->capture_default_str();
-  cmd.add_option("--cpu-spp", o->cpu_spp, "Timed samples for the CPU backend (0: skip)")
+  CLI::Option* cpu_spp = cmd.add_option("--cpu-spp", o->cpu_spp, "Timed samples for the CPU backend (0: skip)")
       ->check(CLI::Range(0, 100000))->capture_default_str();
   cmd.add_option("--backend", o->backend, "auto, cpu or cuda")->check(CLI::IsMember({"auto", "cpu", "cuda"}));
-  cmd.add_option("--json", o->json_out, "Also write the figures to this JSON file");
-  cmd.add_option("--nee", o->nee, "Next-event estimation: on or off")
+  CLI::Option* json = cmd.add_option("--json", o->json_out, "Also write the figures to this JSON file");
+  CLI::Option* nee = cmd.add_option("--nee", o->nee, "Next-event estimation: on or off")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  add_error_bench_options(cmd, &o->error);
+  // The speed bench's own options mean nothing to --error (its configurations carry no-nee,
+  // its sweep its sample counts, --out its files): combining them is a usage error.
+  CLI::Option* error = add_error_bench_options(cmd, &o->error);
+  for (CLI::Option* opt : {spp, cpu_spp, json, nee}) opt->excludes(error);
   return [o] {
     if (!o->error.enabled) return run_bench(*o);
     ErrorBenchScene s;

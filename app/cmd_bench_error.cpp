@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -113,9 +114,13 @@ Config parse_config(const std::string& text) {
       c.sampler = int(tracer::kSamplerRandom);
     else if (m == "sobol")
       c.sampler = int(tracer::kSamplerSobol);
-    else if (m.rfind("depth=", 0) == 0)
-      c.max_depth = int(number("depth=", 1, 1024));
-    else if (m.rfind("clamp=", 0) == 0)
+    else if (m.rfind("depth=", 0) == 0) {
+      const double d = number("depth=", 1, 1024);
+      if (d != std::floor(d))
+        throw std::invalid_argument("\"" + m + "\" in \"" + text +
+                                    "\": depth= takes a whole number");
+      c.max_depth = int(d);
+    } else if (m.rfind("clamp=", 0) == 0)
       c.clamp = float(number("clamp=", 1e-6, 1e9));
     else {
       const std::string guess = tracer::did_you_mean(m, kModifiers);
@@ -215,8 +220,10 @@ bool obtain_reference(const std::string& path, int spp, const tracer::CompiledSc
   tracer::ImageRGB even, odd;
   r.half_images(&even, &odd);
   ref->variance = tracer::variance_from_halves(even, odd);
-  tracer::write_image(path, ref->mean);
+  // Variance first, mean last: a crash in between leaves no mean, which is re-rendered, rather
+  // than a mean beside a stale variance image.
   tracer::write_image(var_path, ref->variance);
+  tracer::write_image(path, ref->mean);
   nlohmann::json side = {{"settings", settings},
                          {"spp", spp},
                          {"seed", cfg.seed},
@@ -317,7 +324,7 @@ void write_outputs(const std::string& dir, const std::vector<Sweep>& sweeps,
       "config,backend_kernel,specialization,final_spp,seconds,relmse,rmse,flip,"
       "time_to_1e-2_s,extrapolated_1e-2,time_to_1e-3_s,extrapolated_1e-3,"
       "efficiency,slope,slope_stderr,biased,nonfinite,verdict\n";
-  char buf[512];
+  char buf[2048];
   nlohmann::json arr = nlohmann::json::array();
   tracer::PlotSpec relp, flipp;
   relp.title = title;
@@ -387,12 +394,13 @@ void write_outputs(const std::string& dir, const std::vector<Sweep>& sweeps,
 
 }  // namespace
 
-void add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
+CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
   const std::string g = "Error against time (--error)";
-  cmd.add_flag("--error", o->enabled,
-               "Measure error against time instead of speed: sweep each configuration over "
-               "doubling sample counts against a reference")
-      ->group(g);
+  CLI::Option* flag =
+      cmd.add_flag("--error", o->enabled,
+                   "Measure error against time instead of speed: sweep each configuration over "
+                   "doubling sample counts against a reference")
+          ->group(g);
   cmd.add_option("--reference", o->reference,
                  "Reference EXR (with NAME.variance.exr beside it); rendered there when missing. "
                  "Default: OUT/reference-SCENE-WxH-dDEPTH.exr")
@@ -426,6 +434,7 @@ void add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
   cmd.add_option("--threads", o->threads, "CPU backend threads (0: all cores)")
       ->check(CLI::Range(0, 1024))
       ->group(g);
+  return flag;
 }
 
 int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
@@ -492,14 +501,29 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
   std::printf("scene %s: %dx%d, max depth %d; features: %s\n",
               settings["scene"].get<std::string>().c_str(), rs.width, rs.height, rs.max_depth,
               tracer::describe_features(cs.features()).c_str());
+  std::string ext = std::filesystem::path(ref_path).extension().string();
+  for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  if (ext != ".exr") {
+    std::cerr << "error: --reference " << ref_path << ": a reference must be an .exr file (linear "
+              << "float); 8-bit images cannot hold one\n";
+    return kExitUsage;
+  }
+  // Fail on an unwritable --out now, not after minutes of rendering.
+  try {
+    tracer::write_text_atomic(o.out_dir + "/.bench-write-check", "");
+    std::filesystem::remove(o.out_dir + "/.bench-write-check");
+  } catch (const std::exception& e) {
+    std::cerr << "error: --out " << o.out_dir << ": " << e.what() << "\n";
+    return kExitInputError;
+  }
   tracer::ReferenceImage ref;
   try {
     tracer::Renderer& rr = gpu ? *gpu : static_cast<tracer::Renderer&>(cpu);
     if (gpu) gpu->set_gpu_options(tracer::GpuOptions{});
     const int ref_spp = o.reference_spp > 0 ? o.reference_spp : (gpu ? 32768 : 1024);
     if (!obtain_reference(ref_path, ref_spp, cs, cfg, rr, settings, &ref)) return kExitInputError;
-  } catch (const tracer::InputError& e) {
-    std::cerr << "error: " << e.what() << "\n";
+  } catch (const std::exception& e) {  // bad files, and GPU failures while rendering it
+    std::cerr << "error: reference " << ref_path << ": " << e.what() << "\n";
     return kExitInputError;
   }
   const tracer::ErrorTerms floor_terms = tracer::error_terms(ref.mean, ref);
@@ -508,6 +532,7 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
   std::fflush(stdout);
 
   std::vector<Sweep> sweeps;
+  bool failed = false;
   for (const Config& c : configs) {
     const tracer::CompiledScene* scs = &cs;
     if (c.schlick) {
@@ -523,8 +548,18 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
     }
     const int max_spp = o.max_spp > 0 ? o.max_spp : (c.cpu ? 256 : 4096);
     tracer::Renderer& r = c.cpu ? static_cast<tracer::Renderer&>(cpu) : *gpu;
-    sweeps.push_back(run_sweep(c, r, *scs, cfg, ref, max_spp, o.time_limit, o.flip == "on"));
+    const uint32_t sampler = c.sampler >= 0 ? uint32_t(c.sampler) : cfg.sampler;
+    const std::string warn =
+        tracer::reference_independence_warning(ref_path, cfg.seed, tracer::sampler_name(sampler));
+    if (!warn.empty()) std::cerr << "warning: " << c.name << ": " << warn << "\n";
+    try {
+      sweeps.push_back(run_sweep(c, r, *scs, cfg, ref, max_spp, o.time_limit, o.flip == "on"));
+    } catch (const std::exception& e) {  // e.g. a CUDA error: report it, keep the other sweeps
+      std::cerr << "error: " << c.name << ": " << e.what() << "; this configuration is skipped\n";
+      failed = true;
+    }
   }
+  if (sweeps.empty()) return kExitInputError;
 
   // The table.
   std::printf("\n%-30s %7s %8s %10s %9s %7s %9s %9s %9s %7s  %s\n", "configuration", "spp",
@@ -536,10 +571,9 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
     const auto& m = s.summary;
     char flip[16] = "      -";  // not computed (--flip off)
     if (p.flip >= 0) std::snprintf(flip, sizeof(flip), "%7.4f", p.flip);
-    std::printf("%-30s %7u %8.3f %10.3e %9.3e %s %9s %9s %9.3g %7.2f  %s\n",
-                s.config.name.c_str(), p.spp, p.seconds, p.error.relmse, p.error.rmse, flip,
-                fmt_time(m.to_1e2).c_str(), fmt_time(m.to_1e3).c_str(), m.efficiency, m.slope,
-                m.verdict.c_str());
+    std::printf("%-30s %7u %8.3f %10.3e %9.3e %s %9s %9s %9.3g %7.2f  %s\n", s.config.name.c_str(),
+                p.spp, p.seconds, p.error.relmse, p.error.rmse, flip, fmt_time(m.to_1e2).c_str(),
+                fmt_time(m.to_1e3).c_str(), m.efficiency, m.slope, m.verdict.c_str());
     if (s.nonfinite)
       std::printf("%-30s   %llu NaN/Inf samples rejected\n", "",
                   static_cast<unsigned long long>(s.nonfinite));
@@ -573,7 +607,7 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
       "wrote %s/{error_vs_time.csv, summary.csv, error_vs_time.svg, flip_vs_time.svg, "
       "bench.json}\n",
       o.out_dir.c_str());
-  return 0;
+  return failed ? kExitInputError : 0;
 }
 
 }  // namespace app

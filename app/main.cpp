@@ -47,11 +47,18 @@ int main(int argc, char** argv) {
     app.exit(e);
     return app::kExitUsage;
   }
-  if (*render) return run_render();
-  if (*info) return run_info();
-  if (*compare) return run_compare();
-  if (*bench) return run_bench();
-  if (*gui) return run_gui();
+  // Last resort: a failure no command caught (a CUDA error mid-run, a failed thread start) is
+  // reported as a message and exit 1, never as std::terminate.
+  try {
+    if (*render) return run_render();
+    if (*info) return run_info();
+    if (*compare) return run_compare();
+    if (*bench) return run_bench();
+    if (*gui) return run_gui();
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return app::kExitInputError;
+  }
   // No subcommand: the workbench window on the built-in scene when there is a display, else a
   // headless render of it.
   const bool display = std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY");

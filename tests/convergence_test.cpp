@@ -108,6 +108,11 @@ TEST(Convergence, TimeToErrorInterpolatesAndExtrapolates) {
   t = tracer::time_to_error(sweep(1.0, 0.0, 256), 1e-3);
   EXPECT_NEAR(t.seconds, 10.0, 1e-9);
   EXPECT_TRUE(t.extrapolated);
+  // A bias floor below the target: only the noise part (1/spp) falls, so 1e-3 needs
+  // 1/spp = 5e-4, i.e. 2,000 spp = 20 s, not the 1.5e-3 x 2.56 / 1e-3 = 3.8 s of error ~ 1/time.
+  t = tracer::time_to_error(sweep(1.0, 5e-4, 256), 1e-3);
+  EXPECT_NEAR(t.seconds, 20.0, 1e-6);
+  EXPECT_TRUE(t.extrapolated);
   // A bias floor above the target: never.
   t = tracer::time_to_error(sweep(1.0, 2e-3, 1024), 1e-3);
   EXPECT_LT(t.seconds, 0.0);
@@ -166,10 +171,11 @@ TEST(BenchError, CpuSweepSeparatesUnbiasedFromBiased) {
   char tmpl[] = "/tmp/pathtracer_bench_XXXXXX";
   const std::string dir = mkdtemp(tmpl);
   std::string log;
-  const std::string cmd = test::pathtracer_exe() +
-                          " bench --error --backend cpu --width 32 --height 32 --reference-spp 512"
-                          " --max-spp 64 --configs cpu+random,cpu+depth=2,cpu+no-nee+random,cpu --out " +
-                          dir;
+  const std::string cmd =
+      test::pathtracer_exe() +
+      " bench --error --backend cpu --width 32 --height 32 --reference-spp 512"
+      " --max-spp 64 --configs cpu+random,cpu+depth=2,cpu+no-nee+random,cpu --out " +
+      dir;
   ASSERT_EQ(test::run_command(cmd, &log), 0) << log;
   std::ifstream f(dir + "/bench.json");
   ASSERT_TRUE(f.good()) << log;
@@ -202,6 +208,42 @@ TEST(BenchError, CpuSweepSeparatesUnbiasedFromBiased) {
             2)
       << log;
   EXPECT_NE(log.find("no-nee"), std::string::npos) << log;
+}
+
+TEST(BenchError, RefusesBadReferencesAndSpeedOnlyOptions) {
+  char tmpl[] = "/tmp/pathtracer_bench_XXXXXX";
+  const std::string dir = mkdtemp(tmpl);
+  std::string log;
+  const std::string base =
+      test::pathtracer_exe() + " bench --error --backend cpu --width 16 --height 16 ";
+  // A PNG cannot be a reference; speed-bench options do not combine with --error.
+  EXPECT_EQ(test::run_command(base + "--reference " + dir + "/r.png --out " + dir, &log), 2) << log;
+  EXPECT_NE(log.find(".exr"), std::string::npos) << log;
+  EXPECT_EQ(test::run_command(base + "--nee off --out " + dir, &log), 2) << log;
+  EXPECT_EQ(test::run_command(base + "--configs cpu+depth=2.5 --out " + dir, &log), 2) << log;
+  // An unwritable --out fails before any rendering.
+  EXPECT_EQ(test::run_command(base + "--out /proc/nope", &log), 1) << log;
+  EXPECT_NE(log.find("/proc/nope"), std::string::npos) << log;
+  // A reference rendered with the render's own seed and sampler is flagged.
+  const std::string ref = dir + "/same_seed.exr";
+  ASSERT_EQ(test::run_command(test::pathtracer_exe() +
+                                  " render -q --backend cpu --width 16 "
+                                  "--height 16 --spp 64 --out " +
+                                  ref,
+                              &log),
+            0)
+      << log;
+  EXPECT_NE(tracer::reference_independence_warning(ref, 0, "sobol"), "");
+  EXPECT_EQ(tracer::reference_independence_warning(ref, 1, "sobol"), "");
+  EXPECT_EQ(tracer::reference_independence_warning(ref, 0, "random"), "");
+  ASSERT_EQ(test::run_command(base + "--reference " + ref +
+                                  " --configs cpu --max-spp 2 --flip off "
+                                  "--out " +
+                                  dir,
+                              &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("same seed"), std::string::npos) << log;
 }
 
 }  // namespace

@@ -276,6 +276,7 @@ void error_curve_plot(const std::vector<tracer::Checkpoint>& curve) {
   const ImVec2 p0 = ImGui::GetCursorScreenPos();
   const ImVec2 p1(p0.x + size.x, p0.y + size.y);
   ImDrawList* dl = ImGui::GetWindowDrawList();
+  dl->PushClipRect(p0, p1, true);  // levels and lines outside the axes' range stay inside
   dl->AddRectFilled(p0, p1, IM_COL32(20, 20, 24, 255));
   auto pt = [&](double x, double y) {
     return ImVec2(p0.x + float((std::log10(x) - lx0) / (lx1 - lx0)) * size.x,
@@ -298,6 +299,7 @@ void error_curve_plot(const std::vector<tracer::Checkpoint>& curve) {
   for (const auto& c : curve)
     if (c.seconds > 0 && c.error.relmse > 0) line.push_back(pt(c.seconds, c.error.relmse));
   dl->AddPolyline(line.data(), int(line.size()), IM_COL32(90, 170, 255, 255), 0, 2.0f);
+  dl->PopClipRect();
   ImGui::Dummy(size);
   const tracer::ConvergenceSummary sum = tracer::summarize(curve);
   ImGui::TextDisabled("relMSE 1e%.0f..1e%.0f against time 1e%.0f..1e%.0f s", ly0, ly1, lx0, lx1);

@@ -245,7 +245,8 @@ void Workbench::record_reference_error(const tracer::ImageRGB& img) {
   cp.spp = stats_.spp;
   cp.seconds = stats_.elapsed_s;
   cp.error = tracer::error_terms(img, *reference_);
-  stats_.relmse_reference = cp.error.relmse;
+  // Below the reference's own noise the estimate can dip under 0: show 0, not "no reference".
+  stats_.relmse_reference = std::max(0.0, cp.error.relmse);
   auto& curve = stats_.error_curve;
   // Log spacing: a new point once time or samples have grown by 5%, at most 1,000 points.
   if (curve.empty() || (cp.spp > curve.back().spp && curve.size() < 1000 &&
@@ -557,6 +558,9 @@ bool Workbench::load_reference(const std::string& path, std::string* error) {
         ref->variance = tracer::ImageRGB();
     }
     reference_ = std::move(ref);
+    const std::string warn = tracer::reference_independence_warning(
+        path, scene_.settings.seed, tracer::sampler_name(scene_.settings.sampler));
+    if (!warn.empty()) messages.push_back("warning: " + warn);
   } catch (const std::exception& e) {
     if (error) *error = e.what();
     return false;

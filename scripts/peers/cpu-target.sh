@@ -10,6 +10,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${1:-out/cpu-target}
 REF=${REF:?set REF to the 512x512 reference EXR}
+[ -f "$REF" ] || { echo "cpu-target: $REF does not exist (scripts/gpu-check.sh error makes it)" >&2; exit 1; }
 PATHTRACER=${PATHTRACER:-build/pathtracer}
 SWEEP=${SWEEP:-1,2,4,8,16,32,64,128}
 CONFIGS=${CONFIGS:-cpu}
@@ -58,6 +59,10 @@ tc = t_to(1e-2)
 print(f"\nCycles: time to relMSE 1e-2 = {tc:.2f} s")
 for c in ours:
     to = c["time_to_1e-2_s"]
+    if to < 0 or not tc == tc:
+        print(f"{c['config']}: time to relMSE 1e-2 not measured (never reached, or Cycles' sweep "
+              f"too short)")
+        continue
     print(f"{c['config']}: time to relMSE 1e-2 = {to:.2f} s; ours / Cycles = {to / tc:.2f} "
           f"(target <= 0.5)")
 PY

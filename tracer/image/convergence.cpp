@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "scene/diagnostics.h"
 
@@ -93,6 +95,29 @@ ErrorTerms error_terms(const ImageRGB& test, const ReferenceImage& ref, const Im
   return e;
 }
 
+std::string reference_independence_warning(const std::string& reference_path, uint32_t seed,
+                                           const std::string& sampler) {
+  std::ifstream f(reference_path + ".json");
+  if (!f) return "";
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) return "";
+  auto field = [&](const char* key) -> const nlohmann::json* {
+    if (j.contains(key)) return &j[key];
+    if (j.contains("settings") && j["settings"].is_object() && j["settings"].contains(key))
+      return &j["settings"][key];
+    return nullptr;
+  };
+  const nlohmann::json* s = field("seed");
+  if (!s || !s->is_number_unsigned() || s->get<uint64_t>() != seed) return "";
+  const nlohmann::json* smp = field("sampler");
+  const std::string ref_sampler = smp && smp->is_string() ? smp->get<std::string>() : "random";
+  if (ref_sampler != sampler) return "";
+  return reference_path + ": the reference was rendered with the same seed (" +
+         std::to_string(seed) + ") and sampler (" + sampler +
+         ") as this render, so it contains this render's first samples and the error reads too "
+         "low; render the reference with another --seed";
+}
+
 TimeToError time_to_error(const std::vector<Checkpoint>& sweep, double target) {
   TimeToError out;
   if (sweep.empty() || !(target > 0)) return out;
@@ -113,8 +138,13 @@ TimeToError time_to_error(const std::vector<Checkpoint>& sweep, double target) {
     return out;
   }
   const Checkpoint& last = sweep.back();
-  if (last.error.significant_bias() && last.error.bias2 >= target) return out;  // never
-  out.seconds = last.seconds * err(last) / target;
+  if (last.error.significant_bias()) {
+    // Only the noise falls with time: variance * t_last / t + bias2 = target.
+    if (last.error.bias2 >= target) return out;  // never
+    out.seconds = last.seconds * last.error.variance / (target - last.error.bias2);
+  } else {
+    out.seconds = last.seconds * err(last) / target;
+  }
   out.extrapolated = true;
   return out;
 }
@@ -175,9 +205,10 @@ ConvergenceSummary summarize(const std::vector<Checkpoint>& sweep) {
   } else if (flat) {
     // The half-buffer test found no bias: randomised QMC can converge slower than 1/N for a while
     // after a fast start, and heavy-tailed noise flattens a short sweep.
-    s.verdict = fmt("no significant bias (half-buffer test); slope %.2f +- %.2f is flatter than "
-                    "-1: pre-asymptotic or heavy-tailed noise",
-                    s.slope, s.slope_stderr);
+    s.verdict =
+        fmt("no significant bias (half-buffer test); slope %.2f +- %.2f is flatter than "
+            "-1: pre-asymptotic or heavy-tailed noise",
+            s.slope, s.slope_stderr);
   } else if (s.slope_points >= 2) {
     const double tolerance = std::max(0.1, 2.0 * s.slope_stderr);
     const bool near = std::abs(s.slope + 1.0) <= tolerance;

@@ -44,6 +44,13 @@ struct ErrorTerms {
 ErrorTerms error_terms(const ImageRGB& test, const ReferenceImage& ref,
                        const ImageRGB* even = nullptr, const ImageRGB* odd = nullptr);
 
+// A reference rendered with the same seed and sampler as the image compared with it shares that
+// image's first samples: the error then reads too low (E[(t - r)^2] = Var t - Var r). Reads the
+// reference's JSON sidecar (`<path>.json`, from `pathtracer render` or `bench --error`) and
+// returns a warning naming the file when seed and sampler match, else "" (also without one).
+std::string reference_independence_warning(const std::string& reference_path, uint32_t seed,
+                                           const std::string& sampler);
+
 // One point of a sweep: the image after `spp` samples, `seconds` of rendering in total.
 struct Checkpoint {
   uint32_t spp = 0;
@@ -53,8 +60,9 @@ struct Checkpoint {
 };
 
 // When a sweep first reaches relMSE `target`: log-log interpolation between the two checkpoints
-// around it. Not reached: extrapolated from the last checkpoint as error ~ 1/time when the sweep
-// is unbiased (`extrapolated` set), or "never" (< 0) when its bias alone exceeds the target.
+// around it. Not reached: extrapolated from the last checkpoint (`extrapolated` set) as error ~
+// 1/time, or, when the last checkpoint has a significant bias, with only its noise part falling
+// as 1/time; "never" (< 0) when the bias alone exceeds the target.
 struct TimeToError {
   double seconds = -1;
   bool extrapolated = false;
@@ -64,7 +72,7 @@ TimeToError time_to_error(const std::vector<Checkpoint>& sweep, double target);
 struct ConvergenceSummary {
   double slope = 0;         // least squares of log relMSE against log spp
   double slope_stderr = 0;  // from the fit's residuals
-  int slope_points = 0;     // checkpoints used (spp >= 4 with a positive relMSE)
+  int slope_points = 0;     // checkpoints used (spp >= 2 with a positive relMSE)
   TimeToError to_1e2, to_1e3;
   double efficiency = 0;  // 1 / (relMSE * seconds) at the last checkpoint
   bool biased = false;    // significant bias at the last checkpoint, or a flat slope
