@@ -49,12 +49,16 @@ TEST(Sobol, FirstDimensionsAreTheSobolSequence) {
   }
   // The vertex's points are the scrambles written out in full (sobol.h cancels reversals).
   const SobolVertex v(9, 13, 2, 4);
-  const uint64_t k = v.pair_key(3);
-  const uint32_t shuffled = nested_uniform_scramble(13 >> 1, uint32_t(k));
-  EXPECT_EQ(v.get_2d(3).x,
-            fraction_to_float(nested_uniform_scramble(sobol_dim0(shuffled), uint32_t(k >> 32))));
-  EXPECT_EQ(v.get_2d(3).y, fraction_to_float(nested_uniform_scramble(
-                               sobol_dim1(shuffled), uint32_t(mix64(k ^ 0x5851f42d4c957f2dull)))));
+  const uint32_t shuffled = nested_uniform_scramble(13 >> 1, v.scramble_seed(3, 0));
+  EXPECT_EQ(v.get_2d(3).x, fraction_to_float(nested_uniform_scramble(sobol_dim0(shuffled),
+                                                                     v.scramble_seed(3, 1))));
+  EXPECT_EQ(v.get_2d(3).y, fraction_to_float(nested_uniform_scramble(sobol_dim1(shuffled),
+                                                                     v.scramble_seed(3, 2))));
+  for (int t = 0; t < 1000; ++t) {
+    const uint64_t x = uint64_t(rng.next_u32()) << 32 | rng.next_u32();
+    ASSERT_EQ(reverse_bits64(x),
+              uint64_t(reverse_bits32(uint32_t(x))) << 32 | reverse_bits32(uint32_t(x >> 32)));
+  }
   EXPECT_EQ(reverse_bits32(1u), 0x80000000u);
   EXPECT_EQ(reverse_bits32(0x12345678u), 0x1e6a2c48u);
 }

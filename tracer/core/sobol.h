@@ -80,23 +80,56 @@ TRACER_HD TRACER_INLINE float fraction_to_float(uint32_t x) {
   return float(x >> 8) * 0x1p-24f;
 }
 
-// The point of sequence index `index` for one dimension pair, whose scrambles come from `key`;
-// `index_reversed` is reverse_bits32(index), shared by every pair of a vertex. Shuffling the
-// index by a nested scramble maps the first 2^m indices onto one aligned block of 2^m indices,
-// so each pair's first 2^m points still form a (0,m,2)-net, while different pairs visit the
-// block in unrelated orders (Burley 2020, sec. 4: padding by shuffling).
+// A 32-bit integer hash with low avalanche bias: Wellons' lowbias32 with the constants his
+// hash-prospector found later (bias 0.107; nullprogram.com/blog/2018/07/31). Two 32-bit
+// multiplies, which a GPU does natively (a 64-bit multiply takes several 32-bit ones).
+TRACER_HD TRACER_INLINE uint32_t hash32(uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x21f0aaadu;
+  x ^= x >> 15;
+  x *= 0x735a2d97u;
+  x ^= x >> 15;
+  return x;
+}
+constexpr uint32_t kGolden32 = 0x9e3779b9u;  // 2^32 / golden ratio, odd
+
+// Bits reversed in both halves of a 64-bit word, which also swaps the halves: two 32-bit
+// reversals for the price of about one on the CPU (the device has __brev).
+TRACER_HD TRACER_INLINE uint64_t reverse_bits64(uint64_t x) {
+#if defined(__CUDA_ARCH__)
+  return __brevll(x);
+#else
+#if defined(__GNUC__)
+  x = __builtin_bswap64(x);
+#else
+  x = (x << 32) | (x >> 32);
+  x = ((x & 0x0000ffff0000ffffull) << 16) | ((x & 0xffff0000ffff0000ull) >> 16);
+  x = ((x & 0x00ff00ff00ff00ffull) << 8) | ((x & 0xff00ff00ff00ff00ull) >> 8);
+#endif
+  x = ((x & 0x0f0f0f0f0f0f0f0full) << 4) | ((x & 0xf0f0f0f0f0f0f0f0ull) >> 4);
+  x = ((x & 0x3333333333333333ull) << 2) | ((x & 0xccccccccccccccccull) >> 2);
+  x = ((x & 0x5555555555555555ull) << 1) | ((x & 0xaaaaaaaaaaaaaaaaull) >> 1);
+  return x;
+#endif
+}
+
+// The point of sequence index `index` for one dimension pair. Shuffling the index by a nested
+// scramble maps the first 2^m indices onto one aligned block of 2^m indices, so each pair's
+// first 2^m points still form a (0,m,2)-net, while different pairs visit the block in unrelated
+// orders (Burley 2020, sec. 4: padding by shuffling). `index_reversed` is
+// reverse_bits32(index), shared by every pair of a vertex.
 //
 // Written out, x = scramble(sobol_dim0(shuffle(index))) is
 // rev(LK(rev(rev(rev(LK(rev(index))))))); the inner reversals cancel, which leaves three
-// reversals per 2D point (two for a 1D draw) instead of six.
-TRACER_HD TRACER_INLINE uint32_t shuffled_index(uint32_t index_reversed, uint64_t key) {
-  return reverse_bits32(laine_karras_permutation(index_reversed, uint32_t(key)));
+// reversals per 2D point (two for a 1D draw) instead of six, and on the CPU the last two are
+// one 64-bit reversal.
+TRACER_HD TRACER_INLINE uint32_t shuffled_index(uint32_t index_reversed, uint32_t seed) {
+  return reverse_bits32(laine_karras_permutation(index_reversed, seed));
 }
-TRACER_HD TRACER_INLINE uint32_t owen_sobol_x(uint32_t shuffled, uint64_t key) {
-  return reverse_bits32(laine_karras_permutation(shuffled, uint32_t(key >> 32)));
+TRACER_HD TRACER_INLINE uint32_t owen_sobol_x(uint32_t shuffled, uint32_t seed) {
+  return reverse_bits32(laine_karras_permutation(shuffled, seed));
 }
-TRACER_HD TRACER_INLINE uint32_t owen_sobol_y(uint32_t shuffled, uint64_t key) {
-  const uint32_t seed = uint32_t(mix64(key ^ 0x5851f42d4c957f2dull));
+TRACER_HD TRACER_INLINE uint32_t owen_sobol_y(uint32_t shuffled, uint32_t seed) {
   return reverse_bits32(laine_karras_permutation(sobol_dim1_reversed(shuffled), seed));
 }
 
@@ -106,29 +139,37 @@ TRACER_HD TRACER_INLINE uint32_t owen_sobol_y(uint32_t shuffled, uint64_t key) {
 // independent, identically distributed estimates, which the half-buffer noise estimates
 // (relMSE between halves, bench --error's noise/bias split) assume. A single sequence would
 // not give that: its even and odd points interleave to fill each other's gaps.
+//
+// Seeds: one 32-bit vertex seed hashes (user seed, bounce, parity) and then the pixel; each
+// scramble of the vertex (index shuffle, x, y of every pair) takes its own seed from it as
+// SplitMix32 does, hash32(vertex seed + k * golden ratio) for scramble k (Steele et al. 2014,
+// "Fast splittable pseudorandom number generators"). All 32-bit, so the device needs no 64-bit
+// multiplies, and the three seeds of a pair are independent of each other.
 struct SobolVertex {
   uint32_t index_reversed;
-  uint64_t key;
+  uint32_t seed;
 
-  TRACER_HD SobolVertex(uint32_t pixel, uint32_t sample, uint32_t bounce, uint32_t seed) {
+  TRACER_HD SobolVertex(uint32_t pixel, uint32_t sample, uint32_t bounce, uint32_t user_seed) {
     index_reversed = reverse_bits32(sample >> 1);
-    key = mix64((uint64_t(pixel) << 32 | bounce) ^
-                mix64((uint64_t(seed) << 1 | (sample & 1u)) + 0x9e3779b97f4a7c15ull));
+    seed = hash32(pixel ^ hash32(user_seed + ((bounce << 1) | (sample & 1u)) * kGolden32));
   }
 
-  TRACER_HD uint64_t pair_key(uint32_t pair) const {
-    return mix64(key + (uint64_t(pair) + 1u) * 0xbf58476d1ce4e5b9ull);
+  // Scramble k = 0, 1, 2 of `pair`: the index shuffle, x and y.
+  TRACER_HD uint32_t scramble_seed(uint32_t pair, uint32_t k) const {
+    return hash32(seed + (3u * pair + k + 1u) * kGolden32);
   }
   TRACER_HD vec2 get_2d(uint32_t pair) const {
-    const uint64_t k = pair_key(pair);
-    const uint32_t shuffled = shuffled_index(index_reversed, k);
-    return vec2(fraction_to_float(owen_sobol_x(shuffled, k)),
-                fraction_to_float(owen_sobol_y(shuffled, k)));
+    const uint32_t shuffled = shuffled_index(index_reversed, scramble_seed(pair, 0));
+    const uint32_t x = laine_karras_permutation(shuffled, scramble_seed(pair, 1));
+    const uint32_t y =
+        laine_karras_permutation(sobol_dim1_reversed(shuffled), scramble_seed(pair, 2));
+    const uint64_t xy = reverse_bits64(uint64_t(y) << 32 | x);  // rev(x) high, rev(y) low
+    return vec2(fraction_to_float(uint32_t(xy >> 32)), fraction_to_float(uint32_t(xy)));
   }
   // A 1D draw is the first coordinate of its own pair (a (0,1)-sequence, stratified alone).
   TRACER_HD float get_1d(uint32_t pair) const {
-    const uint64_t k = pair_key(pair);
-    return fraction_to_float(owen_sobol_x(shuffled_index(index_reversed, k), k));
+    return fraction_to_float(owen_sobol_x(shuffled_index(index_reversed, scramble_seed(pair, 0)),
+                                          scramble_seed(pair, 1)));
   }
 };
 
