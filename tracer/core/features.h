@@ -27,4 +27,24 @@ constexpr uint32_t kAllFeatures = 0xffffffffu;
 constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption |
                                       kFeatureSubsurface | kFeatureTextures;
 
+// Specialisations: three bits (1 spheres, 2 depth of field, 4 specular materials) name the eight
+// compiled variants both backends run; kGeneralSpec is the one for all features.
+constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4;
+constexpr uint32_t kGeneralSpec = 7;
+
+template <uint32_t Spec>
+constexpr uint32_t features_of() {
+  return kFeatureEmissiveMeshes | kFeatureShadingNormals |
+         ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
+         ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
+         ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u);
+}
+
+// The smallest specialisation that covers a scene's features.
+constexpr uint32_t spec_for_features(uint32_t f) {
+  return ((f & kFeatureSpheres) ? kSpecSpheres : 0u) |
+         ((f & kFeatureDepthOfField) ? kSpecDepthOfField : 0u) |
+         ((f & kFeatureSpecular) ? kSpecSpecular : 0u);
+}
+
 }  // namespace tracer

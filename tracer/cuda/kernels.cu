@@ -19,13 +19,6 @@ constexpr int kBlock = 256;
 #define TRACER_MEGA_MIN_BLOCKS 4  // 64 registers: measured fastest on an H200 (PERFORMANCE.md)
 #endif
 
-template <uint32_t Spec>
-constexpr uint32_t features_of() {
-  return kFeatureEmissiveMeshes | kFeatureShadingNormals |
-         ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
-         ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
-         ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u);
-}
 
 __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 L, bool first,
                                             unsigned long long* nonfinite) {
@@ -344,11 +337,6 @@ uint32_t blocks(uint32_t n) { return (n + kBlock - 1) / kBlock; }
 
 }  // namespace
 
-uint32_t spec_for_features(uint32_t f) {
-  return ((f & kFeatureSpheres) ? kSpecSpheres : 0u) |
-         ((f & kFeatureDepthOfField) ? kSpecDepthOfField : 0u) |
-         ((f & kFeatureSpecular) ? kSpecSpecular : 0u);
-}
 
 const char* spec_name(uint32_t spec) {
   static const char* kNames[8] = {

@@ -9,10 +9,7 @@
 
 namespace tracer {
 
-constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4;
-constexpr uint32_t kGeneralSpec = 7;
-
-uint32_t spec_for_features(uint32_t scene_features);
+// kSpec*, kGeneralSpec, features_of<Spec>() and spec_for_features() are in core/features.h.
 const char* spec_name(uint32_t spec);  // e.g. "triangles, pinhole, diffuse only"
 
 // Structure-of-arrays path pool of `n` paths; path id == pixel index.
