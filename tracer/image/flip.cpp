@@ -383,20 +383,7 @@ vec3 magma(float t) {
   // interpolated in the encoded values, as viridis() in metrics.cpp is.
   static const unsigned kStops[] = {0x000004, 0x1D1147, 0x51127C, 0x822681, 0xB63679,
                                     0xE65164, 0xFB8861, 0xFEC287, 0xFCFDBF};
-  constexpr int kSegments = sizeof(kStops) / sizeof(kStops[0]) - 1;
-  if (!(t > 0.0f)) t = 0.0f;  // also catches NaN
-  if (t > 1.0f) t = 1.0f;
-  const float s = t * kSegments;
-  const int i = s >= kSegments ? kSegments - 1 : static_cast<int>(s);
-  const float f = s - static_cast<float>(i);
-  vec3 out;
-  for (int c = 0; c < 3; ++c) {
-    const int shift = 16 - 8 * c;
-    const float lo = static_cast<float>((kStops[i] >> shift) & 0xff) / 255.0f;
-    const float hi = static_cast<float>((kStops[i + 1] >> shift) & 0xff) / 255.0f;
-    out[c] = srgb_to_linear(lo + (hi - lo) * f);
-  }
-  return out;
+  return color_ramp(kStops, 9, t);
 }
 
 ImageRGB flip_error_map(const FlipResult& flip) {

@@ -87,6 +87,9 @@ CompareResult compare_images(const ImageRGB& test, const ImageRGB& ref);
 // (#440154), 1 or more the bright end (#FDE725). Pixels with a NaN/Inf value in either image are
 // magenta. Colours are stored linear, so a PNG of the result shows exactly the ramp's sRGB values.
 ImageRGB false_color_difference(const ImageRGB& test, const ImageRGB& ref);
+// A colour map from `count` even, sRGB-encoded 0xRRGGBB stops, interpolated in the encoded values
+// at t in [0, 1] (clamped; NaN gives the first stop), returned as linear RGB.
+vec3 color_ramp(const unsigned* stops, int count, float t);
 // Viridis (van der Walt & Smith 2015) at t in [0, 1], clamped, as linear RGB.
 vec3 viridis(float t);
 

@@ -115,25 +115,29 @@ CompareResult compare_images(const ImageRGB& test, const ImageRGB& ref) {
   return out;
 }
 
+vec3 color_ramp(const unsigned* stops, int count, float t) {
+  const int segments = count - 1;
+  if (!(t > 0.0f)) t = 0.0f;  // also catches NaN
+  if (t > 1.0f) t = 1.0f;
+  const float s = t * segments;
+  const int i = s >= segments ? segments - 1 : static_cast<int>(s);
+  const float f = s - static_cast<float>(i);
+  vec3 out;
+  for (int c = 0; c < 3; ++c) {
+    const int shift = 16 - 8 * c;
+    const float a = static_cast<float>((stops[i] >> shift) & 0xff) / 255.0f;
+    const float b = static_cast<float>((stops[i + 1] >> shift) & 0xff) / 255.0f;
+    out[c] = srgb_to_linear(a + (b - a) * f);
+  }
+  return out;
+}
+
 vec3 viridis(float t) {
   // matplotlib's viridis sampled at 9 even steps (the values R's viridis(9) prints), sRGB-encoded.
   // Interpolating the encoded values keeps the steps perceptually even, as the map was designed.
   static const unsigned kStops[] = {0x440154, 0x472D7B, 0x3B528B, 0x2C728E, 0x21908C,
                                     0x27AD81, 0x5DC863, 0xAADC32, 0xFDE725};
-  constexpr int kSegments = sizeof(kStops) / sizeof(kStops[0]) - 1;
-  if (!(t > 0.0f)) t = 0.0f;  // also catches NaN
-  if (t > 1.0f) t = 1.0f;
-  const float s = t * kSegments;
-  const int i = s >= kSegments ? kSegments - 1 : static_cast<int>(s);
-  const float f = s - static_cast<float>(i);
-  vec3 out;
-  for (int c = 0; c < 3; ++c) {
-    const int shift = 16 - 8 * c;
-    const float a = static_cast<float>((kStops[i] >> shift) & 0xff) / 255.0f;
-    const float b = static_cast<float>((kStops[i + 1] >> shift) & 0xff) / 255.0f;
-    out[c] = srgb_to_linear(a + (b - a) * f);
-  }
-  return out;
+  return color_ramp(kStops, 9, t);
 }
 
 ImageRGB false_color_difference(const ImageRGB& test, const ImageRGB& ref) {
