@@ -161,16 +161,11 @@ void collect_flips(FlipJobs& jobs, Sweep& sw, size_t keep) {
   }
 }
 
-std::string exr_variance_path(const std::string& ref) {
-  std::filesystem::path p(ref);
-  return (p.parent_path() / (p.stem().string() + ".variance.exr")).string();
-}
-
 // Loads the reference (and its variance image when present) or renders it with `r`.
 bool obtain_reference(const std::string& path, int spp, const tracer::CompiledScene& cs,
                       tracer::IntegratorSettings cfg, tracer::Renderer& r,
                       const nlohmann::json& settings, tracer::ReferenceImage* ref) {
-  const std::string var_path = exr_variance_path(path);
+  const std::string var_path = tracer::variance_path_for(path);
   if (std::filesystem::exists(path)) {
     ref->mean = tracer::read_image(path);
     if (ref->mean.width != int(cfg.width) || ref->mean.height != int(cfg.height)) {

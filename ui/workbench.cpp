@@ -179,7 +179,8 @@ void Workbench::update() {
     dirty_ = geometry_dirty_ = false;
   }
   if (async_) {
-    std::lock_guard<std::mutex> lk(mutex_);
+    tracer::ImageRGB img;  // copied under the lock, compared with the reference after it
+    std::unique_lock<std::mutex> lk(mutex_);
     stats_.spp = worker_spp_;
     stats_.last = worker_stats_;
     stats_.ms_per_frame = worker_stats_.ms;
@@ -198,12 +199,12 @@ void Workbench::update() {
     if (reference_ && (++frames_since_estimate_ >= 30 || stats_.spp >= next_curve_spp_) &&
         !published_mean_.empty() && stats_.spp > 0) {
       frames_since_estimate_ = 0;
-      tracer::ImageRGB img;
       img.width = published_w_;
       img.height = published_h_;
       img.pixels = published_mean_;
-      record_reference_error(img);
     }
+    lk.unlock();  // the worker keeps rendering while the image is compared
+    if (!img.pixels.empty()) record_reference_error(img);
     return;
   }
   if (paused || converged()) return;
@@ -550,8 +551,7 @@ bool Workbench::load_reference(const std::string& path, std::string* error) {
                  "; not loaded (set the size first, or render a reference of this size)";
       return false;
     }
-    const std::filesystem::path p(path);
-    const std::string var = (p.parent_path() / (p.stem().string() + ".variance.exr")).string();
+    const std::string var = tracer::variance_path_for(path);
     if (std::filesystem::exists(var)) {
       ref->variance = tracer::read_image(var);
       if (ref->variance.width != ref->mean.width || ref->variance.height != ref->mean.height)

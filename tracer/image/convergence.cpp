@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -32,6 +33,11 @@ std::string fmt(const char* f, double a, double b = 0, double c = 0) {
 }
 
 }  // namespace
+
+std::string variance_path_for(const std::string& reference_path) {
+  const std::filesystem::path p(reference_path);
+  return (p.parent_path() / (p.stem().string() + ".variance.exr")).string();
+}
 
 ImageRGB variance_from_halves(const ImageRGB& even, const ImageRGB& odd) {
   require_size(odd, even, "odd half");

@@ -16,6 +16,9 @@ struct ReferenceImage {
   ImageRGB variance;
 };
 
+// Where the variance image of a reference lives: "dir/NAME.exr" -> "dir/NAME.variance.exr".
+std::string variance_path_for(const std::string& reference_path);
+
 // Per-pixel variance of the mean of two equal-sized half estimates (even and odd samples):
 // E[(a - b)^2] = 4 Var((a + b) / 2), so the estimate is (a - b)^2 / 4. Unbiased, but it rests on
 // one pair per pixel, so it is noisy per pixel and only its averages are meaningful.
