@@ -48,13 +48,14 @@ struct Config {
   bool nee = true, mis = true, rr = true, schlick = false;
   int max_depth = 0;  // 0: the bench's
   float clamp = 0;
-  int sampler = -1;  // tracer::kSamplerRandom or kSamplerSobol; < 0: the scene's
+  int sampler = -1;         // tracer::kSamplerRandom or kSamplerSobol; < 0: the scene's
+  bool scalar_bvh = false;  // CPU: the shared scalar traversal instead of the SSE one
 };
 
 const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
 const std::vector<std::string> kModifiers = {"no-compaction", "sorting", "general", "no-rr",
                                              "no-nee",        "no-mis",  "schlick", "depth=N",
-                                             "clamp=X",       "random",  "sobol"};
+                                             "clamp=X",       "random",  "sobol",   "scalar-bvh"};
 
 // Throws std::invalid_argument with a message naming the bad token.
 Config parse_config(const std::string& text) {
@@ -114,7 +115,13 @@ Config parse_config(const std::string& text) {
       c.sampler = int(tracer::kSamplerRandom);
     else if (m == "sobol")
       c.sampler = int(tracer::kSamplerSobol);
-    else if (m.rfind("depth=", 0) == 0) {
+    else if (m == "scalar-bvh") {
+      if (!c.cpu)
+        throw std::invalid_argument("\"scalar-bvh\" in \"" + text +
+                                    "\" applies to cpu configurations only (the GPU always "
+                                    "traverses the shared layout)");
+      c.scalar_bvh = true;
+    } else if (m.rfind("depth=", 0) == 0) {
       const double d = number("depth=", 1, 1024);
       if (d != std::floor(d))
         throw std::invalid_argument("\"" + m + "\" in \"" + text +
@@ -127,7 +134,7 @@ Config parse_config(const std::string& text) {
       throw std::invalid_argument("unknown modifier \"" + m + "\" in \"" + text + "\"" +
                                   (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") +
                                   "; modifiers: no-compaction, sorting, general, no-rr, no-nee, "
-                                  "no-mis, schlick, depth=N, clamp=X, random, sobol");
+                                  "no-mis, schlick, depth=N, clamp=X, random, sobol, scalar-bvh");
     }
   }
   return c;
@@ -138,7 +145,8 @@ std::string default_suite(bool gpu) {
     return "megakernel,wavefront,wavefront+no-compaction,wavefront+sorting,megakernel+general,"
            "megakernel+no-rr,megakernel+no-nee,megakernel+no-mis,megakernel+schlick,"
            "megakernel+depth=4,megakernel+clamp=10,megakernel+random,cpu";
-  return "cpu,cpu+random,cpu+no-rr,cpu+no-nee,cpu+no-mis,cpu+schlick,cpu+depth=4,cpu+clamp=10";
+  return "cpu,cpu+scalar-bvh,cpu+random,cpu+no-rr,cpu+no-nee,cpu+no-mis,cpu+schlick,cpu+depth=4,"
+         "cpu+clamp=10";
 }
 
 struct Sweep {
@@ -407,7 +415,8 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
   cmd.add_option("--configs", o->configs,
                  "Comma-separated configurations: cpu|megakernel|wavefront|auto, each with "
                  "+modifiers: no-compaction, sorting, general, no-rr, no-nee, no-mis, schlick, "
-                 "depth=N, clamp=X, random, sobol (the sampler). Default: a suite for the "
+                 "depth=N, clamp=X, random, sobol (the sampler), scalar-bvh (CPU: the GPU's "
+                 "scalar traversal instead of SSE). Default: a suite for the "
                  "backends present")
       ->group(g);
   cmd.add_option("--max-spp", o->max_spp,
@@ -542,6 +551,7 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
       scs = cs_schlick.get();
     }
     const int max_spp = o.max_spp > 0 ? o.max_spp : (c.cpu ? 256 : 4096);
+    cpu.set_simd_traversal(!c.scalar_bvh);
     tracer::Renderer& r = c.cpu ? static_cast<tracer::Renderer&>(cpu) : *gpu;
     const uint32_t sampler = c.sampler >= 0 ? uint32_t(c.sampler) : cfg.sampler;
     const std::string warn =

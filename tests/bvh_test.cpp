@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iostream>
 #include <random>
 
 #include "scene/loader.h"
@@ -47,23 +48,12 @@ Ray random_ray(std::mt19937& rng, vec3 lo, vec3 hi) {
   return r;
 }
 
-void check_against_brute_force(const Scene& scene, int rays, const std::string& what) {
-  const CompiledScene cs(scene, 16, 16);
-  const SceneView& v = cs.view();
-  Aabb box;
-  for (const auto& tv : cs.tri_verts()) {
-    box.grow(tv.v0);
-    box.grow(tv.v1);
-    box.grow(tv.v2);
-  }
-  for (const auto& s : cs.spheres()) {
-    box.grow(s.center - vec3(s.radius));
-    box.grow(s.center + vec3(s.radius));
-  }
+// Checks one traversal (the view's) against brute force on random rays.
+void check_view(const SceneView& v, vec3 lo, vec3 hi, int rays, const std::string& what) {
   std::mt19937 rng(1234);
   int hits = 0, mismatches = 0;
   for (int i = 0; i < rays; ++i) {
-    Ray r = random_ray(rng, box.lo, box.hi);
+    Ray r = random_ray(rng, lo, hi);
     const Hit a = intersect_closest(v, r);
     const Hit b = brute_force(v, r);
     if (a.valid()) ++hits;
@@ -85,6 +75,51 @@ void check_against_brute_force(const Scene& scene, int rays, const std::string& 
   }
   EXPECT_EQ(mismatches, 0) << what;
   EXPECT_GT(hits, rays / 10) << what << ": the rays should hit something often";
+}
+
+// Both traversals against brute force, and the CPU's SSE traversal (bvh/cpu_bvh.h) against the
+// shared one it must reproduce bit for bit: the same primitive, t and barycentrics, also when
+// the nearest primitive is skipped (as the integrator skips a shadow ray's light).
+void check_against_brute_force(const Scene& scene, int rays, const std::string& what) {
+  const CompiledScene cs(scene, 16, 16);
+  Aabb box;
+  for (const auto& tv : cs.tri_verts()) {
+    box.grow(tv.v0);
+    box.grow(tv.v1);
+    box.grow(tv.v2);
+  }
+  for (const auto& s : cs.spheres()) {
+    box.grow(s.center - vec3(s.radius));
+    box.grow(s.center + vec3(s.radius));
+  }
+  SceneView shared = cs.view();
+  shared.cpu_bvh = CpuBvhView();
+  check_view(shared, box.lo, box.hi, rays, what + " (shared traversal)");
+  if (!cpu_bvh_supported()) {
+    std::cout << "[   NOTE   ] no SSE traversal in this build; only the shared one was checked\n";
+    return;
+  }
+  const SceneView& simd = cs.view();
+  ASSERT_NE(simd.cpu_bvh.nodes, nullptr) << what << ": CompiledScene should build the CPU BVH";
+  check_view(simd, box.lo, box.hi, rays, what + " (SSE traversal)");
+  std::mt19937 rng(99);
+  int differ = 0;
+  for (int i = 0; i < rays; ++i) {
+    const Ray r = random_ray(rng, box.lo, box.hi);
+    const Hit a = intersect_closest(simd, r), b = intersect_closest(shared, r);
+    const bool same = a.prim == b.prim && a.t == b.t && a.u == b.u && a.v == b.v;
+    if (!same && differ++ < 5)
+      ADD_FAILURE() << what << ": ray " << i << " SSE prim " << a.prim << " t " << a.t << " uv "
+                    << a.u << "," << a.v << " vs shared prim " << b.prim << " t " << b.t << " uv "
+                    << b.u << "," << b.v;
+    if (!b.valid()) continue;
+    const Hit a2 = intersect_closest(simd, r, b.prim), b2 = intersect_closest(shared, r, b.prim);
+    EXPECT_TRUE(a2.prim == b2.prim && a2.t == b2.t) << what << ": skipping prim " << b.prim;
+    Ray s = r;
+    s.tmax = b.t * 1.5f;
+    EXPECT_EQ(intersect_any(simd, s, b.prim), intersect_any(shared, s, b.prim)) << what;
+  }
+  EXPECT_EQ(differ, 0) << what;
 }
 
 TEST(Bvh, NodesAreOneCacheLine) {

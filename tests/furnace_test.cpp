@@ -92,7 +92,12 @@ TEST(Furnace, SphereHighAlbedo) {
 
 TEST(Furnace, TriangleBoxConverges) {
   for (const Mode& m : kModes) {
-    expect_furnace(box_furnace(0.5f), furnace_settings(m), 512, 2.0f,
+    // NEE without MIS is heavy-tailed in the box (1/d^2 from points near an edge): at 512 spp a
+    // pixel that drew none of the rare large samples reads 1.8 with a small sample variance, and
+    // which pixel that is depends on the random stream (the mean over 64 seeds is 2.004). 4096
+    // samples make such a pixel far rarer; the estimator is unbiased either way.
+    const uint32_t spp = m.nee && !m.mis ? 4096 : 512;
+    expect_furnace(box_furnace(0.5f), furnace_settings(m), spp, 2.0f,
                    std::string("box rho=0.5 ") + m.name);
   }
 }

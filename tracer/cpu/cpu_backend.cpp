@@ -39,7 +39,8 @@ void CpuRenderer::reset() {
 FrameStats CpuRenderer::render(uint32_t spp) {
   if (!scene_) throw std::logic_error("CpuRenderer::render: no scene set");
   const auto start = std::chrono::steady_clock::now();
-  const SceneView& view = scene_->view();
+  SceneView view = scene_->view();
+  if (!simd_traversal_) view.cpu_bvh = CpuBvhView();
   const uint32_t w = cfg_.width, h = cfg_.height;
   const uint32_t first_sample = samples_;
   std::atomic<uint32_t> next_row{0};

@@ -26,6 +26,10 @@ class CpuRenderer final : public Renderer {
   // When set, render() checks the flag between rows and abandons the pass (adding nothing and
   // returning spp_added = 0) once it is true: edits in the workbench never wait for a pass.
   void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }
+  // The SSE traversal of the CPU BVH layout (bvh/cpu_bvh.h, on by default where the build has
+  // it) or the shared scalar traversal the GPU runs: the same hits, for A/B measurements.
+  void set_simd_traversal(bool on) { simd_traversal_ = on; }
+  bool simd_traversal() const { return simd_traversal_ && cpu_bvh_supported(); }
 
  private:
   int threads_;
@@ -36,6 +40,7 @@ class CpuRenderer final : public Renderer {
   const std::atomic<bool>* cancel_ = nullptr;
   uint32_t samples_ = 0;
   uint64_t nonfinite_ = 0;
+  bool simd_traversal_ = true;
 };
 
 }  // namespace tracer

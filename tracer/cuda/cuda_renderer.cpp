@@ -279,6 +279,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.tri_uvs = scene.tri_uvs().empty() ? nullptr : m.tri_uvs.get();
   m.view.textures = m.textures.get();
   m.view.texels = m.texels.get();
+  m.view.cpu_bvh = CpuBvhView();  // host memory: the device traverses the shared layout
   m.features = scene.features();
   m.has_scene = true;
   set_settings(cfg);

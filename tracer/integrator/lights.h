@@ -4,17 +4,17 @@
 #pragma once
 
 #include "core/sampling.h"
-#include "materials/bsdf.h"
 #include "integrator/textured.h"
+#include "materials/bsdf.h"
 #include "scene/scene_view.h"
 
 namespace tracer {
 
 struct LightSample {
-  vec3 p;       // point on the light
-  vec3 n;       // its geometric normal
-  vec3 le;      // radiance emitted towards the reference point
-  float pdf;    // solid-angle pdf at the reference point, including the choice of light
+  vec3 p;     // point on the light
+  vec3 n;     // its geometric normal
+  vec3 le;    // radiance emitted towards the reference point
+  float pdf;  // solid-angle pdf at the reference point, including the choice of light
   uint32_t prim;
   bool valid;
 };
@@ -24,7 +24,10 @@ TRACER_HD TRACER_INLINE uint32_t pick_light(const SceneView& s, float u) {
   uint32_t lo = 0, hi = s.light_count;  // invariant: cdf[lo] <= u < cdf[hi]
   while (hi - lo > 1) {
     const uint32_t mid = (lo + hi) / 2;
-    if (s.light_cdf[mid] <= u) lo = mid; else hi = mid;
+    if (s.light_cdf[mid] <= u)
+      lo = mid;
+    else
+      hi = mid;
   }
   return lo;
 }
@@ -121,6 +124,25 @@ TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref
   }
   ls.valid = ls.pdf > 0.0f && is_finite(ls.pdf);
   return ls;
+}
+
+// Next-event estimation from one 2D point: u.x chooses the light and, rescaled to [0, 1) within
+// that light's CDF interval, is reused as the first coordinate of the point on it. Drawing the
+// choice from a dimension of its own would leave each light with a random subset of the 2D
+// points, which loses their stratification; reused, the points that land on a light are still a
+// stratified set (the two triangles of a quad light together get the stratification of the whole
+// quad). The same reuse as pbrt-v3's SampleDiscrete(u, &pdf, &u_remapped).
+template <uint32_t F = kAllFeatures>
+TRACER_HD inline LightSample sample_light_2d(const SceneView& s, vec3 ref, vec3 ref_n, vec2 u) {
+  if (s.light_count == 0) {
+    LightSample none;
+    none.valid = false;
+    return none;
+  }
+  const uint32_t li = pick_light(s, u.x);
+  const float lo = s.light_cdf[li], width = s.light_cdf[li + 1] - lo;
+  const float x = width > 0.0f ? glm::min((u.x - lo) / width, 0x1.fffffep-1f) : 0.0f;
+  return sample_light<F>(s, ref, ref_n, u.x, vec2(glm::max(x, 0.0f), u.y));
 }
 
 // The solid-angle pdf with which sample_light would have produced point p (normal ng) on

@@ -184,6 +184,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   }
 
   bvh_ = build_bvh(bounds);
+  cpu_bvh_ = build_cpu_bvh(bvh_, tri_verts_, tri_count);
 
   view_.nodes = bvh_.nodes.data();
   view_.prim_indices = bvh_.prim_indices.data();
@@ -204,6 +205,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.light_count = uint32_t(lights_.size());
   view_.features = features;
   view_.camera = make_camera(scene.camera, width, height);
+  view_.cpu_bvh = cpu_bvh_.view();
 }
 
 }  // namespace tracer

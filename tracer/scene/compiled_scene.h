@@ -21,6 +21,7 @@ class CompiledScene {
   uint32_t features() const { return view_.features; }
 
   const std::vector<BvhNode>& nodes() const { return bvh_.nodes; }
+  const CpuBvh& cpu_bvh() const { return cpu_bvh_; }
   const std::vector<uint32_t>& prim_indices() const { return bvh_.prim_indices; }
   const std::vector<TriangleVerts>& tri_verts() const { return tri_verts_; }
   const std::vector<TriangleShading>& tri_shading() const { return tri_shading_; }
@@ -34,6 +35,7 @@ class CompiledScene {
 
  private:
   Bvh bvh_;
+  CpuBvh cpu_bvh_;  // the CPU backend's SSE layout of bvh_ (bvh/cpu_bvh.h)
   std::vector<TriangleVerts> tri_verts_;
   std::vector<TriangleShading> tri_shading_;
   std::vector<Sphere> spheres_;

@@ -30,7 +30,7 @@ struct RenderSettings {
   bool nee = true;            // next-event estimation (light sampling)
   bool mis = true;            // combine NEE and BSDF sampling with the power heuristic
   bool russian_roulette = true;
-  int rr_start_depth = 3;  // roulette applies from this path depth on
+  int rr_start_depth = 4;  // roulette applies from this path depth on
   uint32_t seed = 0;
   bool jitter = true;  // jitter samples inside each pixel (antialiasing)
   float clamp = 0.0f;  // > 0: clamp each sample's radiance to this (removes fireflies; biased)

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "bvh/bvh.h"
+#include "bvh/cpu_bvh.h"
 #include "bvh/geometry.h"
 #include "camera/camera.h"
 #include "core/features.h"
@@ -48,6 +49,9 @@ struct SceneView {
   uint32_t node_count = 0, tri_count = 0, sphere_count = 0, material_count = 0, light_count = 0;
   uint32_t features = 0;
   Camera camera;
+  // The CPU backend's SSE layout of the same BVH (bvh/cpu_bvh.h); empty on the GPU, in tests
+  // that build views by hand, and where the CPU backend is told to use the shared traversal.
+  CpuBvhView cpu_bvh;
 };
 
 // True when `pred` holds for every active lane of the warp (on the CPU: for this thread).
@@ -114,6 +118,12 @@ TRACER_HD TRACER_INLINE void order_pair(float& da, uint32_t& ra, float& db, uint
 // distances involved). The stack holds child references; the builder bounds its depth.
 template <uint32_t F, bool kAnyHit>
 TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
+#if !defined(__CUDA_ARCH__)
+  if (s.cpu_bvh.nodes) {
+    return kAnyHit ? cpu_intersect_any(s, ray, skip, skip2)
+                   : cpu_intersect_closest(s, ray, skip, skip2);
+  }
+#endif
   Hit hit;
   if (s.node_count == 0) return hit;
   const vec3 inv_d = 1.0f / ray.d;  // infinities are handled by intersect_aabb
