@@ -224,6 +224,10 @@ TEST(BenchError, RefusesBadReferencesAndSpeedOnlyOptions) {
   EXPECT_NE(log.find(".exr"), std::string::npos) << log;
   EXPECT_EQ(test::run_command(base + "--nee off --out " + dir, &log), 2) << log;
   EXPECT_EQ(test::run_command(base + "--configs cpu+depth=2.5 --out " + dir, &log), 2) << log;
+  // The GPU has no SSE traversal to switch off.
+  EXPECT_EQ(test::run_command(base + "--configs megakernel+scalar-bvh --out " + dir, &log), 2)
+      << log;
+  EXPECT_NE(log.find("cpu configurations only"), std::string::npos) << log;
   // An unwritable --out fails before any rendering.
   EXPECT_EQ(test::run_command(base + "--out /proc/nope", &log), 1) << log;
   EXPECT_NE(log.find("/proc/nope"), std::string::npos) << log;
