@@ -50,12 +50,26 @@ TRACER_HD TRACER_INLINE bool sphere_cone(const Sphere& sph, vec3 ref, float& cos
 // ref_n: the geometric normal at ref (either orientation), used to decide robustly whether ref
 // is inside a sphere light even when ref lies on that sphere's own surface.
 template <uint32_t F = kAllFeatures>
+TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li, vec3 ref,
+                                                 vec3 ref_n, vec2 u);
+
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref_n, float u_pick,
                                           vec2 u) {
+  if (s.light_count == 0) {
+    LightSample none;
+    none.valid = false;
+    return none;
+  }
+  return sample_chosen_light<F>(s, pick_light(s, u_pick), ref, ref_n, u);
+}
+
+// sample_light once light `li` is chosen.
+template <uint32_t F>
+TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li, vec3 ref,
+                                                 vec3 ref_n, vec2 u) {
   LightSample ls;
   ls.valid = false;
-  if (s.light_count == 0) return ls;
-  const uint32_t li = pick_light(s, u_pick);
   const Light& light = s.lights[li];
   const float select = light_select_pdf(s, li);
   if (select <= 0.0f) return ls;
@@ -142,7 +156,7 @@ TRACER_HD inline LightSample sample_light_2d(const SceneView& s, vec3 ref, vec3 
   const uint32_t li = pick_light(s, u.x);
   const float lo = s.light_cdf[li], width = s.light_cdf[li + 1] - lo;
   const float x = width > 0.0f ? glm::min((u.x - lo) / width, 0x1.fffffep-1f) : 0.0f;
-  return sample_light<F>(s, ref, ref_n, u.x, vec2(glm::max(x, 0.0f), u.y));
+  return sample_chosen_light<F>(s, li, ref, ref_n, vec2(glm::max(x, 0.0f), u.y));
 }
 
 // The solid-angle pdf with which sample_light would have produced point p (normal ng) on
