@@ -281,8 +281,9 @@ Runner add_render_command(CLI::App& cmd) {
   cmd.add_option("--jitter", o->jitter, "Jitter samples inside pixels: on or off")
       ->check(CLI::IsMember({"on", "off"}));
   cmd.add_option("--sampler", o->sampler,
-                 "Sample points: sobol (Owen-scrambled Sobol, stratified) or random (PCG32)")
-      ->check(CLI::IsMember({"random", "sobol"}));
+                 "Sample points: sobol (Owen-scrambled Sobol, stratified), sobol-pairs (two "
+                 "independent Sobol halves: exact half-buffer noise) or random (PCG32)")
+      ->check(CLI::IsMember({"random", "sobol", "sobol-pairs"}));
   cmd.add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
   const char* gpu = "GPU (CUDA backend)";
   cmd.add_option("--kernel", o->kernel, "auto (time both, keep the faster), wavefront or megakernel")

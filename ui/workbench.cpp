@@ -407,7 +407,7 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
      : key == "render.jitter" ? rs.jitter : rs.russian_roulette) = b;
     changed(Edit::kSettings);
   } else if (key == "render.sampler") {
-    if (!tracer::parse_sampler(value, &rs.sampler)) return fail("expected random or sobol");
+    if (!tracer::parse_sampler(value, &rs.sampler)) return fail("expected random, sobol or sobol-pairs");
     changed(Edit::kSettings);
   } else if (key == "render.clamp") {
     if (!number(0.0f, 1e30f)) return fail("expected a radiance >= 0 (0: off)");

@@ -10,7 +10,13 @@ namespace tracer {
 
 // IntegratorSettings::sampler and RenderSettings::sampler.
 constexpr uint32_t kSamplerRandom = 0;  // independent PCG32 numbers (core/rng.h)
-constexpr uint32_t kSamplerSobol = 1;   // this file
+constexpr uint32_t kSamplerSobol = 1;   // this file: one sequence per pixel and dimension pair
+constexpr uint32_t kSamplerSobolPairs = 2;  // this file: two independent sequences (even, odd)
+
+// Whether the even- and odd-numbered samples are independent estimates, so that half-buffer
+// statistics (noise, the noise/bias split, a variance image) are exact. The single Sobol
+// sequence's halves are anti-correlated and overstate the noise (SobolVertex below).
+constexpr bool independent_halves(uint32_t sampler) { return sampler != kSamplerSobol; }
 
 TRACER_HD TRACER_INLINE uint32_t reverse_bits32(uint32_t x) {
 #if defined(__CUDA_ARCH__)
@@ -134,24 +140,35 @@ TRACER_HD TRACER_INLINE uint32_t owen_sobol_y(uint32_t shuffled, uint32_t seed) 
 }
 
 // The samples of one path vertex: dimension pair d of sample n at (pixel, bounce) is a point of
-// its own randomization of the sequence. Sample n uses sequence index n >> 1, and the parity
-// n & 1 picks one of two independent randomizations: the even- and odd-numbered samples are two
-// independent, identically distributed estimates, which the half-buffer noise estimates
-// (relMSE between halves, bench --error's noise/bias split) assume. A single sequence would
-// not give that: its even and odd points interleave to fill each other's gaps.
+// its own randomization of the sequence.
 //
-// Seeds: one 32-bit vertex seed hashes (user seed, bounce, parity) and then the pixel; each
-// scramble of the vertex (index shuffle, x, y of every pair) takes its own seed from it as
-// SplitMix32 does, hash32(vertex seed + k * golden ratio) for scramble k (Steele et al. 2014,
-// "Fast splittable pseudorandom number generators"). All 32-bit, so the device needs no 64-bit
-// multiplies, and the three seeds of a pair are independent of each other.
+// kSamplerSobol (the default): sample n is point n of one randomized sequence, so any 2^m
+// consecutive samples from the start form one (0,m,2)-net per pair. The even- and odd-numbered
+// samples then interleave to fill each other's gaps: their means are negatively correlated, and
+// the half-buffer noise estimates (relMSE between halves, bench --error's noise/bias split, the
+// reference's variance image) read high by the size of that correlation (about 20% at 64 spp
+// on the Cornell box): conservative, never optimistic.
+// kSamplerSobolPairs: sample n is point n >> 1 of one of two independent randomizations picked
+// by the parity n & 1, so the two halves are independent, identically distributed estimates and
+// the half-buffer statistics are exact; each half is a net of its own, which leaves the whole
+// about 10% noisier at 32-64 spp. The bench renders its references with it.
+//
+// Seeds: one 32-bit vertex seed hashes (user seed, bounce, stream) and then the pixel, where the
+// stream is 2 for the single sequence and the parity for the pairs, so the samplers draw
+// unrelated points (a reference rendered with one is independent of a test with the other at
+// the same seed); each scramble of the vertex (index shuffle, x, y of every pair) takes its own
+// seed from it as SplitMix32 does, hash32(vertex seed + k * golden ratio) for scramble k (Steele
+// et al. 2014, "Fast splittable pseudorandom number generators"). All 32-bit, so the device needs
+// no 64-bit multiplies, and the three seeds of a pair are independent of each other.
 struct SobolVertex {
   uint32_t index_reversed;
   uint32_t seed;
 
-  TRACER_HD SobolVertex(uint32_t pixel, uint32_t sample, uint32_t bounce, uint32_t user_seed) {
-    index_reversed = reverse_bits32(sample >> 1);
-    seed = hash32(pixel ^ hash32(user_seed + ((bounce << 1) | (sample & 1u)) * kGolden32));
+  TRACER_HD SobolVertex(uint32_t pixel, uint32_t sample, uint32_t bounce, uint32_t user_seed,
+                        bool pairs = false) {
+    index_reversed = reverse_bits32(pairs ? sample >> 1 : sample);
+    const uint32_t stream = pairs ? (sample & 1u) : 2u;
+    seed = hash32(pixel ^ hash32(user_seed + ((bounce << 2) | stream) * kGolden32));
   }
 
   // Scramble k = 0, 1, 2 of `pair`: the index shuffle, x and y.

@@ -19,7 +19,8 @@ struct IntegratorSettings {
   uint32_t nee = 1, mis = 1, russian_roulette = 1;
   uint32_t jitter = 1;  // 0: every sample goes through the pixel centre (enables hit caching)
   float clamp = 0.0f;   // > 0: scale each sample down to at most this much per channel (biased)
-  uint32_t sampler = kSamplerSobol;  // kSamplerRandom (PCG32) or kSamplerSobol (core/sobol.h)
+  // kSamplerRandom (PCG32), kSamplerSobol or kSamplerSobolPairs (core/sobol.h)
+  uint32_t sampler = kSamplerSobol;
 };
 
 // The dimension pairs of the Sobol sampler: each draw of a vertex has its own (a 1D draw takes
@@ -41,7 +42,8 @@ struct VertexSampler {
 
   TRACER_HD VertexSampler(const IntegratorSettings& cfg, uint32_t pixel, uint32_t sample,
                           uint32_t bounce)
-      : sobol(cfg.sampler == kSamplerSobol), q(pixel, sample, bounce, cfg.seed) {
+      : sobol(cfg.sampler != kSamplerRandom),
+        q(pixel, sample, bounce, cfg.seed, cfg.sampler == kSamplerSobolPairs) {
     if (!sobol) {
       Pcg32 rng = make_path_rng(pixel, sample, bounce, cfg.seed);
       rng.next_float();  // was the light choice: the later draws keep their place in the stream
@@ -103,8 +105,8 @@ template <uint32_t F = kAllFeatures>
 TRACER_HD inline void generate_path(const SceneView& s, const IntegratorSettings& cfg,
                                     uint32_t pixel, uint32_t sample, PathState& st) {
   vec2 jitter, lens;
-  if (cfg.sampler == kSamplerSobol) {
-    const SobolVertex q(pixel, sample, 0, cfg.seed);
+  if (cfg.sampler != kSamplerRandom) {
+    const SobolVertex q(pixel, sample, 0, cfg.seed, cfg.sampler == kSamplerSobolPairs);
     jitter = cfg.jitter ? q.get_2d(kDimJitter) : vec2(0.5f);
     lens = q.get_2d(kDimLens);
   } else {

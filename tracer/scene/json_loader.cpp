@@ -197,10 +197,10 @@ class JsonSceneReader {
     if (!(s.clamp >= 0.0f)) fail(json_pointer_child(ptr, "clamp"), "\"clamp\" must be >= 0");
     const std::string sampler = get_string(r, ptr, "sampler", sampler_name(s.sampler), where);
     if (!parse_sampler(sampler, &s.sampler)) {
-      const std::string guess = did_you_mean(sampler, {"random", "sobol"});
+      const std::string guess = did_you_mean(sampler, {"random", "sobol", "sobol-pairs"});
       fail(json_pointer_child(ptr, "sampler"),
            "unknown sampler " + in_quotes(sampler) + " in " + where +
-               (guess.empty() ? " (expected random or sobol)"
+               (guess.empty() ? " (expected random, sobol or sobol-pairs)"
                               : " (did you mean " + in_quotes(guess) + "?)"));
     }
   }

@@ -34,12 +34,15 @@ struct RenderSettings {
   uint32_t seed = 0;
   bool jitter = true;  // jitter samples inside each pixel (antialiasing)
   float clamp = 0.0f;  // > 0: clamp each sample's radiance to this (removes fireflies; biased)
-  uint32_t sampler = kSamplerSobol;  // kSamplerRandom or kSamplerSobol (core/sobol.h)
+  uint32_t sampler = kSamplerSobol;  // kSamplerRandom, kSamplerSobol, kSamplerSobolPairs
 };
 
-// "random" / "sobol", as the scene format, the CLI and the workbench spell RenderSettings::sampler.
+// "random" / "sobol" / "sobol-pairs", as the scene format, the CLI and the workbench spell
+// RenderSettings::sampler.
 inline const char* sampler_name(uint32_t sampler) {
-  return sampler == kSamplerRandom ? "random" : "sobol";
+  return sampler == kSamplerRandom ? "random"
+         : sampler == kSamplerSobolPairs ? "sobol-pairs"
+                                         : "sobol";
 }
 // false for an unknown name, leaving *sampler as it was.
 inline bool parse_sampler(const std::string& name, uint32_t* sampler) {
@@ -47,6 +50,8 @@ inline bool parse_sampler(const std::string& name, uint32_t* sampler) {
     *sampler = kSamplerRandom;
   else if (name == "sobol")
     *sampler = kSamplerSobol;
+  else if (name == "sobol-pairs")
+    *sampler = kSamplerSobolPairs;
   else
     return false;
   return true;
