@@ -324,11 +324,13 @@ Hit traverse_simd(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t sk
 
 }  // namespace
 
-Hit cpu_intersect_closest(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
+TRACER_CPU_MULTIVERSION Hit cpu_intersect_closest(const SceneView& s, const Ray& ray,
+                                                  uint32_t skip, uint32_t skip2) {
   return traverse_simd<false>(s, ray, skip, skip2);
 }
 
-Hit cpu_intersect_any(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
+TRACER_CPU_MULTIVERSION Hit cpu_intersect_any(const SceneView& s, const Ray& ray, uint32_t skip,
+                                              uint32_t skip2) {
   return traverse_simd<true>(s, ray, skip, skip2);
 }
 

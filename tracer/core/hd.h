@@ -10,6 +10,19 @@
 #define TRACER_INLINE inline
 #endif
 
+// The CPU backend's hot loops (the render rows, the SSE traversal) are compiled twice, for
+// x86-64-v3 (AVX2, FMA, BMI) and for baseline x86-64, and the loader picks one per machine
+// (GCC function multi-versioning, an ifunc), as Cycles compiles its kernel per instruction set.
+// `flatten` inlines the whole call tree into each version, so header code runs with the
+// version's instructions and no inline function is shared between the two (no ODR clash); the
+// files that use it build with -ffp-contract=off, so both versions compute the same numbers.
+#if defined(__GNUC__) && !defined(__clang__) && !defined(__CUDACC__) && defined(__x86_64__) && \
+    !defined(TRACER_NO_MULTIVERSION)
+#define TRACER_CPU_MULTIVERSION __attribute__((target_clones("arch=x86-64-v3", "default"), flatten))
+#else
+#define TRACER_CPU_MULTIVERSION
+#endif
+
 #if defined(__CUDACC__)
 #include <cuda.h>  // GLM reads CUDA_VERSION to accept nvcc
 #ifndef GLM_FORCE_CUDA

@@ -36,55 +36,77 @@ void CpuRenderer::reset() {
   nonfinite_ = 0;
 }
 
+namespace {
+
+// What one pass hands every worker thread, and what each thread counts.
+struct Pass {
+  const SceneView* view;
+  const IntegratorSettings* cfg;
+  uint32_t first_sample, spp;
+  std::atomic<uint32_t>* next_row;
+  double* pass_even;  // 3 per pixel
+  double* pass_odd;
+  const std::atomic<bool>* cancel;
+};
+struct ThreadTotals {
+  RayCounts rays;
+  uint64_t nonfinite = 0, clamped = 0;
+  double removed = 0.0;
+};
+
+// One worker's share of a pass: rows taken from the shared counter until none is left.
+TRACER_CPU_MULTIVERSION void render_rows(const Pass& p, ThreadTotals& out) {
+  const IntegratorSettings& cfg = *p.cfg;
+  RayCounts rc;
+  uint64_t nonfinite = 0, clamps = 0;
+  double lost = 0.0;
+  for (uint32_t y; (y = p.next_row->fetch_add(1)) < cfg.height;) {
+    for (uint32_t x = 0; x < cfg.width; ++x) {
+      const uint32_t pixel = y * cfg.width + x;
+      double acc[2][3] = {{0, 0, 0}, {0, 0, 0}};
+      for (uint32_t s = 0; s < p.spp; ++s) {
+        const uint32_t sample = p.first_sample + s;
+        vec3 L = trace_path(*p.view, cfg, pixel, sample, &rc);
+        if (!is_finite(L)) {
+          ++nonfinite;  // counted and reported, never added
+          continue;
+        }
+        float cut;
+        L = clamp_radiance(L, cfg.clamp, &cut);
+        if (cut > 0.0f) {
+          ++clamps;
+          lost += cut;
+        }
+        double* a = acc[sample & 1];
+        a[0] += L.x;
+        a[1] += L.y;
+        a[2] += L.z;
+      }
+      for (int c = 0; c < 3; ++c) {
+        p.pass_even[size_t(pixel) * 3 + c] = acc[0][c];
+        p.pass_odd[size_t(pixel) * 3 + c] = acc[1][c];
+      }
+    }
+    if (p.cancel && p.cancel->load(std::memory_order_relaxed)) break;
+  }
+  out.rays = rc;
+  out.nonfinite = nonfinite;
+  out.clamped = clamps;
+  out.removed = lost;
+}
+
+}  // namespace
+
 FrameStats CpuRenderer::render(uint32_t spp) {
   if (!scene_) throw std::logic_error("CpuRenderer::render: no scene set");
   const auto start = std::chrono::steady_clock::now();
   SceneView view = scene_->view();
   if (!simd_traversal_) view.cpu_bvh = CpuBvhView();
-  const uint32_t w = cfg_.width, h = cfg_.height;
-  const uint32_t first_sample = samples_;
   std::atomic<uint32_t> next_row{0};
-  std::vector<RayCounts> counts(threads_);
-  std::vector<uint64_t> bad(threads_, 0), clamped(threads_, 0);
-  std::vector<double> removed(threads_, 0.0);
-  auto worker = [&](int t) {
-    RayCounts rc;
-    uint64_t nonfinite = 0, clamps = 0;
-    double lost = 0.0;
-    for (uint32_t y; (y = next_row.fetch_add(1)) < h;) {
-      for (uint32_t x = 0; x < w; ++x) {
-        const uint32_t pixel = y * w + x;
-        double acc[2][3] = {{0, 0, 0}, {0, 0, 0}};
-        for (uint32_t s = 0; s < spp; ++s) {
-          const uint32_t sample = first_sample + s;
-          vec3 L = trace_path(view, cfg_, pixel, sample, &rc);
-          if (!is_finite(L)) {
-            ++nonfinite;  // counted and reported, never added
-            continue;
-          }
-          float cut;
-          L = clamp_radiance(L, cfg_.clamp, &cut);
-          if (cut > 0.0f) {
-            ++clamps;
-            lost += cut;
-          }
-          double* a = acc[sample & 1];
-          a[0] += L.x;
-          a[1] += L.y;
-          a[2] += L.z;
-        }
-        for (int c = 0; c < 3; ++c) {
-          pass_even_[size_t(pixel) * 3 + c] = acc[0][c];
-          pass_odd_[size_t(pixel) * 3 + c] = acc[1][c];
-        }
-      }
-      if (cancel_ && cancel_->load(std::memory_order_relaxed)) break;
-    }
-    counts[t] = rc;
-    bad[t] = nonfinite;
-    clamped[t] = clamps;
-    removed[t] = lost;
-  };
+  const Pass pass{&view,           &cfg_,           samples_, spp, &next_row, pass_even_.data(),
+                  pass_odd_.data(), cancel_};
+  std::vector<ThreadTotals> totals(threads_);
+  auto worker = [&](int t) { render_rows(pass, totals[t]); };
   std::vector<std::thread> pool;
   for (int t = 1; t < threads_; ++t) pool.emplace_back(worker, t);
   worker(0);
@@ -102,15 +124,15 @@ FrameStats CpuRenderer::render(uint32_t spp) {
     sum_odd_[i] += pass_odd_[i];
   }
   st.spp_added = spp;
-  for (int t = 0; t < threads_; ++t) {
-    st.rays.camera += counts[t].camera;
-    st.rays.extension += counts[t].extension;
-    st.rays.shadow += counts[t].shadow;
-    st.rays.walk_capped += counts[t].walk_capped;
-    st.rays.medium_leaks += counts[t].medium_leaks;
-    st.nonfinite += bad[t];
-    st.clamped += clamped[t];
-    st.clamped_luminance += removed[t];
+  for (const ThreadTotals& t : totals) {
+    st.rays.camera += t.rays.camera;
+    st.rays.extension += t.rays.extension;
+    st.rays.shadow += t.rays.shadow;
+    st.rays.walk_capped += t.rays.walk_capped;
+    st.rays.medium_leaks += t.rays.medium_leaks;
+    st.nonfinite += t.nonfinite;
+    st.clamped += t.clamped;
+    st.clamped_luminance += t.removed;
   }
   samples_ += spp;
   nonfinite_ += st.nonfinite;
