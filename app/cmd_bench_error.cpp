@@ -149,7 +149,8 @@ std::string default_suite(bool gpu) {
     return "megakernel,wavefront,wavefront+no-compaction,wavefront+sorting,megakernel+general,"
            "megakernel+no-rr,megakernel+no-nee,megakernel+no-mis,megakernel+schlick,"
            "megakernel+depth=4,megakernel+clamp=10,megakernel+random,megakernel+sobol-pairs,cpu";
-  return "cpu,cpu+scalar-bvh,cpu+random,cpu+sobol-pairs,cpu+no-rr,cpu+no-nee,cpu+no-mis,cpu+schlick,cpu+depth=4,"
+  return "cpu,cpu+scalar-bvh,cpu+random,cpu+sobol-pairs,cpu+no-rr,cpu+no-nee,cpu+no-mis,"
+         "cpu+schlick,cpu+depth=4,"
          "cpu+clamp=10";
 }
 

@@ -142,12 +142,13 @@ TRACER_HD TRACER_INLINE uint32_t owen_sobol_y(uint32_t shuffled, uint32_t seed) 
 // The samples of one path vertex: dimension pair d of sample n at (pixel, bounce) is a point of
 // its own randomization of the sequence.
 //
-// kSamplerSobol (the default): sample n is point n of one randomized sequence, so any 2^m
-// consecutive samples from the start form one (0,m,2)-net per pair. The even- and odd-numbered
-// samples then interleave to fill each other's gaps: their means are negatively correlated, and
-// the half-buffer noise estimates (relMSE between halves, bench --error's noise/bias split, the
-// reference's variance image) read high by the size of that correlation (about 20% at 64 spp
-// on the Cornell box): conservative, never optimistic.
+// kSamplerSobol (the default): sample n is point n of one randomized sequence, so every aligned
+// block of 2^m samples (the first 2^m among them) is one (0,m,2)-net per pair. The even- and
+// odd-numbered samples then interleave to fill each other's gaps: their means are negatively
+// correlated, and half-buffer noise estimates (relMSE between halves, a noise/bias split, a
+// variance image) read high, 2-3x at 16-4,096 spp on the Cornell box: conservative, never
+// optimistic, but too loose for a bias test, so bench --error skips the split for this sampler
+// (independent_halves above).
 // kSamplerSobolPairs: sample n is point n >> 1 of one of two independent randomizations picked
 // by the parity n & 1, so the two halves are independent, identically distributed estimates and
 // the half-buffer statistics are exact; each half is a net of its own, which leaves the whole
