@@ -70,6 +70,44 @@ TEST(Convergence, SplitsErrorIntoNoiseAndBias) {
   EXPECT_FALSE(e.significant_bias());
 }
 
+// Half estimates that interleave, like the single Sobol sequence's: their mean has noise
+// `sigma` while each half has 2.5 sigma more, so their difference overstates the noise.
+Halves interleaved(const ImageRGB& truth, double sigma, double bias, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, sigma);
+  Halves h{truth, truth, truth};
+  for (size_t i = 0; i < truth.pixels.size(); ++i) {
+    const double mean = truth.pixels[i] + bias + n(rng), spread = 2.5 * n(rng);
+    h.mean.pixels[i] = float(mean);
+    h.even.pixels[i] = float(mean + spread);
+    h.odd.pixels[i] = float(mean - spread);
+  }
+  return h;
+}
+
+TEST(Convergence, BlockTestFindsABiasWhenTheHalvesOverstateTheNoise) {
+  const ImageRGB truth = tracer::make_image(200, 200, tracer::vec3(0.5f));
+  tracer::ReferenceImage ref{truth, {}};
+  const double w = 1.0 / (0.51 * 0.51);
+  // Unbiased: the per-pixel split would read the overstated noise as a negative bias; the block
+  // test's estimate is a lower bound, at or below zero, and nothing is flagged.
+  Halves h = interleaved(truth, 0.05, 0.0, 5);
+  tracer::ErrorTerms e = tracer::error_terms(h.mean, ref, &h.even, &h.odd, false);
+  EXPECT_TRUE(e.block_test);
+  EXPECT_LT(e.bias2, 4 * e.bias2_stderr);
+  EXPECT_FALSE(e.significant_bias());
+  EXPECT_NEAR(e.variance, 0.0025 * w, 0.0025 * w * 0.05);  // the rest of the error
+  // A bias of 0.03 (0.0009 / 0.51^2, a quarter of the error) is found, and not overstated.
+  h = interleaved(truth, 0.05, 0.03, 6);
+  e = tracer::error_terms(h.mean, ref, &h.even, &h.odd, false);
+  EXPECT_TRUE(e.significant_bias()) << e.bias2 << " +- " << e.bias2_stderr;
+  EXPECT_LT(e.bias2, 0.0009 * w * 1.1);
+  EXPECT_GT(e.bias2, 0.0009 * w * 0.5);
+  // The per-pixel split on the same halves would miss it: their noise reads 6.25x too high.
+  e = tracer::error_terms(h.mean, ref, &h.even, &h.odd);
+  EXPECT_FALSE(e.significant_bias());
+}
+
 TEST(Convergence, SubtractsTheReferenceNoise) {
   // A noisy reference with its variance image: the test (the truth itself) shows error only
   // from the reference, and the floor removes it.

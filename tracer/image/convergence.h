@@ -34,6 +34,7 @@ struct ErrorTerms {
   double variance = -1;        // the test's noise from its half buffers; < 0 when unknown
   double bias2 = 0;            // relmse - variance: the squared bias in relMSE units
   double bias2_stderr = 0;     // its standard error over pixels (taken as independent)
+  bool block_test = false;     // bias2 from 2x2/8x8-pixel block means (halves not independent)
   bool has_variance() const { return variance >= 0; }
   // Bias that is both statistically clear (4 standard errors) and a visible share (10%) of the
   // error: the error will plateau instead of falling as 1/samples.
@@ -44,8 +45,17 @@ struct ErrorTerms {
 
 // `even` and `odd` (the test's half buffers) may be null, e.g. at one sample per pixel: the
 // variance and the bias then stay unknown. Throws InputError when the sizes differ.
+//
+// `independent_halves` false (the single Sobol sequence, whose halves are anti-correlated and
+// overstate the noise 2-3x): the bias is estimated from the means of the relative error over
+// 2x2- and 8x8-pixel blocks instead, where the noise averages down 4- and 64-fold and a bias of
+// one sign does not. Each block estimate subtracts the halves' (overstated) noise and the
+// reference's, divided by the block's pixel count, so it is a lower bound of the squared bias
+// (exact for a bias that is constant over each block); the one further from zero in standard
+// errors is reported, and `variance` is then the rest of the error, relmse - bias2.
 ErrorTerms error_terms(const ImageRGB& test, const ReferenceImage& ref,
-                       const ImageRGB* even = nullptr, const ImageRGB* odd = nullptr);
+                       const ImageRGB* even = nullptr, const ImageRGB* odd = nullptr,
+                       bool independent_halves = true);
 
 // A reference rendered with the same seed and sampler as the image compared with it shares that
 // image's first samples: the error then reads too low (E[(t - r)^2] = Var t - Var r). Reads the
