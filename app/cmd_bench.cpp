@@ -173,6 +173,8 @@ int run_bench(const BenchOptions& o) {
     add("wavefront, general", K::kWavefront, false, false, false);
     add("wavefront", K::kWavefront, false, false, true);
     add("wavefront+compaction", K::kWavefront, true, false, true);
+    add("wavefront+compaction, no fetch", K::kWavefront, true, false, true);
+    configs.back().gpu.dynamic_fetch = false;
     add("wavefront+compaction+sorting", K::kWavefront, true, true, true);
     add("wavefront+sorting", K::kWavefront, false, true, true);
     if (o.jitter_off_configs && !(cs.features() & tracer::kFeatureDepthOfField)) {

@@ -53,10 +53,9 @@ struct Config {
 };
 
 const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
-const std::vector<std::string> kModifiers = {"no-compaction", "sorting", "general", "no-rr",
-                                             "no-nee",        "no-mis",  "schlick", "depth=N",
-                                             "clamp=X",       "random",  "sobol",   "sobol-pairs",
-                                             "scalar-bvh"};
+const std::vector<std::string> kModifiers = {
+    "no-compaction", "sorting", "general", "no-fetch", "no-rr",  "no-nee",      "no-mis",
+    "schlick",       "depth=N", "clamp=X", "random",   "sobol",  "sobol-pairs", "scalar-bvh"};
 
 // Throws std::invalid_argument with a message naming the bad token.
 Config parse_config(const std::string& text) {
@@ -104,6 +103,8 @@ Config parse_config(const std::string& text) {
       c.gpu.sort_materials = true;
     else if (m == "general")
       c.gpu.specialize = false;
+    else if (m == "no-fetch")
+      c.gpu.dynamic_fetch = false;
     else if (m == "no-rr")
       c.rr = false;
     else if (m == "no-nee")
@@ -136,7 +137,7 @@ Config parse_config(const std::string& text) {
       const std::string guess = tracer::did_you_mean(m, kModifiers);
       throw std::invalid_argument("unknown modifier \"" + m + "\" in \"" + text + "\"" +
                                   (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") +
-                                  "; modifiers: no-compaction, sorting, general, no-rr, no-nee, "
+                                  "; modifiers: no-compaction, sorting, general, no-fetch, no-rr, no-nee, "
                                   "no-mis, schlick, depth=N, clamp=X, random, sobol, sobol-pairs, "
                                   "scalar-bvh");
     }
@@ -426,7 +427,7 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
       ->group(g);
   cmd.add_option("--configs", o->configs,
                  "Comma-separated configurations: cpu|megakernel|wavefront|auto, each with "
-                 "+modifiers: no-compaction, sorting, general, no-rr, no-nee, no-mis, schlick, "
+                 "+modifiers: no-compaction, sorting, general, no-fetch, no-rr, no-nee, no-mis, schlick, "
                  "depth=N, clamp=X, random, sobol, sobol-pairs (the sampler), scalar-bvh (CPU: "
                  "the GPU's "
                  "scalar traversal instead of SSE). Default: a suite for the "

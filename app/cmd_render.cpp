@@ -32,7 +32,8 @@ struct RenderOptions {
   bool quiet = false;
   // GPU switches (ignored by the CPU backend).
   std::string kernel = "auto";
-  std::string compaction = "on", sort = "off", cache = "on", specialize = "on", jitter;
+  std::string compaction = "on", sort = "off", cache = "on", specialize = "on", fetch = "on";
+  std::string jitter;
   float clamp = -1.0f;  // < 0: the scene's setting
 };
 
@@ -45,6 +46,7 @@ tracer::GpuOptions gpu_options(const RenderOptions& o) {
   g.sort_materials = o.sort == "on";
   g.first_bounce_cache = o.cache == "on";
   g.specialize = o.specialize == "on";
+  g.dynamic_fetch = o.fetch == "on";
   return g;
 }
 
@@ -194,7 +196,7 @@ int run_render(const RenderOptions& o) {
     if (renderer->backend_name() == "cuda") {
       j["gpu"] = {{"kernel_option", o.kernel}, {"kernel", last_kernel},
                   {"specialization", last_spec}, {"compaction", o.compaction},
-                  {"sort", o.sort}, {"first_bounce_cache", o.cache},
+                  {"sort", o.sort}, {"first_bounce_cache", o.cache}, {"fetch", o.fetch},
                   {"specialize", o.specialize}, {"note", last_note}};
     }
     j["spp"] = spp_done;
@@ -295,6 +297,9 @@ Runner add_render_command(CLI::App& cmd) {
   cmd.add_option("--cache", o->cache, "First-bounce cache (needs --jitter off and no depth of field)")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--specialize", o->specialize, "Kernels compiled for the scene's features only")
+      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--fetch", o->fetch,
+                 "Wavefront intersect with dynamic fetch: a lane whose ray is done takes the next")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   return [o] { return run_render(*o); };
 }

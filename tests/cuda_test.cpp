@@ -149,6 +149,9 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
   variants.push_back({"compaction+sorting", o});
   o.specialize = true;
   variants.push_back({"compaction+sorting+specialized", o});
+  GpuOptions no_fetch = o;
+  no_fetch.dynamic_fetch = false;
+  variants.push_back({"one thread per ray (no fetch)", no_fetch});
   GpuOptions sort_only = plain;
   sort_only.sort_materials = true;
   variants.push_back({"sorting without compaction", sort_only});

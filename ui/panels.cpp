@@ -256,6 +256,7 @@ void render_panel(Workbench& wb, PanelState& ps) {
     gc |= ImGui::Checkbox("stream compaction", &g.compaction);
     gc |= ImGui::Checkbox("material sorting", &g.sort_materials);
     gc |= ImGui::Checkbox("first-bounce cache", &g.first_bounce_cache);
+    gc |= ImGui::Checkbox("dynamic ray fetch", &g.dynamic_fetch);
     gc |= ImGui::Checkbox("specialised kernels", &g.specialize);
     if (gc) wb.changed(Edit::kGpuOptions);
     ImGui::TreePop();

@@ -81,6 +81,7 @@ struct RayTriSetup {
   int kx, ky, kz;
   float sx, sy, sz;
   vec3 o;  // (o[kx], o[ky], o[kz])
+  RayTriSetup() = default;
   TRACER_HD RayTriSetup(const Ray& ray, vec3 inv_d) {
     const vec3 d = ray.d;
     const vec3 a = glm::abs(d);

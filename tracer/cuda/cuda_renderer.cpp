@@ -50,7 +50,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<float4> ray_o, ray_d, throughput, radiance, hit, shadow_o, shadow_d, shadow_c;
   DeviceBuffer<float4> cached_hits;
   DeviceBuffer<uint8_t> alive;
-  DeviceBuffer<uint32_t> queue, sorted, sort_keys, sort_bins, alive_counts, count;
+  DeviceBuffer<uint32_t> queue, sorted, sort_keys, sort_bins, alive_counts, count, fetch;
   DeviceBuffer<uint8_t> cub_temp;
   bool cache_valid = false;
 
@@ -93,6 +93,7 @@ struct CudaRenderer::Impl {
     w.alive = alive.get();
     w.sort_keys = sort_keys.get();
     w.sort_bins = sort_bins.get();
+    w.fetch = fetch.get();
     w.counters = counters.get();
     w.alive_counts = alive_counts.get();
     return w;
@@ -125,6 +126,7 @@ struct CudaRenderer::Impl {
     sorted.resize(count_pixels);
     sort_keys.resize(count_pixels);
     sort_bins.resize(16);
+    fetch.resize(1);
     alive_counts.resize(cfg.max_depth + 2);
     count.resize(1);
     cub_temp.resize(std::max<size_t>(1, compaction_temp_bytes(count_pixels)));
@@ -197,7 +199,7 @@ struct CudaRenderer::Impl {
       if (b == 0 && use_cache && cache_valid) {
         launch_copy_hits(cached_hits.get(), w.hit, n(), stream);
       } else {
-        launch_intersect(sp, view, w, q, c, stream);
+        launch_intersect(sp, view, w, q, c, opts.dynamic_fetch, stream);
         if (b == 0 && use_cache) {
           launch_copy_hits(w.hit, cached_hits.get(), n(), stream);
           cache_valid = true;

@@ -26,6 +26,7 @@ struct WavefrontState {
   uint8_t* alive = nullptr;      // 1 alive, 2 ended this bounce (radiance not yet added), 0 done
   uint32_t* sort_keys = nullptr;
   uint32_t* sort_bins = nullptr;       // 8 counters
+  uint32_t* fetch = nullptr;           // the dynamic-fetch intersect kernel's ray counter
   // [0] shadow rays, [1] non-finite samples, [2] megakernel segments, [3] random walks capped,
   // [4] paths that left a medium through an open mesh
   unsigned long long* counters = nullptr;
@@ -49,8 +50,11 @@ void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettin
 void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                      uint32_t sample, const WavefrontState& w, cudaStream_t stream);
 // queue == nullptr: every path (dead ones are skipped); count: device pointer to queue length.
+// dynamic_fetch: persistent warps whose lanes take a new ray between traversal rounds
+// (intersect_fetch_kernel); else one thread per queued ray.
 void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w,
-                      const uint32_t* queue, const uint32_t* count, cudaStream_t stream);
+                      const uint32_t* queue, const uint32_t* count, bool dynamic_fetch,
+                      cudaStream_t stream);
 void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                   uint32_t sample, uint32_t bounce, const WavefrontState& w,
                   const uint32_t* queue, const uint32_t* count, cudaStream_t stream);

@@ -20,6 +20,7 @@ struct GpuOptions {
   bool sort_materials = false;    // bucket paths by material type before shading
   bool first_bounce_cache = true; // reuse camera-ray hits (only without jitter and DoF)
   bool specialize = true;         // kernels compiled for the scene's features only
+  bool dynamic_fetch = true;      // wavefront intersect: lanes take new rays between rounds
 };
 
 // Milliseconds spent per wavefront stage in one call of render() (zero for the megakernel).
