@@ -145,36 +145,50 @@ __global__ void __launch_bounds__(kBlock) generate_kernel(SceneView s, Integrato
   if (walks) w.hit[id].y = __uint_as_float(kInvalid);  // camera rays leave from no surface
 }
 
-template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, WavefrontState w,
-                                                           const uint32_t* queue,
-                                                           const uint32_t* count, bool walks) {
-  const uint32_t id = queued_path(w, queue, count);
-  if (id == kInvalid) return;
+// The extension ray of path `id`, and the primitive it must skip: hit[id] still holds the hit
+// the ray leaves from, and with random walks (where a triangle can be far larger than a mean
+// free path) that triangle is skipped.
+__device__ __forceinline__ Ray extension_ray(const SceneView& s, const WavefrontState& w,
+                                             uint32_t id, bool walks, uint32_t* skip) {
   const float4 o = w.ray_o[id], d = w.ray_d[id];
   Ray ray;
   ray.o = vec3(o.x, o.y, o.z);
   ray.d = vec3(d.x, d.y, d.z);
   ray.tmax = kInfinity;
   ray.pad = 0.0f;
-  // hit[id] still holds the hit this ray leaves from: with random walks (where a triangle can be
-  // far larger than a mean free path) that triangle is skipped.
-  uint32_t origin = kInvalid;
-  if (walks) origin = __float_as_uint(w.hit[id].y);
-  const Hit h = intersect_closest<features_of<Spec>()>(
-      s, ray, origin < s.tri_count ? origin : kInvalid);
+  const uint32_t origin = walks ? __float_as_uint(w.hit[id].y) : kInvalid;
+  *skip = origin < s.tri_count ? origin : kInvalid;
+  return ray;
+}
+
+__device__ __forceinline__ void store_hit(const WavefrontState& w, uint32_t id, const Hit& h) {
   w.hit[id] = make_float4(h.t, __uint_as_float(h.prim), h.u, h.v);
 }
+
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, WavefrontState w,
+                                                           const uint32_t* queue,
+                                                           const uint32_t* count, bool walks) {
+  const uint32_t id = queued_path(w, queue, count);
+  if (id == kInvalid) return;
+  uint32_t skip;
+  const Ray ray = extension_ray(s, w, id, walks, &skip);
+  store_hit(w, id, intersect_closest<features_of<Spec>()>(s, ray, skip));
+}
+
+// Lanes of the dynamic-fetch kernel refill in batches of 8: measured on an H100 as fast as 16
+// and ahead of one thread per ray by 31-34% on the bunny box's bounce rays (PERFORMANCE.md).
+constexpr int kFetchBatch = 8;
 
 // The same query with dynamic fetch (Aila & Laine 2009, sec. 5): persistent warps, and a lane
 // whose ray is done takes the next queued ray from a global counter between traversal rounds,
 // while the rest of its warp goes on, instead of idling until the warp's slowest ray ends. Lanes
-// refill together (one atomic per warp) once `batch` of them wait or none is busy.
+// refill together (one atomic per warp) once kFetchBatch of them wait or none is busy.
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, WavefrontState w,
                                                                  const uint32_t* queue,
                                                                  const uint32_t* count,
-                                                                 bool walks, int batch) {
+                                                                 bool walks) {
   constexpr uint32_t F = features_of<Spec>();
   constexpr unsigned kFull = 0xffffffffu;
   const uint32_t total = queue ? *count : w.n;
@@ -191,7 +205,7 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
   for (;;) {
     const unsigned want = __ballot_sync(kFull, !active && !retired);
     const unsigned busy = __ballot_sync(kFull, active);
-    if (want && (__popc(want) >= batch || busy == 0)) {
+    if (want && (__popc(want) >= kFetchBatch || busy == 0)) {
       const int leader = __ffs(want) - 1;
       uint32_t base = 0;
       if (lane == uint32_t(leader)) base = atomicAdd(w.fetch, uint32_t(__popc(want)));
@@ -203,14 +217,7 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
         } else {
           id = queue ? queue[k] : k;
           if (w.alive[id] == 1) {  // a finished path takes another one next round
-            const float4 o = w.ray_o[id], d = w.ray_d[id];
-            ray.o = vec3(o.x, o.y, o.z);
-            ray.d = vec3(d.x, d.y, d.z);
-            ray.tmax = kInfinity;
-            ray.pad = 0.0f;
-            // As intersect_kernel: with random walks the triangle the ray leaves is skipped.
-            const uint32_t origin = walks ? __float_as_uint(w.hit[id].y) : kInvalid;
-            skip = origin < s.tri_count ? origin : kInvalid;
+            ray = extension_ray(s, w, id, walks, &skip);
             inv_d = 1.0f / ray.d;
             setup = RayTriSetup(ray, inv_d);
             tmax = ray.tmax;
@@ -224,7 +231,7 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
     if (__all_sync(kFull, retired)) break;
     if (active &&
         traverse_round<F, false>(s, ray, inv_d, setup, skip, kInvalid, tmax, hit, stack, c)) {
-      w.hit[id] = make_float4(hit.t, __uint_as_float(hit.prim), hit.u, hit.v);
+      store_hit(w, id, hit);
       active = false;
     }
   }
@@ -469,13 +476,10 @@ void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w
                       cudaStream_t stream) {
   const bool walks = (s.features & kFeatureSubsurface) != 0;
   if (dynamic_fetch) {
-    // Lanes refill in batches of 8: measured on an H100 as fast as 16 and ahead of one thread
-    // per ray by 31-34% on the bunny box's bounce rays (PERFORMANCE.md).
-    constexpr int batch = 8;
     TRACER_CUDA_CHECK(cudaMemsetAsync(w.fetch, 0, sizeof(uint32_t), stream));
 #define CALL(S)                                                                          \
   intersect_fetch_kernel<S><<<persistent_blocks(intersect_fetch_kernel<S>, w.n), kBlock, 0, \
-                              stream>>>(s, w, queue, count, walks, batch)
+                              stream>>>(s, w, queue, count, walks)
     switch (spec & kSpecSpheres) {
       case 0: CALL(0); break;
       default: CALL(kSpecSpheres); break;

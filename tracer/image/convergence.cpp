@@ -75,7 +75,8 @@ bool block_bias(const ImageRGB& test, const ReferenceImage& ref, const ImageRGB&
             if (!std::isfinite(inv)) continue;
             const double dh = double(even.pixels[i]) - double(odd.pixels[i]);
             d_sum += (t - r) * inv;
-            noise += (0.25 * dh * dh + (ref_var ? double(ref.variance.pixels[i]) : 0.0)) * inv * inv;
+            const double ref_noise = ref_var ? double(ref.variance.pixels[i]) : 0.0;
+            noise += (0.25 * dh * dh + ref_noise) * inv * inv;
             ++m;
           }
         }
