@@ -185,6 +185,12 @@ int run_bench(const BenchOptions& o) {
       configs.push_back(c);
       configs[configs.size() - 2].gpu.first_bounce_cache = false;
     }
+    if (cs.flat_list().enabled) {  // small scenes: the same designs through the BVH instead
+      add("megakernel, specialized, BVH", K::kMegakernel, false, false, true);
+      configs.back().gpu.flat_list = false;
+      add("wavefront+compaction, BVH", K::kWavefront, true, false, true);
+      configs.back().gpu.flat_list = false;
+    }
     add("auto", K::kAuto, true, false, true);
     for (const Config& c : configs) results.push_back(run_config(*gpu, cs, cfg, c, o.spp));
     for (const auto& r : results) gpu_best = std::max(gpu_best, r.segments_per_s);

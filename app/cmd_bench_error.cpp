@@ -50,12 +50,14 @@ struct Config {
   float clamp = 0;
   int sampler = -1;         // tracer::kSamplerRandom or kSamplerSobol; < 0: the scene's
   bool scalar_bvh = false;  // CPU: the shared scalar traversal instead of the SSE one
+  bool cpu_flat = false;    // CPU: the flat primitive list of small scenes (as the GPU)
 };
 
 const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
 const std::vector<std::string> kModifiers = {
     "no-compaction", "sorting", "general", "no-fetch", "no-rr",  "no-nee",      "no-mis",
-    "schlick",       "depth=N", "clamp=X", "random",   "sobol",  "sobol-pairs", "scalar-bvh"};
+    "schlick",       "depth=N", "clamp=X", "random",   "sobol",  "sobol-pairs", "scalar-bvh",
+    "no-flat",       "flat"};
 
 // Throws std::invalid_argument with a message naming the bad token.
 Config parse_config(const std::string& text) {
@@ -105,6 +107,15 @@ Config parse_config(const std::string& text) {
       c.gpu.specialize = false;
     else if (m == "no-fetch")
       c.gpu.dynamic_fetch = false;
+    else if (m == "no-flat" || m == "flat") {
+      if (c.cpu != (m == "flat"))
+        throw std::invalid_argument("\"" + m + "\" in \"" + text + "\" applies to " +
+                                    (c.cpu ? "GPU" : "cpu") +
+                                    " configurations only (the GPU uses the flat list by "
+                                    "default, the CPU its BVH)");
+      if (c.cpu) c.cpu_flat = true;
+      else c.gpu.flat_list = false;
+    }
     else if (m == "no-rr")
       c.rr = false;
     else if (m == "no-nee")
@@ -139,7 +150,7 @@ Config parse_config(const std::string& text) {
                                   (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") +
                                   "; modifiers: no-compaction, sorting, general, no-fetch, no-rr, no-nee, "
                                   "no-mis, schlick, depth=N, clamp=X, random, sobol, sobol-pairs, "
-                                  "scalar-bvh");
+                                  "scalar-bvh, no-flat, flat");
     }
   }
   return c;
@@ -430,7 +441,8 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
                  "+modifiers: no-compaction, sorting, general, no-fetch, no-rr, no-nee, no-mis, schlick, "
                  "depth=N, clamp=X, random, sobol, sobol-pairs (the sampler), scalar-bvh (CPU: "
                  "the GPU's "
-                 "scalar traversal instead of SSE). Default: a suite for the "
+                 "scalar traversal instead of SSE), no-flat (GPU: the BVH also for small "
+                 "scenes), flat (CPU: the GPU's flat list of small scenes). Default: a suite for the "
                  "backends present")
       ->group(g);
   cmd.add_option("--max-spp", o->max_spp,
@@ -566,6 +578,7 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
     }
     const int max_spp = o.max_spp > 0 ? o.max_spp : (c.cpu ? 256 : 4096);
     cpu.set_simd_traversal(!c.scalar_bvh);
+    cpu.set_flat_list(c.cpu_flat);
     tracer::Renderer& r = c.cpu ? static_cast<tracer::Renderer&>(cpu) : *gpu;
     const uint32_t sampler = c.sampler >= 0 ? uint32_t(c.sampler) : cfg.sampler;
     const std::string warn =

@@ -33,6 +33,7 @@ struct RenderOptions {
   // GPU switches (ignored by the CPU backend).
   std::string kernel = "auto";
   std::string compaction = "on", sort = "off", cache = "on", specialize = "on", fetch = "on";
+  std::string flat = "on";
   std::string jitter;
   float clamp = -1.0f;  // < 0: the scene's setting
 };
@@ -47,6 +48,7 @@ tracer::GpuOptions gpu_options(const RenderOptions& o) {
   g.first_bounce_cache = o.cache == "on";
   g.specialize = o.specialize == "on";
   g.dynamic_fetch = o.fetch == "on";
+  g.flat_list = o.flat == "on";
   return g;
 }
 
@@ -197,7 +199,7 @@ int run_render(const RenderOptions& o) {
       j["gpu"] = {{"kernel_option", o.kernel}, {"kernel", last_kernel},
                   {"specialization", last_spec}, {"compaction", o.compaction},
                   {"sort", o.sort}, {"first_bounce_cache", o.cache}, {"fetch", o.fetch},
-                  {"specialize", o.specialize}, {"note", last_note}};
+                  {"flat", o.flat}, {"specialize", o.specialize}, {"note", last_note}};
     }
     j["spp"] = spp_done;
     j["wall_time_s"] = render_s;
@@ -300,6 +302,10 @@ Runner add_render_command(CLI::App& cmd) {
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--fetch", o->fetch,
                  "Wavefront intersect with dynamic fetch: a lane whose ray is done takes the next")
+      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--flat", o->flat,
+                 "Scenes of at most 64 primitives (quads count once, spheres twice): every lane "
+                 "tests every primitive in one uniform loop instead of walking the BVH")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   return [o] { return run_render(*o); };
 }

@@ -76,10 +76,11 @@ fi
 if [ "$MODE" = all ] || [ "$MODE" = bench ]; then
   echo "== benchmarks (1920x1080, max depth 8)"
   : > "$OUT/bench.jsonl"
-  for s in cornell_box cornell_closed cornell_spheres cornell_bunnies rough_materials subsurface textured; do
+  # SCENES and CPU_SPP narrow a run (e.g. SCENES="cornell_box smallpt" CPU_SPP=0).
+  for s in ${SCENES:-cornell_box cornell_closed cornell_spheres cornell_bunnies rough_materials subsurface textured smallpt}; do
     echo "---- $s"
     $DIST/pathtracer bench "$(scene $s)" --width 1920 --height 1080 --max-depth 8 \
-      --spp 16 --cpu-spp 1 --json "$OUT/b.json"
+      --spp 16 --cpu-spp ${CPU_SPP:-1} --json "$OUT/b.json"
     tr -d '\n' < "$OUT/b.json" >> "$OUT/bench.jsonl"
     echo >> "$OUT/bench.jsonl"
   done

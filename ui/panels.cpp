@@ -257,6 +257,10 @@ void render_panel(Workbench& wb, PanelState& ps) {
     gc |= ImGui::Checkbox("material sorting", &g.sort_materials);
     gc |= ImGui::Checkbox("first-bounce cache", &g.first_bounce_cache);
     gc |= ImGui::Checkbox("dynamic ray fetch", &g.dynamic_fetch);
+    gc |= ImGui::Checkbox("flat list (small scenes)", &g.flat_list);
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("Scenes of at most 64 primitives: every lane tests every primitive in one "
+                        "uniform loop instead of walking the BVH");
     gc |= ImGui::Checkbox("specialised kernels", &g.specialize);
     if (gc) wb.changed(Edit::kGpuOptions);
     ImGui::TreePop();

@@ -350,7 +350,7 @@ std::vector<std::string> Workbench::settable_keys() {
           "render.rr_start_depth", "render.seed", "render.jitter", "render.samples_per_frame",
           "render.clamp", "render.sampler",
           "display.exposure", "display.tonemap", "gpu.kernel", "gpu.compaction", "gpu.sort",
-          "gpu.cache", "gpu.specialize", "gpu.fetch", "backend", "materials.NAME.type",
+          "gpu.cache", "gpu.specialize", "gpu.fetch", "gpu.flat", "backend", "materials.NAME.type",
           "materials.NAME.albedo", "materials.NAME.emission", "materials.NAME.emission_strength",
           "materials.NAME.ior", "materials.NAME.fresnel", "materials.NAME.absorption",
           "materials.NAME.two_sided", "materials.NAME.roughness", "materials.NAME.scattering",
@@ -442,11 +442,11 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
     else return fail("expected auto, wavefront or megakernel");
     changed(Edit::kGpuOptions);
   } else if (key == "gpu.compaction" || key == "gpu.sort" || key == "gpu.cache" ||
-             key == "gpu.specialize" || key == "gpu.fetch") {
+             key == "gpu.specialize" || key == "gpu.fetch" || key == "gpu.flat") {
     if (!parse_bool(value, &b)) return fail("expected on or off");
     (key == "gpu.compaction" ? gpu_.compaction : key == "gpu.sort" ? gpu_.sort_materials
      : key == "gpu.cache" ? gpu_.first_bounce_cache : key == "gpu.fetch" ? gpu_.dynamic_fetch
-     : gpu_.specialize) = b;
+     : key == "gpu.flat" ? gpu_.flat_list : gpu_.specialize) = b;
     changed(Edit::kGpuOptions);
   } else if (key == "backend") {
     tracer::BackendChoice c;

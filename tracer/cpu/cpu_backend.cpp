@@ -102,6 +102,7 @@ FrameStats CpuRenderer::render(uint32_t spp) {
   const auto start = std::chrono::steady_clock::now();
   SceneView view = scene_->view();
   if (!simd_traversal_) view.cpu_bvh = CpuBvhView();
+  view.use_flat = flat_list_ && scene_->flat_list().enabled ? 1u : 0u;
   std::atomic<uint32_t> next_row{0};
   const Pass pass{&view,           &cfg_,           samples_, spp, &next_row, pass_even_.data(),
                   pass_odd_.data(), cancel_};

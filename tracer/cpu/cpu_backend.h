@@ -30,6 +30,9 @@ class CpuRenderer final : public Renderer {
   // it) or the shared scalar traversal the GPU runs: the same hits, for A/B measurements.
   void set_simd_traversal(bool on) { simd_traversal_ = on; }
   bool simd_traversal() const { return simd_traversal_ && cpu_bvh_supported(); }
+  // The flat primitive list of small scenes (bvh/flat_list.h), which the GPU uses by default;
+  // off by default here, where the SSE BVH is faster. For tests and A/B measurements.
+  void set_flat_list(bool on) { flat_list_ = on; }
 
  private:
   int threads_;
@@ -41,6 +44,7 @@ class CpuRenderer final : public Renderer {
   uint32_t samples_ = 0;
   uint64_t nonfinite_ = 0;
   bool simd_traversal_ = true;
+  bool flat_list_ = false;
 };
 
 }  // namespace tracer

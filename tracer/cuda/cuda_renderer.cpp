@@ -33,6 +33,10 @@ struct CudaRenderer::Impl {
   DeviceBuffer<TriangleUv> tri_uvs;  // empty unless the scene is textured
   DeviceBuffer<TextureDesc> textures;
   DeviceBuffer<uint32_t> texels;     // all textures' RGBA8 texels in one allocation
+  DeviceBuffer<FlatPrim> flat;       // the flat primitive list, small scenes only
+  DeviceBuffer<FlatPrimInfo> flat_info;
+  DeviceBuffer<uint32_t> tri_to_flat;
+  bool flat_available = false;
   SceneView view;
   uint32_t features = 0;
 
@@ -68,6 +72,13 @@ struct CudaRenderer::Impl {
 
   uint32_t n() const { return cfg.width * cfg.height; }
   uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
+  void choose_accel() { view.use_flat = flat_available && opts.flat_list ? 1u : 0u; }
+  std::string accel_name() const {
+    if (!view.use_flat) return "4-wide BVH";
+    return "flat list of " + std::to_string(view.flat_count) + " entries (" +
+           std::to_string(view.flat_quads) + " quads) + " + std::to_string(view.sphere_count) +
+           " spheres";
+  }
   DeviceBuffer<double> clamp_sum;
   FilmView film_view(uint32_t sample) {
     FilmView f;
@@ -269,7 +280,16 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.tri_uvs.upload(scene.tri_uvs());
   m.textures.upload(scene.textures());
   m.texels.upload(scene.texels());
+  const FlatList& fl = scene.flat_list();
+  m.flat_available = fl.enabled;
+  m.flat.upload(fl.prims);
+  m.flat_info.upload(fl.info);
+  m.tri_to_flat.upload(fl.tri_to_flat);
   m.view = scene.view();
+  m.view.flat = fl.enabled ? m.flat.get() : nullptr;
+  m.view.flat_info = fl.enabled ? m.flat_info.get() : nullptr;
+  m.view.tri_to_flat = fl.enabled ? m.tri_to_flat.get() : nullptr;
+  m.choose_accel();
   m.view.nodes = m.nodes.get();
   m.view.prim_indices = m.prim_indices.get();
   m.view.tri_verts = m.tri_verts.get();
@@ -306,6 +326,7 @@ void CudaRenderer::reset() {
 
 void CudaRenderer::set_gpu_options(const GpuOptions& o) {
   impl_->opts = o;
+  impl_->choose_accel();
   impl_->chosen = o.kernel;
   impl_->auto_step = 0;
   impl_->auto_ms[0] = impl_->auto_ms[1] = 0.0;
@@ -333,7 +354,8 @@ size_t CudaRenderer::path_state_bytes_per_pixel() const {
 size_t CudaRenderer::scene_bytes() const {
   const Impl& m = *impl_;
   return m.nodes.bytes() + m.prim_indices.bytes() + m.tri_verts.bytes() + m.tri_shading.bytes() +
-         m.spheres.bytes() + m.materials.bytes() + m.lights.bytes() + m.light_cdf.bytes();
+         m.spheres.bytes() + m.materials.bytes() + m.lights.bytes() + m.light_cdf.bytes() +
+         m.flat.bytes() + m.flat_info.bytes() + m.tri_to_flat.bytes();
 }
 
 FrameStats CudaRenderer::render(uint32_t spp) {
@@ -342,7 +364,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   const auto start = std::chrono::steady_clock::now();
   FrameStats st;
   st.spp_added = spp;
-  st.specialization = spec_name(m.spec());
+  st.specialization = std::string(spec_name(m.spec())) + "; " + m.accel_name();
   m.cache_allowed(&st.note);
   m.counters.zero_async(m.stream);
   m.clamp_sum.zero_async(m.stream);

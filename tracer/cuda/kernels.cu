@@ -475,7 +475,8 @@ void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w
                       const uint32_t* queue, const uint32_t* count, bool dynamic_fetch,
                       cudaStream_t stream) {
   const bool walks = (s.features & kFeatureSubsurface) != 0;
-  if (dynamic_fetch) {
+  // The flat list's uniform loop ends for all lanes of a warp at once: nothing to refill.
+  if (dynamic_fetch && !s.use_flat) {
     TRACER_CUDA_CHECK(cudaMemsetAsync(w.fetch, 0, sizeof(uint32_t), stream));
 #define CALL(S)                                                                          \
   intersect_fetch_kernel<S><<<persistent_blocks(intersect_fetch_kernel<S>, w.n), kBlock, 0, \

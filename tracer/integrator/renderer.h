@@ -21,6 +21,7 @@ struct GpuOptions {
   bool first_bounce_cache = true; // reuse camera-ray hits (only without jitter and DoF)
   bool specialize = true;         // kernels compiled for the scene's features only
   bool dynamic_fetch = true;      // wavefront intersect: lanes take new rays between rounds
+  bool flat_list = true;          // small scenes: every lane tests every primitive, no BVH
 };
 
 // Milliseconds spent per wavefront stage in one call of render() (zero for the megakernel).

@@ -185,6 +185,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
 
   bvh_ = build_bvh(bounds);
   cpu_bvh_ = build_cpu_bvh(bvh_, tri_verts_, tri_count);
+  flat_ = build_flat_list(tri_verts_, uint32_t(spheres_.size()));
 
   view_.nodes = bvh_.nodes.data();
   view_.prim_indices = bvh_.prim_indices.data();
@@ -206,6 +207,14 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.features = features;
   view_.camera = make_camera(scene.camera, width, height);
   view_.cpu_bvh = cpu_bvh_.view();
+  if (flat_.enabled) {
+    view_.flat = flat_.prims.data();
+    view_.flat_info = flat_.info.data();
+    view_.tri_to_flat = flat_.tri_to_flat.data();
+    view_.flat_count = uint32_t(flat_.prims.size());
+    view_.flat_quads = flat_.quad_count;
+  }
+  view_.use_flat = 0;
 }
 
 }  // namespace tracer

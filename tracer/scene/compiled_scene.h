@@ -22,6 +22,9 @@ class CompiledScene {
 
   const std::vector<BvhNode>& nodes() const { return bvh_.nodes; }
   const CpuBvh& cpu_bvh() const { return cpu_bvh_; }
+  // The flat primitive list (bvh/flat_list.h); enabled only for small scenes. view() points at
+  // it but leaves use_flat off: the backends choose.
+  const FlatList& flat_list() const { return flat_; }
   const std::vector<uint32_t>& prim_indices() const { return bvh_.prim_indices; }
   const std::vector<TriangleVerts>& tri_verts() const { return tri_verts_; }
   const std::vector<TriangleShading>& tri_shading() const { return tri_shading_; }
@@ -36,6 +39,7 @@ class CompiledScene {
  private:
   Bvh bvh_;
   CpuBvh cpu_bvh_;  // the CPU backend's SSE layout of bvh_ (bvh/cpu_bvh.h)
+  FlatList flat_;
   std::vector<TriangleVerts> tri_verts_;
   std::vector<TriangleShading> tri_shading_;
   std::vector<Sphere> spheres_;

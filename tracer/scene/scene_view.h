@@ -4,6 +4,7 @@
 
 #include "bvh/bvh.h"
 #include "bvh/cpu_bvh.h"
+#include "bvh/flat_list.h"
 #include "bvh/geometry.h"
 #include "camera/camera.h"
 #include "core/features.h"
@@ -52,6 +53,15 @@ struct SceneView {
   // The CPU backend's SSE layout of the same BVH (bvh/cpu_bvh.h); empty on the GPU, in tests
   // that build views by hand, and where the CPU backend is told to use the shared traversal.
   CpuBvhView cpu_bvh;
+  // The flat primitive list of a small scene (bvh/flat_list.h). With use_flat set, queries test
+  // its flat_count entries (the first flat_quads of them parallelograms) and every sphere in a
+  // warp-uniform loop instead of walking the BVH. The GPU sets it by default where the scene has
+  // a list; the CPU keeps its SSE BVH unless told otherwise.
+  const FlatPrim* flat = nullptr;
+  const FlatPrimInfo* flat_info = nullptr;
+  const uint32_t* tri_to_flat = nullptr;  // tri_count entries
+  uint32_t flat_count = 0, flat_quads = 0;
+  uint32_t use_flat = 0;
 };
 
 // True when `pred` holds for every active lane of the warp (on the CPU: for this thread).
@@ -196,6 +206,134 @@ TRACER_HD TRACER_INLINE TraversalCursor traversal_start(const SceneView& s) {
   return c;
 }
 
+TRACER_HD TRACER_INLINE FlatPrim load_flat(const FlatPrim* prims, uint32_t i) {
+#if defined(__CUDA_ARCH__)
+  const float4* p = reinterpret_cast<const float4*>(prims + i);
+  const float4 a = __ldg(p), b = __ldg(p + 1), c = __ldg(p + 2);
+  FlatPrim f;
+  f.row_u = vec4(a.x, a.y, a.z, a.w);
+  f.row_v = vec4(b.x, b.y, b.z, b.w);
+  f.row_w = vec4(c.x, c.y, c.z, c.w);
+  return f;
+#else
+  return prims[i];
+#endif
+}
+
+// 1 / x; on the GPU the hardware's approximate reciprocal (one MUFU.RCP, 1 ulp; flush to zero),
+// since a correctly rounded division per primitive would add a third to the flat test (and
+// __fdividef's denormal handling four instructions). x = 0 gives an infinity, and the t it
+// makes an infinity or a NaN, which every comparison below rejects.
+TRACER_HD TRACER_INLINE float flat_rcp(float x) {
+#if defined(__CUDA_ARCH__)
+  float r;
+  asm("rcp.approx.ftz.f32 %0, %1;" : "=f"(r) : "f"(x));
+  return r;
+#else
+  return 1.0f / x;
+#endif
+}
+
+// a * b + c: fused on the GPU; on the CPU two operations (a baseline x86-64 build has no FMA
+// instruction, and fmaf would be a library call).
+TRACER_HD TRACER_INLINE float flat_fma(float a, float b, float c) {
+#if defined(__CUDA_ARCH__)
+  return fmaf(a, b, c);
+#else
+  return a * b + c;
+#endif
+}
+
+// dot(row.xyz, p) + row.w as one chain of multiply-adds (three instructions on the GPU).
+TRACER_HD TRACER_INLINE float flat_affine(vec4 row, vec3 p) {
+  return flat_fma(row.x, p.x, flat_fma(row.y, p.y, flat_fma(row.z, p.z, row.w)));
+}
+
+// The ray's distance to an entry's plane and the local coordinates of the crossing point:
+// w(o + t d) = 0 gives t = -w(o) / (w(d) - w(0)); u and v are read at the point itself, so the
+// point is made once for both.
+TRACER_HD TRACER_INLINE void flat_hit(const FlatPrim& p, vec3 o, vec3 d, float& t, float& u,
+                                      float& v) {
+  const float dw = flat_fma(p.row_w.x, d.x, flat_fma(p.row_w.y, d.y, p.row_w.z * d.z));
+  t = -flat_affine(p.row_w, o) * flat_rcp(dw);
+  const vec3 x(flat_fma(t, d.x, o.x), flat_fma(t, d.y, o.y), flat_fma(t, d.z, o.z));
+  u = flat_affine(p.row_u, x);
+  v = flat_affine(p.row_v, x);
+}
+
+// Entries [begin, end) of the flat list against one ray: every lane runs the same iterations
+// (no branch depends on the ray), so a warp stays converged. Keeps the nearest hit in
+// (0, tbest) in best; entries fa and fb are skipped. An any-hit query leaves the loop once
+// every active lane of the warp has a hit.
+template <bool kQuads, bool kAnyHit>
+TRACER_HD TRACER_INLINE void flat_range(const FlatPrim* prims, uint32_t begin, uint32_t end,
+                                        vec3 o, vec3 d, uint32_t fa, uint32_t fb, float& tbest,
+                                        uint32_t& best) {
+  constexpr float e = kFlatEdgeTolerance;
+#if defined(__CUDACC__)
+#pragma unroll 2
+#endif
+  for (uint32_t i = begin; i < end; ++i) {
+    float t, u, v;
+    flat_hit(load_flat(prims, i), o, d, t, u, v);
+    const bool inside =
+        u >= -e && v >= -e && (kQuads ? (u <= 1.0f + e && v <= 1.0f + e) : (u + v <= 1.0f + e));
+    if (inside && t > 0.0f && t < tbest && i != fa && i != fb) {
+      tbest = t;
+      best = i;
+    }
+    if (kAnyHit && warp_all(best != kInvalid)) return;
+  }
+}
+
+// The query over the flat list and the spheres (SceneView::use_flat): the same contract as
+// traverse() below. The entry hit is mapped back to its triangle and barycentrics once, at the
+// end, so that a hit reads the same to shading as one found through the BVH.
+template <uint32_t F, bool kAnyHit>
+TRACER_HD inline Hit flat_traverse(const SceneView& s, const Ray& ray, uint32_t skip,
+                                   uint32_t skip2) {
+  const uint32_t fa = skip < s.tri_count ? s.tri_to_flat[skip] : kInvalid;
+  const uint32_t fb = skip2 < s.tri_count ? s.tri_to_flat[skip2] : kInvalid;
+  float tbest = ray.tmax;
+  uint32_t best = kInvalid;
+  flat_range<true, kAnyHit>(s.flat, 0, s.flat_quads, ray.o, ray.d, fa, fb, tbest, best);
+  if (!kAnyHit || !warp_all(best != kInvalid))
+    flat_range<false, kAnyHit>(s.flat, s.flat_quads, s.flat_count, ray.o, ray.d, fa, fb, tbest,
+                               best);
+  Hit hit;
+  if (!kAnyHit && best != kInvalid) {
+    // The loop keeps only t and the entry; the same arithmetic again gives its (u, v).
+    float t, bu, bv;
+    flat_hit(load_flat(s.flat, best), ray.o, ray.d, t, bu, bv);
+    const FlatPrimInfo& info = s.flat_info[best];
+    const bool second = info.tri1 != kInvalid && bu + bv > 1.0f;
+    const float* m = second ? info.map1 : info.map0;
+    hit.t = tbest;
+    hit.prim = second ? info.tri1 : info.tri0;
+    hit.u = m[0] * bu + m[1] * bv + m[2];
+    hit.v = m[3] * bu + m[4] * bv + m[5];
+  } else if (kAnyHit && best != kInvalid) {
+    hit.t = tbest;
+    hit.prim = s.flat_info[best].tri0;
+  }
+  if (F & kFeatureSpheres) {
+    for (uint32_t k = 0; k < s.sphere_count; ++k) {
+      if (kAnyHit && warp_all(hit.valid())) break;
+      const uint32_t prim = s.tri_count + k;
+      if (prim == skip || prim == skip2) continue;
+      const Sphere sph = load_sphere(s.spheres, k);
+      float t;
+      if (intersect_sphere(ray, sph.center, sph.radius, tbest, t)) {
+        tbest = t;
+        hit.t = t;
+        hit.prim = prim;
+        hit.u = hit.v = 0.0f;
+      }
+    }
+  }
+  return hit;
+}
+
 // Traversal of the 4-wide BVH in the "while-while" form with postponed leaves of Aila & Laine,
 // "Understanding the Efficiency of Ray Traversal on GPUs" (HPG 2009): a lane that reaches a leaf
 // parks it and keeps descending inner nodes until every lane of the warp holds a leaf, then all
@@ -208,6 +346,7 @@ TRACER_HD TRACER_INLINE TraversalCursor traversal_start(const SceneView& s) {
 // distances involved). The stack holds child references; the builder bounds its depth.
 template <uint32_t F, bool kAnyHit>
 TRACER_HD inline Hit traverse(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
+  if (s.use_flat) return flat_traverse<F, kAnyHit>(s, ray, skip, skip2);
 #if !defined(__CUDA_ARCH__)
   if (s.cpu_bvh.nodes) {
     return kAnyHit ? cpu_intersect_any(s, ray, skip, skip2)

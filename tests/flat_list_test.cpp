@@ -1,0 +1,254 @@
+// The flat primitive list (bvh/flat_list.h) that the GPU uses for small scenes: it must pair
+// quads correctly, find what the BVH finds (the same triangle, t and hit point, up to the
+// rounding of a different test), never let a ray slip through a shared edge, be built only for
+// small scenes, and render the image the BVH renders. All of it runs here, on the CPU, through
+// the shared code the GPU compiles.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "cpu/cpu_backend.h"
+#include "scene/loader.h"
+#include "scene_builders.h"
+#include "test_util.h"
+
+namespace {
+using namespace test;
+
+SceneView flat_view(const CompiledScene& cs) {
+  SceneView v = cs.view();
+  v.use_flat = 1;
+  return v;
+}
+
+SceneView bvh_view(const CompiledScene& cs) {
+  SceneView v = cs.view();
+  v.use_flat = 0;
+  v.cpu_bvh = CpuBvhView();  // the shared traversal the GPU runs
+  return v;
+}
+
+Aabb scene_box(const CompiledScene& cs) {
+  Aabb box;
+  for (const auto& tv : cs.tri_verts()) {
+    box.grow(tv.v0);
+    box.grow(tv.v1);
+    box.grow(tv.v2);
+  }
+  for (const auto& s : cs.spheres()) {
+    box.grow(s.center - vec3(s.radius));
+    box.grow(s.center + vec3(s.radius));
+  }
+  return box;
+}
+
+vec3 hit_point(const CompiledScene& cs, const Ray& r, const Hit& h) {
+  if (h.prim >= cs.view().tri_count) return r.o + h.t * r.d;
+  const TriangleVerts& tv = cs.tri_verts()[h.prim];
+  return (1.0f - h.u - h.v) * tv.v0 + h.u * tv.v1 + h.v * tv.v2;
+}
+
+// Random rays from in and around the scene's box: the flat list against the BVH.
+void check_agreement(const CompiledScene& cs, int rays, const std::string& what) {
+  ASSERT_TRUE(cs.flat_list().enabled) << what;
+  const SceneView flat = flat_view(cs), bvh = bvh_view(cs);
+  const Aabb box = scene_box(cs);
+  const vec3 ext = box.hi - box.lo;
+  const float scale = glm::length(ext);
+  std::mt19937 rng(4321);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  int hits = 0, validity = 0, far = 0, any_differ = 0, grazes = 0;
+  for (int i = 0; i < rays; ++i) {
+    Ray r;
+    r.o = box.lo - 0.1f * ext + 1.2f * ext * vec3(u(rng), u(rng), u(rng));
+    r.d = glm::normalize(box.lo + ext * vec3(u(rng), u(rng), u(rng)) - r.o);
+    r.tmax = kInfinity;
+    r.pad = 0.0f;
+    const Hit a = intersect_closest(flat, r), b = intersect_closest(bvh, r);
+    if (b.valid()) ++hits;
+    if (a.valid() && !b.valid() && a.prim < cs.view().tri_count &&
+        std::min({a.u, a.v, 1.0f - a.u - a.v}) > -2.0f * kFlatEdgeTolerance) {
+      ++grazes;  // within the edge tolerance of a triangle the BVH's exact test misses
+      continue;
+    }
+    if (a.valid() != b.valid()) {
+      if (validity++ < 5)
+        ADD_FAILURE() << what << ": ray " << i << " flat prim " << a.prim << " t " << a.t
+                      << " vs bvh prim " << b.prim << " t " << b.t;
+      continue;
+    }
+    if (!b.valid()) continue;
+    // The same t, and the same point from the barycentrics (which checks the quad -> triangle
+    // maps); a different triangle only where two tie (coplanar halves, edges).
+    const vec3 pa = hit_point(cs, r, a), pb = hit_point(cs, r, b);
+    if (std::fabs(a.t - b.t) > 1e-4f * b.t + 1e-5f * scale || glm::length(pa - pb) > 1e-4f * scale) {
+      if (far++ < 5)
+        ADD_FAILURE() << what << ": ray " << i << " flat prim " << a.prim << " t " << a.t
+                      << " uv " << a.u << "," << a.v << " vs bvh prim " << b.prim << " t " << b.t
+                      << " uv " << b.u << "," << b.v;
+    }
+    if (a.prim == b.prim && a.prim < cs.view().tri_count) {
+      EXPECT_NEAR(a.u, b.u, 1e-3f) << what << ": ray " << i;
+      EXPECT_NEAR(a.v, b.v, 1e-3f) << what << ": ray " << i;
+    }
+    // Skipping the primitive a ray leaves from, and occlusion before and beyond the hit.
+    const Hit a2 = intersect_closest(flat, r, b.prim), b2 = intersect_closest(bvh, r, b.prim);
+    if (a2.valid() != b2.valid() ||
+        (b2.valid() && std::fabs(a2.t - b2.t) > 1e-4f * b2.t + 1e-5f * scale))
+      ++any_differ;
+    Ray s = r;
+    s.tmax = b.t * 1.5f;
+    if (intersect_any(flat, s, kInvalid) != intersect_any(bvh, s, kInvalid)) ++any_differ;
+    s.tmax = b.t * 0.5f;
+    if (intersect_any(flat, s, kInvalid) != intersect_any(bvh, s, kInvalid)) ++any_differ;
+  }
+  EXPECT_EQ(validity, 0) << what;
+  EXPECT_LE(grazes, rays / 5000) << what;
+  EXPECT_EQ(far, 0) << what;
+  // Skipped quads: the flat list skips the whole quad a ray leaves from (its two coplanar
+  // halves), the BVH only the one triangle; a ray can meet the other half only in its plane.
+  EXPECT_LE(any_differ, rays / 1000) << what;
+  EXPECT_GT(hits, rays / 10) << what;
+}
+
+TEST(FlatList, CornellBoxIsEighteenQuads) {
+  const Scene s = load_scene(source_dir() + "/assets/scenes/cornell_box.json");
+  const CompiledScene cs(s, 16, 16);
+  const FlatList& fl = cs.flat_list();
+  ASSERT_TRUE(fl.enabled);
+  // Five walls, the light and two boxes of six faces: 36 triangles, all paired.
+  EXPECT_EQ(cs.tri_verts().size(), 36u);
+  EXPECT_EQ(fl.quad_count, 18u);
+  EXPECT_EQ(fl.prims.size(), 18u);
+  EXPECT_EQ(fl.degenerate, 0u);
+  for (uint32_t t = 0; t < 36; ++t) {
+    const uint32_t e = fl.tri_to_flat[t];
+    ASSERT_LT(e, 18u);
+    EXPECT_TRUE(fl.info[e].tri0 == t || fl.info[e].tri1 == t) << t;
+  }
+  EXPECT_EQ(cs.view().use_flat, 0u) << "the CPU keeps its BVH unless told";
+}
+
+TEST(FlatList, AgreesWithTheBvh) {
+  for (const char* name : {"cornell_box", "cornell_closed", "cornell_spheres", "smallpt"}) {
+    const Scene s = load_scene(source_dir() + "/assets/scenes/" + name + ".json");
+    const CompiledScene cs(s, 16, 16);
+    check_agreement(cs, 20000, name);
+  }
+  // Lone triangles (no pairs) and quads of every orientation and winding.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-5.0f, 5.0f), small(-1.5f, 1.5f);
+  Scene soup;
+  soup.materials.push_back({"m", diffuse(vec3(0.5f))});
+  for (int i = 0; i < 20; ++i) {
+    const vec3 c(u(rng), u(rng), u(rng));
+    add_triangle(soup.mesh, c + vec3(small(rng), small(rng), small(rng)),
+                 c + vec3(small(rng), small(rng), small(rng)),
+                 c + vec3(small(rng), small(rng), small(rng)), 0);
+  }
+  for (int i = 0; i < 12; ++i) {
+    const vec3 c(u(rng), u(rng), u(rng));
+    const vec3 e1(small(rng), small(rng), small(rng)), e2(small(rng), small(rng), small(rng));
+    if (i % 2) add_quad(soup.mesh, c, e1, e2, 0);
+    else add_quad(soup.mesh, c, e2, e1, 0);
+  }
+  const CompiledScene cs(soup, 16, 16);
+  EXPECT_EQ(cs.flat_list().quad_count, 12u);
+  EXPECT_EQ(cs.flat_list().prims.size(), 32u);
+  check_agreement(cs, 20000, "triangles and quads");
+}
+
+TEST(FlatList, ClosedBoxDoesNotLeak) {
+  // Rays from inside the closed box aimed at the points where faces meet (edges and corners of
+  // the walls and of the blocks) must all hit something: the edge tolerance closes the seams.
+  const Scene s = load_scene(source_dir() + "/assets/scenes/cornell_closed.json");
+  const CompiledScene cs(s, 16, 16);
+  ASSERT_TRUE(cs.flat_list().enabled);
+  const SceneView flat = flat_view(cs);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const auto& tris = cs.tri_verts();
+  int misses = 0;
+  const int rays = 100000;
+  for (int i = 0; i < rays; ++i) {
+    const TriangleVerts& tv = tris[rng() % tris.size()];
+    const vec3 a = (rng() % 2) ? tv.v0 : tv.v1, b = (rng() % 2) ? tv.v2 : tv.v1;
+    const vec3 target = a + u(rng) * (b - a);  // on an edge of a triangle
+    Ray r;
+    r.o = vec3(20.0f, 20.0f, 20.0f) + vec3(515.0f, 500.0f, 515.0f) * vec3(u(rng), u(rng), u(rng));
+    const vec3 dir = target - r.o;
+    if (glm::length(dir) < 1e-3f) continue;
+    r.d = glm::normalize(dir);
+    r.tmax = kInfinity;
+    r.pad = 0.0f;
+    if (!intersect_closest(flat, r).valid()) ++misses;
+  }
+  EXPECT_EQ(misses, 0) << "rays escaped the closed box through a seam";
+}
+
+TEST(FlatList, OnlySmallScenes) {
+  auto quads = [](int n) {
+    Scene s;
+    s.materials.push_back({"m", diffuse(vec3(0.5f))});
+    for (int i = 0; i < n; ++i)
+      add_quad(s.mesh, vec3(float(i), 0, 0), vec3(0.5f, 0, 0), vec3(0, 0.5f, 0), 0);
+    return s;
+  };
+  EXPECT_TRUE(CompiledScene(quads(int(kFlatMaxCost)), 4, 4).flat_list().enabled);
+  EXPECT_FALSE(CompiledScene(quads(int(kFlatMaxCost) + 1), 4, 4).flat_list().enabled);
+  // A trapezoid is two lone triangles; a degenerate triangle is counted and left out.
+  Scene t;
+  t.materials.push_back({"m", diffuse(vec3(0.5f))});
+  t.mesh.positions = {vec3(0, 0, 0), vec3(2, 0, 0), vec3(1.5f, 1, 0), vec3(0.5f, 1, 0)};
+  t.mesh.indices = {uvec3(0, 1, 2), uvec3(0, 2, 3)};
+  t.mesh.materials = {0, 0};
+  add_triangle(t.mesh, vec3(0, 0, 1), vec3(1, 1, 1), vec3(2, 2, 1), 0);
+  const CompiledScene ct(t, 4, 4);
+  ASSERT_TRUE(ct.flat_list().enabled);
+  EXPECT_EQ(ct.flat_list().quad_count, 0u);
+  EXPECT_EQ(ct.flat_list().prims.size(), 2u);
+  EXPECT_EQ(ct.flat_list().degenerate, 1u);
+  EXPECT_EQ(ct.flat_list().tri_to_flat[2], kInvalid);
+  // Spheres count twice: 33 spheres are too many.
+  Scene sp;
+  sp.materials.push_back({"m", diffuse(vec3(0.5f))});
+  for (int i = 0; i < 33; ++i) sp.spheres.push_back({vec3(float(3 * i), 0, 0), 1.0f, 0});
+  EXPECT_FALSE(CompiledScene(sp, 4, 4).flat_list().enabled);
+  sp.spheres.pop_back();
+  EXPECT_TRUE(CompiledScene(sp, 4, 4).flat_list().enabled);
+}
+
+TEST(FlatList, RendersTheImageOfTheBvh) {
+  // The CPU backend with the flat list against its BVH, same seed: the same paths, so pixels
+  // agree to rounding except where a path grazes an edge; and the same mean brightness.
+  const Scene s = load_scene(source_dir() + "/assets/scenes/cornell_box.json");
+  RenderSettings rs = s.settings;
+  rs.width = 64;
+  rs.height = 64;
+  const CompiledScene cs(s, rs.width, rs.height);
+  const IntegratorSettings cfg = make_integrator_settings(rs);
+  CpuRenderer a(2), b(2);
+  a.set_scene(cs, cfg);
+  b.set_scene(cs, cfg);
+  a.set_flat_list(true);
+  const FrameStats sa = a.render(32);
+  b.render(32);
+  const ImageRGB ia = a.image(), ib = b.image();
+  size_t close = 0;
+  double suma = 0, sumb = 0;
+  for (size_t i = 0; i < ia.pixels.size(); ++i) {
+    const float x = ia.pixels[i], y = ib.pixels[i];
+    if (std::fabs(x - y) <= 1e-3f * std::max(1.0f, std::fabs(y))) ++close;
+    suma += x;
+    sumb += y;
+  }
+  const double frac = double(close) / double(ia.pixels.size());
+  std::printf("flat list vs BVH, same seed: %.4f of values agree to 1e-3, means %.5f / %.5f\n",
+              frac, suma / ia.pixels.size(), sumb / ia.pixels.size());
+  EXPECT_GT(frac, 0.99);
+  EXPECT_NEAR(suma / sumb, 1.0, 0.002);
+  EXPECT_EQ(sa.nonfinite, 0u);
+}
+
+}  // namespace

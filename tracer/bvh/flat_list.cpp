@@ -1,0 +1,157 @@
+// Builds the flat primitive list (bvh/flat_list.h): pairs triangles into parallelograms and
+// inverts each entry's frame in double precision.
+#include "bvh/flat_list.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tracer {
+namespace {
+
+struct DVec {
+  double x, y, z;
+};
+DVec dv(vec3 v) { return {v.x, v.y, v.z}; }
+DVec sub(DVec a, DVec b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+DVec cross(DVec a, DVec b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+double dot(DVec a, DVec b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+double length(DVec a) { return std::sqrt(dot(a, a)); }
+
+// The map world -> (u, v, w) of the frame p0 + u e1 + v e2 + w (e1 x e2); false if degenerate.
+bool make_prim(vec3 p0, vec3 p1, vec3 p2, FlatPrim& out) {
+  const DVec o = dv(p0), e1 = sub(dv(p1), o), e2 = sub(dv(p2), o);
+  const DVec n = cross(e1, e2);
+  const double det = dot(n, n);  // det [e1 e2 n] = |e1 x e2|^2
+  if (!(det > 0.0) || !std::isfinite(det)) return false;
+  const DVec ru = cross(e2, n), rv = cross(n, e1);
+  auto row = [&](DVec r) {
+    const DVec s = {r.x / det, r.y / det, r.z / det};
+    return vec4(float(s.x), float(s.y), float(s.z), float(-dot(s, o)));
+  };
+  out.row_u = row(ru);
+  out.row_v = row(rv);
+  out.row_w = row(n);
+  return true;
+}
+
+// Barycentrics (b1, b2) of a point (u, v) in the triangle whose corners have local coordinates
+// c[0..2] (in the triangle's own vertex order), as an affine map of (u, v).
+void barycentric_map(const vec2 c[3], float m[6]) {
+  const double e00 = c[1].x - c[0].x, e10 = c[1].y - c[0].y;
+  const double e01 = c[2].x - c[0].x, e11 = c[2].y - c[0].y;
+  const double det = e00 * e11 - e01 * e10;
+  const double m0 = e11 / det, m1 = -e01 / det, m3 = -e10 / det, m4 = e00 / det;
+  m[0] = float(m0);
+  m[1] = float(m1);
+  m[2] = float(-(m0 * c[0].x + m1 * c[0].y));
+  m[3] = float(m3);
+  m[4] = float(m4);
+  m[5] = float(-(m3 * c[0].x + m4 * c[0].y));
+}
+
+const vec3& corner(const TriangleVerts& t, int k) { return k == 0 ? t.v0 : (k == 1 ? t.v1 : t.v2); }
+
+// If triangles a and b share an edge and form a parallelogram, its corner p (a's vertex off the
+// shared edge) and the shared corners q, r, in a's winding order p -> q -> r.
+bool parallelogram(const TriangleVerts& a, const TriangleVerts& b, int& ip, int& iq, int& ir,
+                   int& is) {
+  int shared_a[3] = {-1, -1, -1};  // for each corner of a, the equal corner of b
+  int count = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (corner(a, i) == corner(b, j)) {
+        shared_a[i] = j;
+        ++count;
+      }
+  if (count != 2) return false;
+  ip = shared_a[0] < 0 ? 0 : (shared_a[1] < 0 ? 1 : 2);
+  iq = (ip + 1) % 3;
+  ir = (ip + 2) % 3;
+  is = 3 - shared_a[iq] - shared_a[ir];
+  const DVec p = dv(corner(a, ip)), q = dv(corner(a, iq)), r = dv(corner(a, ir));
+  const DVec s = dv(corner(b, is));
+  const DVec want = {q.x + r.x - p.x, q.y + r.y - p.y, q.z + r.z - p.z};
+  const double size = std::max(length(sub(q, p)), length(sub(r, p)));
+  return length(sub(s, want)) <= 1e-5 * size;
+}
+
+}  // namespace
+
+FlatList build_flat_list(const std::vector<TriangleVerts>& tris, uint32_t sphere_count) {
+  FlatList out;
+  const size_t n = tris.size();
+  // Each entry is at least one triangle test, each sphere two: larger scenes cannot qualify.
+  if (n + 2 * size_t(sphere_count) > 2 * size_t(kFlatMaxCost) || n + sphere_count == 0)
+    return out;
+  std::vector<FlatPrim> quads, singles;
+  std::vector<FlatPrimInfo> quad_info, single_info;
+  std::vector<bool> used(n, false);
+  std::vector<uint32_t> entry_of(n, kInvalid);  // before quads and singles are joined
+  std::vector<bool> is_single(n, false);
+  uint32_t degenerate = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (used[i]) continue;
+    used[i] = true;
+    FlatPrim probe;
+    if (!make_prim(tris[i].v0, tris[i].v1, tris[i].v2, probe)) {
+      ++degenerate;
+      continue;
+    }
+    bool paired = false;
+    for (size_t j = i + 1; j < n && !paired; ++j) {
+      int ip, iq, ir, is;
+      if (used[j] || !parallelogram(tris[i], tris[j], ip, iq, ir, is)) continue;
+      FlatPrim fp;
+      if (!make_prim(corner(tris[i], ip), corner(tris[i], iq), corner(tris[i], ir), fp)) continue;
+      FlatPrimInfo fi{};
+      fi.tri0 = uint32_t(i);
+      fi.tri1 = uint32_t(j);
+      // Local coordinates: p (0,0), q (1,0), r (0,1), s (1,1).
+      vec2 ca[3], cb[3];
+      ca[ip] = vec2(0, 0);
+      ca[iq] = vec2(1, 0);
+      ca[ir] = vec2(0, 1);
+      for (int k = 0; k < 3; ++k) {
+        const vec3& v = corner(tris[j], k);
+        cb[k] = k == is ? vec2(1, 1) : (v == corner(tris[i], iq) ? vec2(1, 0) : vec2(0, 1));
+      }
+      barycentric_map(ca, fi.map0);
+      barycentric_map(cb, fi.map1);
+      used[j] = true;
+      entry_of[i] = entry_of[j] = uint32_t(quads.size());
+      quads.push_back(fp);
+      quad_info.push_back(fi);
+      paired = true;
+    }
+    if (!paired) {
+      FlatPrimInfo fi{};
+      fi.tri0 = uint32_t(i);
+      fi.tri1 = kInvalid;
+      const float identity[6] = {1, 0, 0, 0, 1, 0};
+      std::copy(identity, identity + 6, fi.map0);
+      std::copy(identity, identity + 6, fi.map1);
+      entry_of[i] = uint32_t(singles.size());
+      is_single[i] = true;
+      singles.push_back(probe);
+      single_info.push_back(fi);
+    }
+  }
+  const size_t entries = quads.size() + singles.size();
+  if (entries + 2 * size_t(sphere_count) > kFlatMaxCost) return out;
+  out.quad_count = uint32_t(quads.size());
+  out.degenerate = degenerate;
+  out.prims = quads;
+  out.prims.insert(out.prims.end(), singles.begin(), singles.end());
+  out.info = quad_info;
+  out.info.insert(out.info.end(), single_info.begin(), single_info.end());
+  out.tri_to_flat.assign(n, kInvalid);
+  for (size_t i = 0; i < n; ++i)
+    if (entry_of[i] != kInvalid)
+      out.tri_to_flat[i] = entry_of[i] + (is_single[i] ? out.quad_count : 0u);
+  out.enabled = true;
+  return out;
+}
+
+}  // namespace tracer

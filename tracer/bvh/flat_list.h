@@ -1,0 +1,64 @@
+// The flat primitive list: for scenes of a few dozen primitives, every lane of a warp tests every
+// primitive in the same order, instead of walking a BVH on its own path. A BVH step keeps 12 of
+// 32 lanes busy on the Cornell box (docs/PERFORMANCE.md); a uniform loop keeps all 32, and loads
+// each primitive once per warp (one address for all lanes). The loop is linear in the number of
+// primitives, so it is only built for small scenes (kFlatMaxCost).
+//
+// Each entry is an affine map of world space onto a unit triangle or a unit square, the test of
+// Woop ("A Ray Tracing Hardware Architecture for Dynamic Scenes", 2004) that Aila & Laine (2009)
+// used on GPUs: three rows, each a dot product with the ray's origin and direction. Two
+// triangles that share an edge and form a parallelogram (every quad and box face of a scene) are
+// one entry, which halves the loop on such scenes; a hit is mapped back to the triangle and its
+// barycentrics afterwards, once per query, so shading sees the same hit as from the BVH.
+#pragma once
+
+#include <vector>
+
+#include "bvh/geometry.h"
+
+namespace tracer {
+
+// World -> local affine map: local k = dot(row[k].xyz, p) + row[k].w. Local (u, v) are the
+// parametric coordinates over edges e1 = v1 - v0 and e2 = v2 - v0; w is the distance from the
+// plane in units of |e1 x e2|. 48 bytes: three aligned 16-byte loads on the GPU.
+struct alignas(16) FlatPrim {
+  vec4 row_u, row_v, row_w;
+};
+static_assert(sizeof(FlatPrim) == 48, "FlatPrim must stay 48 bytes");
+
+// Read once per query, for the nearest hit: which triangle(s) the entry stands for and the
+// affine maps from (u, v) to each triangle's barycentrics (b1, b2) of its v1 and v2.
+// For a lone triangle tri1 is kInvalid and map0 is the identity.
+struct alignas(16) FlatPrimInfo {
+  uint32_t tri0, tri1;
+  uint32_t pad[2];
+  float map0[6];  // b1 = map[0] u + map[1] v + map[2], b2 = map[3] u + map[4] v + map[5]
+  float map1[6];  // for tri1, the half u + v > 1 of the square
+};
+
+// Parametric tolerance at the edges: a hit within 1e-5 of an edge's length outside a primitive
+// still counts, so that rounding in the affine test cannot let a ray slip between two
+// primitives that share an edge (the BVH path's watertight test needs no tolerance). Where two
+// primitives overlap by it, the nearer hit wins as usual.
+constexpr float kFlatEdgeTolerance = 1e-5f;
+
+// Scenes whose entries cost at most this many triangle tests get a flat list (a sphere counts
+// as two: its test is in double precision). Chosen from the instruction counts: a uniform test
+// costs about 40 instructions per lane, and the BVH's closest-hit query on the Cornell box
+// about 77 warp instructions per ray (PERFORMANCE.md, "Flat primitive list").
+constexpr uint32_t kFlatMaxCost = 64;
+
+struct FlatList {
+  std::vector<FlatPrim> prims;         // quads first, then lone triangles
+  std::vector<FlatPrimInfo> info;      // one per entry
+  std::vector<uint32_t> tri_to_flat;   // triangle -> its entry (kInvalid: degenerate)
+  uint32_t quad_count = 0;             // entries [0, quad_count) are parallelograms
+  uint32_t degenerate = 0;             // triangles of zero area (no ray hits them)
+  bool enabled = false;                // the scene is small enough (see kFlatMaxCost)
+};
+
+// Builds the list for a scene of these triangles and `sphere_count` spheres; `enabled` is false
+// (and the arrays empty) when the scene is too large for it.
+FlatList build_flat_list(const std::vector<TriangleVerts>& tris, uint32_t sphere_count);
+
+}  // namespace tracer
