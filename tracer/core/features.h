@@ -17,6 +17,9 @@ enum SceneFeature : uint32_t {
   kFeatureMirror = 1u << 6,
   kFeatureAbsorption = 1u << 7,
   kFeatureShadingNormals = 1u << 8,
+  // Not a scene feature: code compiled with it honours SceneView::use_flat (the flat primitive
+  // list of small scenes, bvh/flat_list.h); without it, queries always walk the BVH.
+  kFeatureFlatList = 1u << 9,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;

@@ -18,6 +18,11 @@ constexpr int kBlock = 256;
 #ifndef TRACER_MEGA_MIN_BLOCKS
 #define TRACER_MEGA_MIN_BLOCKS 4  // 64 registers: measured fastest on an H200 (PERFORMANCE.md)
 #endif
+// The flat megakernel: 64 registers for diffuse-only scenes, 80 for the specular variants (whose
+// shading spills at 64), each measured the faster on an H200 (PERFORMANCE.md).
+#ifndef TRACER_MEGA_FLAT_MIN_BLOCKS
+#define TRACER_MEGA_FLAT_MIN_BLOCKS(spec) (((spec) & kSpecSpecular) ? 3 : 4)
+#endif
 
 
 __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 L, bool first,
@@ -83,6 +88,86 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
       add_to_film(film, st.pixel, st.radiance, first, &counters[1]);
       if (st.flags & kPathWalkCapped) atomicAdd(&counters[3], 1ull);  // rare: plain atomics
       if (st.flags & kPathMediumLeak) atomicAdd(&counters[4], 1ull);
+      alive = false;
+    }
+  }
+  warp_add(&counters[2], segments);
+  warp_add(&counters[0], shadows);
+}
+
+// The megakernel for scenes with a flat primitive list (bvh/flat_list.h). Each lane's shadow
+// ray is traced together with the next extension ray of its path, in one pass over the list
+// (flat_closest_and_any): the loads and the loop are paid once, and no loop runs for only the
+// lanes that have a shadow ray (which left half the lanes idle in the separate shadow query). A
+// lane whose path ended with a shadow ray in flight keeps that path's pixel and radiance until
+// the next pass, already tracing its new path's camera ray in it.
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
+    megakernel_flat(SceneView s, IntegratorSettings cfg, uint32_t sample, bool first,
+                    FilmView film, unsigned long long* counters, uint32_t* next_pixel) {
+  constexpr uint32_t F = features_of<Spec>();
+  const uint32_t lane = threadIdx.x & 31;
+  PathState st;
+  ShadowRequest sr;
+  sr.valid = false;
+  st.ray.o = sr.ray.o = vec3(0.0f);
+  st.ray.d = sr.ray.d = vec3(0.0f, 0.0f, 1.0f);
+  st.origin_prim = sr.target_prim = sr.origin_prim = kInvalid;
+  bool alive = false, exhausted = false;
+  uint32_t done_pixel = kInvalid;  // a finished path whose shadow ray is in flight
+  vec3 done_L(0.0f);
+  uint32_t segments = 0, shadows = 0;
+  for (;;) {
+    const unsigned active = __activemask();
+    const bool want = !alive && !exhausted;
+    const unsigned need = __ballot_sync(active, want);
+    if (want) {
+      const int leader = __ffs(need) - 1;
+      uint32_t base = 0;
+      if (int(lane) == leader) base = atomicAdd(next_pixel, uint32_t(__popc(need)));
+      base = __shfl_sync(need, base, leader);
+      const uint32_t pixel = base + __popc(need & ((1u << lane) - 1u));
+      if (pixel < film.n) {
+        generate_path<F>(s, cfg, pixel, sample, st);
+        alive = true;
+      } else {
+        exhausted = true;
+      }
+    }
+    if (!alive && !sr.valid) break;
+    // A lane without a ray of one kind passes a copy with tmax = 0, which nothing hits. (Copies,
+    // not a choice between references: a reference to either of two structs would put both in
+    // local memory.)
+    Ray ext = st.ray, sh = sr.ray;
+    ext.tmax = alive ? ext.tmax : 0.0f;
+    sh.tmax = sr.valid ? sh.tmax : 0.0f;
+    bool blocked;
+    const Hit hit = flat_closest_and_any<F>(s, ext, st.origin_prim, sh, sr.target_prim,
+                                            sr.origin_prim, blocked);
+    if (sr.valid) {
+      ++shadows;
+      if (!blocked) {
+        if (done_pixel != kInvalid) done_L += sr.contribution;
+        else st.radiance += sr.contribution;
+      }
+      sr.valid = false;
+    }
+    if (done_pixel != kInvalid) {
+      add_to_film(film, done_pixel, done_L, first, &counters[1]);
+      done_pixel = kInvalid;
+    }
+    if (!alive) continue;
+    ++segments;
+    const bool go_on = shade_path<F>(s, cfg, st, hit, sr);
+    if (!go_on) {
+      if (st.flags & kPathWalkCapped) atomicAdd(&counters[3], 1ull);  // rare: plain atomics
+      if (st.flags & kPathMediumLeak) atomicAdd(&counters[4], 1ull);
+      if (sr.valid) {
+        done_pixel = st.pixel;
+        done_L = st.radiance;
+      } else {
+        add_to_film(film, st.pixel, st.radiance, first, &counters[1]);
+      }
       alive = false;
     }
   }
@@ -173,7 +258,7 @@ __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, Wavefron
   if (id == kInvalid) return;
   uint32_t skip;
   const Ray ray = extension_ray(s, w, id, walks, &skip);
-  store_hit(w, id, intersect_closest<features_of<Spec>()>(s, ray, skip));
+  store_hit(w, id, intersect_closest<features_of<Spec>() | kFeatureFlatList>(s, ray, skip));
 }
 
 // Lanes of the dynamic-fetch kernel refill in batches of 8: measured on an H100 as fast as 16
@@ -300,7 +385,7 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontSt
     ray.pad = 0.0f;
     uint32_t origin = kInvalid;
     if (walks) origin = __float_as_uint(w.hit[id].y);
-    if (!intersect_any<features_of<Spec>()>(s, ray, __float_as_uint(d.w),
+    if (!intersect_any<features_of<Spec>() | kFeatureFlatList>(s, ray, __float_as_uint(d.w),
                                            origin < s.tri_count ? origin : kInvalid)) {
       r.x += c.x;
       r.y += c.y;
@@ -450,6 +535,15 @@ void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettin
                        uint32_t sample, bool first, FilmView film, unsigned long long* counters,
                        uint32_t* next_pixel, cudaStream_t stream) {
   TRACER_CUDA_CHECK(cudaMemsetAsync(next_pixel, 0, sizeof(uint32_t), stream));
+  if (s.use_flat) {
+#define CALL(S)                                                                             \
+  megakernel_flat<S><<<persistent_blocks(megakernel_flat<S>, film.n), kBlock, 0, stream>>>( \
+      s, cfg, sample, first, film, counters, next_pixel)
+    TRACER_SPEC_SWITCH(spec, 7u, CALL)
+#undef CALL
+    TRACER_CUDA_CHECK_LAUNCH("megakernel_flat");
+    return;
+  }
 #define CALL(S)                                                                       \
   megakernel<S><<<persistent_blocks(megakernel<S>, film.n), kBlock, 0, stream>>>(     \
       s, cfg, sample, first, film, counters, next_pixel)
