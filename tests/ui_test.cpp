@@ -61,6 +61,12 @@ TEST(Workbench, ApplyRejectsBadEditsWithReasons) {
   EXPECT_EQ(wb->settings().sampler, tracer::kSamplerSobol);
   EXPECT_FALSE(wb->apply("camera.position=1,2", &err));
   EXPECT_FALSE(wb->apply("materials.white.ior=nan", &err));
+  // GPU switches (the CPU backend ignores them, but they are kept for a switch to the GPU).
+  EXPECT_TRUE(wb->gpu_options().flat_list);
+  EXPECT_TRUE(wb->apply("gpu.flat=off", &err)) << err;
+  EXPECT_FALSE(wb->gpu_options().flat_list);
+  EXPECT_FALSE(wb->apply("gpu.flat=sometimes", &err));
+  EXPECT_NE(err.find("on or off"), std::string::npos) << err;
 }
 
 TEST(Workbench, EditsResetAndDisplayChangesDoNot) {

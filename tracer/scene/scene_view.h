@@ -261,6 +261,14 @@ TRACER_HD TRACER_INLINE void flat_hit(const FlatPrim& p, vec3 o, vec3 d, float& 
   v = flat_affine(p.row_v, x);
 }
 
+// Whether local (u, v) lie in the unit square (kQuads) or the unit triangle, edges widened by
+// kFlatEdgeTolerance.
+template <bool kQuads>
+TRACER_HD TRACER_INLINE bool flat_inside(float u, float v) {
+  constexpr float e = kFlatEdgeTolerance;
+  return u >= -e && v >= -e && (kQuads ? (u <= 1.0f + e && v <= 1.0f + e) : (u + v <= 1.0f + e));
+}
+
 // Entries [begin, end) of the flat list against one ray: every lane runs the same iterations
 // (no branch depends on the ray), so a warp stays converged. Keeps the nearest hit in
 // (0, tbest) in best; entries fa and fb are skipped. An any-hit query leaves the loop once
@@ -269,21 +277,37 @@ template <bool kQuads, bool kAnyHit>
 TRACER_HD TRACER_INLINE void flat_range(const FlatPrim* prims, uint32_t begin, uint32_t end,
                                         vec3 o, vec3 d, uint32_t fa, uint32_t fb, float& tbest,
                                         uint32_t& best) {
-  constexpr float e = kFlatEdgeTolerance;
 #if defined(__CUDACC__)
 #pragma unroll 2
 #endif
   for (uint32_t i = begin; i < end; ++i) {
     float t, u, v;
     flat_hit(load_flat(prims, i), o, d, t, u, v);
-    const bool inside =
-        u >= -e && v >= -e && (kQuads ? (u <= 1.0f + e && v <= 1.0f + e) : (u + v <= 1.0f + e));
-    if (inside && t > 0.0f && t < tbest && i != fa && i != fb) {
+    if (flat_inside<kQuads>(u, v) && t > 0.0f && t < tbest && i != fa && i != fb) {
       tbest = t;
       best = i;
     }
     if (kAnyHit && warp_all(best != kInvalid)) return;
   }
+}
+
+// The hit of entry `best` at distance t (none when best is kInvalid), as the triangle and its
+// barycentrics: the loops keep only t and the entry, and the same arithmetic again gives the
+// entry's (u, v), which its map turns into the barycentrics of the half they fall in.
+TRACER_HD TRACER_INLINE Hit flat_entry_hit(const SceneView& s, const Ray& ray, uint32_t best,
+                                           float t) {
+  Hit hit;
+  if (best == kInvalid) return hit;
+  float t_again, u, v;
+  flat_hit(load_flat(s.flat, best), ray.o, ray.d, t_again, u, v);
+  const FlatPrimInfo& info = s.flat_info[best];
+  const bool second = info.tri1 != kInvalid && u + v > 1.0f;
+  const float* m = second ? info.map1 : info.map0;
+  hit.t = t;
+  hit.prim = second ? info.tri1 : info.tri0;
+  hit.u = m[0] * u + m[1] * v + m[2];
+  hit.v = m[3] * u + m[4] * v + m[5];
+  return hit;
 }
 
 // The query over the flat list and the spheres (SceneView::use_flat): the same contract as
@@ -301,18 +325,9 @@ TRACER_HD inline Hit flat_traverse(const SceneView& s, const Ray& ray, uint32_t 
     flat_range<false, kAnyHit>(s.flat, s.flat_quads, s.flat_count, ray.o, ray.d, fa, fb, tbest,
                                best);
   Hit hit;
-  if (!kAnyHit && best != kInvalid) {
-    // The loop keeps only t and the entry; the same arithmetic again gives its (u, v).
-    float t, bu, bv;
-    flat_hit(load_flat(s.flat, best), ray.o, ray.d, t, bu, bv);
-    const FlatPrimInfo& info = s.flat_info[best];
-    const bool second = info.tri1 != kInvalid && bu + bv > 1.0f;
-    const float* m = second ? info.map1 : info.map0;
-    hit.t = tbest;
-    hit.prim = second ? info.tri1 : info.tri0;
-    hit.u = m[0] * bu + m[1] * bv + m[2];
-    hit.v = m[3] * bu + m[4] * bv + m[5];
-  } else if (kAnyHit && best != kInvalid) {
+  if (!kAnyHit) {
+    hit = flat_entry_hit(s, ray, best, tbest);
+  } else if (best != kInvalid) {
     hit.t = tbest;
     hit.prim = s.flat_info[best].tri0;
   }
@@ -343,7 +358,6 @@ TRACER_HD TRACER_INLINE void flat_range_pair(const FlatPrim* prims, uint32_t beg
                                              const Ray& ext, uint32_t fa, float& tbest,
                                              uint32_t& best, const Ray& sh, uint32_t sa,
                                              uint32_t sb, bool& blocked) {
-  constexpr float e = kFlatEdgeTolerance;
 #if defined(__CUDACC__)
 #pragma unroll 2
 #endif
@@ -351,16 +365,12 @@ TRACER_HD TRACER_INLINE void flat_range_pair(const FlatPrim* prims, uint32_t beg
     const FlatPrim p = load_flat(prims, i);
     float t, u, v;
     flat_hit(p, ext.o, ext.d, t, u, v);
-    const bool in1 =
-        u >= -e && v >= -e && (kQuads ? (u <= 1.0f + e && v <= 1.0f + e) : (u + v <= 1.0f + e));
-    if (in1 && t > 0.0f && t < tbest && i != fa) {
+    if (flat_inside<kQuads>(u, v) && t > 0.0f && t < tbest && i != fa) {
       tbest = t;
       best = i;
     }
     flat_hit(p, sh.o, sh.d, t, u, v);
-    const bool in2 =
-        u >= -e && v >= -e && (kQuads ? (u <= 1.0f + e && v <= 1.0f + e) : (u + v <= 1.0f + e));
-    blocked |= in2 && t > 0.0f && t < sh.tmax && i != sa && i != sb;
+    blocked |= flat_inside<kQuads>(u, v) && t > 0.0f && t < sh.tmax && i != sa && i != sb;
   }
 }
 
@@ -382,18 +392,7 @@ TRACER_HD TRACER_INLINE Hit flat_closest_and_any(const SceneView& s, const Ray& 
   flat_range_pair<true>(s.flat, 0, s.flat_quads, ext, fa, tbest, best, sh, sa, sb, blocked);
   flat_range_pair<false>(s.flat, s.flat_quads, s.flat_count, ext, fa, tbest, best, sh, sa, sb,
                          blocked);
-  Hit hit;
-  if (best != kInvalid) {
-    float t, bu, bv;
-    flat_hit(load_flat(s.flat, best), ext.o, ext.d, t, bu, bv);
-    const FlatPrimInfo& info = s.flat_info[best];
-    const bool second = info.tri1 != kInvalid && bu + bv > 1.0f;
-    const float* m = second ? info.map1 : info.map0;
-    hit.t = tbest;
-    hit.prim = second ? info.tri1 : info.tri0;
-    hit.u = m[0] * bu + m[1] * bv + m[2];
-    hit.v = m[3] * bu + m[4] * bv + m[5];
-  }
+  Hit hit = flat_entry_hit(s, ext, best, tbest);
   if (F & kFeatureSpheres) {
     for (uint32_t k = 0; k < s.sphere_count; ++k) {
       const uint32_t prim = s.tri_count + k;
