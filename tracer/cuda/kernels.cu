@@ -18,11 +18,16 @@ constexpr int kBlock = 256;
 #ifndef TRACER_MEGA_MIN_BLOCKS
 #define TRACER_MEGA_MIN_BLOCKS 4  // 64 registers: measured fastest on an H200 (PERFORMANCE.md)
 #endif
-// The flat megakernel: 64 registers for diffuse-only scenes, 80 for the specular variants (whose
-// shading spills at 64), each measured the faster on an H200 (PERFORMANCE.md).
-#ifndef TRACER_MEGA_FLAT_MIN_BLOCKS
-#define TRACER_MEGA_FLAT_MIN_BLOCKS(spec) (((spec) & kSpecSpecular) ? 3 : 4)
+// The flat megakernel: 64 registers for diffuse-only scenes (48 and 80 measured slower), 80 for
+// the specular variants (whose shading spills at 64): each the faster on an H200 (PERFORMANCE.md).
+#ifndef TRACER_MEGA_FLAT_DIFFUSE_BLOCKS
+#define TRACER_MEGA_FLAT_DIFFUSE_BLOCKS 4
 #endif
+#ifndef TRACER_MEGA_FLAT_SPECULAR_BLOCKS
+#define TRACER_MEGA_FLAT_SPECULAR_BLOCKS 3
+#endif
+#define TRACER_MEGA_FLAT_MIN_BLOCKS(spec) \
+  (((spec) & kSpecSpecular) ? TRACER_MEGA_FLAT_SPECULAR_BLOCKS : TRACER_MEGA_FLAT_DIFFUSE_BLOCKS)
 
 
 __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 L, bool first,
