@@ -50,7 +50,21 @@ int run_info(const InfoOptions& o) {
               {"sah_cost", st.sah_cost},
               {"build_ms", st.build_ms},
               {"bytes", st.node_count * sizeof(tracer::BvhNode)}};
+  const tracer::FlatList& fl = cs.flat_list();
+  const std::string flat_text =
+      fl.enabled ? std::to_string(fl.prims.size()) + " entries (" + std::to_string(fl.quad_count) +
+                       " quads, " + std::to_string(fl.prims.size() - fl.quad_count) +
+                       " triangles) + " + std::to_string(v.sphere_count) +
+                       " spheres: the GPU tests them all in one uniform loop instead of the BVH"
+                 : "none (more than " + std::to_string(tracer::kFlatMaxCost) +
+                       " entries): the GPU walks the BVH";
+  j["flat_list"] = {{"enabled", fl.enabled},
+                    {"entries", fl.prims.size()},
+                    {"quads", fl.quad_count},
+                    {"degenerate_triangles", fl.degenerate},
+                    {"max_cost", tracer::kFlatMaxCost}};
   j["features"] = tracer::describe_features(cs.features());
+  j["gpu_specialization"] = tracer::spec_name_for_features(cs.features());
   j["render"] = {{"width", scene.settings.width},
                  {"height", scene.settings.height},
                  {"spp", scene.settings.spp},
@@ -72,7 +86,9 @@ int run_info(const InfoOptions& o) {
             << " KiB), depth " << st.max_depth << ", SAH cost " << std::fixed
             << std::setprecision(2) << st.sah_cost << ", built in " << std::setprecision(2)
             << st.build_ms << " ms\n"
+            << "flat list   " << flat_text << "\n"
             << "features    " << tracer::describe_features(cs.features()) << "\n"
+            << "GPU kernels " << tracer::spec_name_for_features(cs.features()) << "\n"
             << "render      " << scene.settings.width << "x" << scene.settings.height << ", "
             << scene.settings.spp << " spp, max depth " << scene.settings.max_depth << "\n";
   return 0;

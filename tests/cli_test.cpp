@@ -108,6 +108,10 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
   EXPECT_GE(j["lights"].get<int>(), 1);
   EXPECT_GT(j["bvh"]["nodes"].get<int>(), 1);
   EXPECT_NE(j["features"].get<std::string>().find("dielectrics"), std::string::npos);
+  // Five walls and the light are six quads; with the two spheres the GPU uses the flat list.
+  EXPECT_TRUE(j["flat_list"]["enabled"].get<bool>());
+  EXPECT_EQ(j["flat_list"]["quads"].get<int>(), 6);
+  EXPECT_EQ(j["gpu_specialization"].get<std::string>(), "spheres+triangles, pinhole, specular");
 }
 
 TEST(Cli, CompareReportsMetricsAndDiff) {

@@ -50,4 +50,15 @@ constexpr uint32_t spec_for_features(uint32_t f) {
          ((f & kFeatureSpecular) ? kSpecSpecular : 0u);
 }
 
+// The name of a specialisation, as `pathtracer info`, the bench and the sidecar print it.
+inline const char* spec_label(uint32_t spec) {
+  static const char* kNames[8] = {
+      "triangles, pinhole, diffuse only",      "spheres+triangles, pinhole, diffuse only",
+      "triangles, thin lens, diffuse only",    "spheres+triangles, thin lens, diffuse only",
+      "triangles, pinhole, specular",          "spheres+triangles, pinhole, specular",
+      "triangles, thin lens, specular",        "general (all features)"};
+  return kNames[spec & 7];
+}
+inline const char* spec_name_for_features(uint32_t f) { return spec_label(spec_for_features(f)); }
+
 }  // namespace tracer

@@ -499,14 +499,7 @@ uint32_t blocks(uint32_t n) { return (n + kBlock - 1) / kBlock; }
 }  // namespace
 
 
-const char* spec_name(uint32_t spec) {
-  static const char* kNames[8] = {
-      "triangles, pinhole, diffuse only",      "spheres+triangles, pinhole, diffuse only",
-      "triangles, thin lens, diffuse only",    "spheres+triangles, thin lens, diffuse only",
-      "triangles, pinhole, specular",          "spheres+triangles, pinhole, specular",
-      "triangles, thin lens, specular",        "general (all features)"};
-  return kNames[spec & 7];
-}
+const char* spec_name(uint32_t spec) { return spec_label(spec); }
 
 // Runs F<Spec> for the runtime value spec; only the bits in `relevant` select a variant, so a
 // kernel that ignores a feature is compiled once for it.
