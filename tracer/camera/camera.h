@@ -37,7 +37,7 @@ struct Camera {
       r.o = position + l.x * right + l.y * up;
       d = focus - r.o;
     }
-    r.d = glm::normalize(d);
+    r.d = fast_normalize(d);
     return r;
   }
 };

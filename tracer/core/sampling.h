@@ -18,7 +18,9 @@ TRACER_HD TRACER_INLINE vec2 sample_uniform_disk_concentric(vec2 u) {
     r = o.y;
     theta = 0.5f * kPi - 0.25f * kPi * (o.x / o.y);
   }
-  return r * vec2(glm::cos(theta), glm::sin(theta));
+  float s, c;
+  fast_sincos(theta, &s, &c);
+  return r * vec2(c, s);
 }
 TRACER_HD TRACER_INLINE float uniform_disk_pdf() { return kInvPi; }
 
@@ -63,7 +65,7 @@ TRACER_HD TRACER_INLINE float uniform_cone_pdf(float cos_max) {
 // Uniform barycentrics (b0, b1) over a triangle; b2 = 1 - b0 - b1. Uses the square-root warp
 // (Osada et al. 2002, pbrt-v4 sec. A.5.5); pdf = 1/area.
 TRACER_HD TRACER_INLINE vec2 sample_uniform_triangle(vec2 u) {
-  const float su0 = glm::sqrt(u.x);
+  const float su0 = fast_sqrt(u.x);
   return vec2(1.0f - su0, u.y * su0);
 }
 

@@ -79,11 +79,11 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
     const TriangleVerts tv = load_triangle(s.tri_verts, light.prim);
     const vec2 b = sample_uniform_triangle(u);
     ls.p = b.x * tv.v0 + b.y * tv.v1 + (1.0f - b.x - b.y) * tv.v2;
-    ls.n = glm::normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
+    ls.n = fast_normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
     material = s.tri_shading[light.prim].material;
     const vec3 to_ref = ref - ls.p;
     const float d2 = glm::dot(to_ref, to_ref);
-    const float cos_l = glm::abs(glm::dot(ls.n, to_ref)) / glm::sqrt(d2);
+    const float cos_l = glm::abs(glm::dot(ls.n, to_ref)) / fast_sqrt(d2);
     if (cos_l <= 0.0f || d2 <= 0.0f) return ls;
     ls.pdf = select * d2 / (cos_l * light.area);
     const Material& lm = s.materials[material];

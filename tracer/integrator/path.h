@@ -268,7 +268,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
     const LightSample ls = sample_light_2d<F>(s, sh.p, sh.ng, u.light());
     if (ls.valid && !is_black(ls.le)) {
       const vec3 to = ls.p - sh.p;
-      const vec3 wi_world = glm::normalize(to);
+      const vec3 wi_world = fast_normalize(to);
       const vec3 wi = frame.to_local(wi_world);
       // Reflectors see lights on the viewer's side only; a rough transmitter on either side,
       // as long as the shading and geometric normals agree about which side that is.
@@ -294,7 +294,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const bool two_lobes = type == MaterialType::kDielectric || type == MaterialType::kSubsurface;
   const BsdfSample bs = bsdf_sample<F>(m, wo, u.bsdf(), two_lobes ? u.lobe() : 0.5f);
   if (!bs.valid) return false;
-  const vec3 wi_world = glm::normalize(frame.to_world(bs.wi));
+  const vec3 wi_world = fast_normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wi_world, sh.ng);
   // A reflector whose shading normal sends the ray under the true surface would leak light.
   if (!transmits && side * glm::dot(wo_world, sh.ng) <= 0.0f) return false;
@@ -323,7 +323,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   // (path_state_continuation_probability): paths end later than with the throughput itself,
   // which on the Cornell box costs 20% more time per sample for 30% less error.
   if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
-    const float q = glm::min(1.0f, glm::sqrt(max_component(st.throughput)));
+    const float q = glm::min(1.0f, fast_sqrt(max_component(st.throughput)));
     if (u.rr() >= q) return false;
     st.throughput /= q;
   }

@@ -478,7 +478,7 @@ TRACER_HD inline SurfaceHit make_surface_hit(const SceneView& s, const Ray& ray,
     const float b0 = 1.0f - hit.u - hit.v;
     // Barycentric interpolation is more accurate than o + t d (pbrt-v4 sec. 6.8.5).
     sh.p = b0 * tv.v0 + hit.u * tv.v1 + hit.v * tv.v2;
-    sh.ng = glm::normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
+    sh.ng = fast_normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
     sh.ns = sh.ng;
     if (ts.has_normals) {
       const vec3 n = b0 * ts.n0 + hit.u * ts.n1 + hit.v * ts.n2;
