@@ -52,10 +52,8 @@ int run_info(const InfoOptions& o) {
               {"bytes", st.node_count * sizeof(tracer::BvhNode)}};
   const tracer::FlatList& fl = cs.flat_list();
   const std::string flat_text =
-      fl.enabled ? std::to_string(fl.prims.size()) + " entries (" + std::to_string(fl.quad_count) +
-                       " quads, " + std::to_string(fl.prims.size() - fl.quad_count) +
-                       " triangles) + " + std::to_string(v.sphere_count) +
-                       " spheres: the GPU tests them all in one uniform loop instead of the BVH"
+      fl.enabled ? tracer::describe_flat_list(fl, v.sphere_count) +
+                       ": the GPU tests them all in one uniform loop instead of the BVH"
                  : "none (more than " + std::to_string(tracer::kFlatMaxCost) +
                        " entries): the GPU walks the BVH";
   j["flat_list"] = {{"enabled", fl.enabled},

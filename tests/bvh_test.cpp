@@ -82,16 +82,7 @@ void check_view(const SceneView& v, vec3 lo, vec3 hi, int rays, const std::strin
 // the nearest primitive is skipped (as the integrator skips a shadow ray's light).
 void check_against_brute_force(const Scene& scene, int rays, const std::string& what) {
   const CompiledScene cs(scene, 16, 16);
-  Aabb box;
-  for (const auto& tv : cs.tri_verts()) {
-    box.grow(tv.v0);
-    box.grow(tv.v1);
-    box.grow(tv.v2);
-  }
-  for (const auto& s : cs.spheres()) {
-    box.grow(s.center - vec3(s.radius));
-    box.grow(s.center + vec3(s.radius));
-  }
+  const Aabb box = scene_bounds(cs);
   SceneView shared = cs.view();
   shared.cpu_bvh = CpuBvhView();
   check_view(shared, box.lo, box.hi, rays, what + " (shared traversal)");

@@ -29,20 +29,6 @@ SceneView bvh_view(const CompiledScene& cs) {
   return v;
 }
 
-Aabb scene_box(const CompiledScene& cs) {
-  Aabb box;
-  for (const auto& tv : cs.tri_verts()) {
-    box.grow(tv.v0);
-    box.grow(tv.v1);
-    box.grow(tv.v2);
-  }
-  for (const auto& s : cs.spheres()) {
-    box.grow(s.center - vec3(s.radius));
-    box.grow(s.center + vec3(s.radius));
-  }
-  return box;
-}
-
 vec3 hit_point(const CompiledScene& cs, const Ray& r, const Hit& h) {
   if (h.prim >= cs.view().tri_count) return r.o + h.t * r.d;
   const TriangleVerts& tv = cs.tri_verts()[h.prim];
@@ -53,7 +39,7 @@ vec3 hit_point(const CompiledScene& cs, const Ray& r, const Hit& h) {
 void check_agreement(const CompiledScene& cs, int rays, const std::string& what) {
   ASSERT_TRUE(cs.flat_list().enabled) << what;
   const SceneView flat = flat_view(cs), bvh = bvh_view(cs);
-  const Aabb box = scene_box(cs);
+  const Aabb box = scene_bounds(cs);
   const vec3 ext = box.hi - box.lo;
   const float scale = glm::length(ext);
   std::mt19937 rng(4321);
@@ -120,7 +106,7 @@ TEST(FlatList, PairQueryEqualsTheTwoQueries) {
     const Scene scene = load_scene(source_dir() + "/assets/scenes/" + name + ".json");
     const CompiledScene cs(scene, 16, 16);
     const SceneView v = flat_view(cs);
-    const Aabb box = scene_box(cs);
+    const Aabb box = scene_bounds(cs);
     const vec3 ext = box.hi - box.lo;
     std::mt19937 rng(77);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);

@@ -30,6 +30,21 @@ inline void add_quad(TriangleMesh& m, vec3 corner, vec3 e1, vec3 e2, uint32_t ma
   m.materials.insert(m.materials.end(), {material, material});
 }
 
+// The box around every triangle and sphere of a compiled scene.
+inline Aabb scene_bounds(const CompiledScene& cs) {
+  Aabb box;
+  for (const auto& tv : cs.tri_verts()) {
+    box.grow(tv.v0);
+    box.grow(tv.v1);
+    box.grow(tv.v2);
+  }
+  for (const auto& s : cs.spheres()) {
+    box.grow(s.center - vec3(s.radius));
+    box.grow(s.center + vec3(s.radius));
+  }
+  return box;
+}
+
 // A closed axis-aligned box with shared vertices and outward-facing triangles.
 inline void add_box(TriangleMesh& m, vec3 lo, vec3 hi, uint32_t material) {
   const uint32_t b = uint32_t(m.positions.size());

@@ -79,6 +79,13 @@ bool parallelogram(const TriangleVerts& a, const TriangleVerts& b, int& ip, int&
 
 }  // namespace
 
+std::string describe_flat_list(const FlatList& list, uint32_t sphere_count) {
+  const size_t entries = list.prims.size();
+  return std::to_string(entries) + " entries (" + std::to_string(list.quad_count) + " quads, " +
+         std::to_string(entries - list.quad_count) + " triangles) + " +
+         std::to_string(sphere_count) + " spheres";
+}
+
 FlatList build_flat_list(const std::vector<TriangleVerts>& tris, uint32_t sphere_count) {
   FlatList out;
   const size_t n = tris.size();

@@ -12,6 +12,7 @@
 // barycentrics afterwards, once per query, so shading sees the same hit as from the BVH.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "bvh/geometry.h"
@@ -56,6 +57,10 @@ struct FlatList {
   uint32_t degenerate = 0;             // triangles of zero area (no ray hits them)
   bool enabled = false;                // the scene is small enough (see kFlatMaxCost)
 };
+
+// "18 entries (18 quads, 0 triangles) + 0 spheres", for `pathtracer info` and the GPU's
+// specialisation string.
+std::string describe_flat_list(const FlatList& list, uint32_t sphere_count);
 
 // Builds the list for a scene of these triangles and `sphere_count` spheres; `enabled` is false
 // (and the arrays empty) when the scene is too large for it.

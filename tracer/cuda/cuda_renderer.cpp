@@ -37,6 +37,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<FlatPrimInfo> flat_info;
   DeviceBuffer<uint32_t> tri_to_flat;
   bool flat_available = false;
+  std::string flat_text;             // describe_flat_list of the scene's list
   SceneView view;
   uint32_t features = 0;
 
@@ -74,10 +75,7 @@ struct CudaRenderer::Impl {
   uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
   void choose_accel() { view.use_flat = flat_available && opts.flat_list ? 1u : 0u; }
   std::string accel_name() const {
-    if (!view.use_flat) return "4-wide BVH";
-    return "flat list of " + std::to_string(view.flat_count) + " entries (" +
-           std::to_string(view.flat_quads) + " quads) + " + std::to_string(view.sphere_count) +
-           " spheres";
+    return view.use_flat ? "flat list of " + flat_text : "4-wide BVH";
   }
   DeviceBuffer<double> clamp_sum;
   FilmView film_view(uint32_t sample) {
@@ -282,6 +280,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.texels.upload(scene.texels());
   const FlatList& fl = scene.flat_list();
   m.flat_available = fl.enabled;
+  m.flat_text = describe_flat_list(fl, uint32_t(scene.spheres().size()));
   m.flat.upload(fl.prims);
   m.flat_info.upload(fl.info);
   m.tri_to_flat.upload(fl.tri_to_flat);
@@ -364,7 +363,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   const auto start = std::chrono::steady_clock::now();
   FrameStats st;
   st.spp_added = spp;
-  st.specialization = std::string(spec_name(m.spec())) + "; " + m.accel_name();
+  st.specialization = std::string(spec_label(m.spec())) + "; " + m.accel_name();
   m.cache_allowed(&st.note);
   m.counters.zero_async(m.stream);
   m.clamp_sum.zero_async(m.stream);

@@ -66,6 +66,16 @@ __device__ __forceinline__ void warp_add(unsigned long long* target, uint32_t va
   if ((threadIdx.x & 31) == uint32_t(__ffs(mask) - 1)) atomicAdd(target, (unsigned long long)sum);
 }
 
+// The next pixel for a lane of `need` (the lanes that want one): one atomic per warp.
+__device__ __forceinline__ uint32_t take_pixel(unsigned need, uint32_t* next_pixel) {
+  const uint32_t lane = threadIdx.x & 31;
+  const int leader = __ffs(need) - 1;
+  uint32_t base = 0;
+  if (int(lane) == leader) base = atomicAdd(next_pixel, uint32_t(__popc(need)));
+  base = __shfl_sync(need, base, leader);
+  return base + __popc(need & ((1u << lane) - 1u));
+}
+
 // Persistent megakernel with path regeneration: each thread runs whole paths, and a thread
 // whose path ends takes the next pixel from a global counter (one atomic per warp), so warps stay
 // full while path lengths differ (Aila & Laine 2009's persistent threads, Novak et al. 2010's
@@ -76,7 +86,6 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
                                                      unsigned long long* counters,
                                                      uint32_t* next_pixel) {
   constexpr uint32_t F = features_of<Spec>();
-  const uint32_t lane = threadIdx.x & 31;
   PathState st;
   bool alive = false;
   uint32_t segments = 0, shadows = 0;
@@ -84,11 +93,7 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
     const unsigned active = __activemask();
     const unsigned need = __ballot_sync(active, !alive);
     if (!alive) {
-      const int leader = __ffs(need) - 1;
-      uint32_t base = 0;
-      if (int(lane) == leader) base = atomicAdd(next_pixel, uint32_t(__popc(need)));
-      base = __shfl_sync(need, base, leader);
-      const uint32_t pixel = base + __popc(need & ((1u << lane) - 1u));
+      const uint32_t pixel = take_pixel(need, next_pixel);
       if (pixel >= film.n) break;
       generate_path<F>(s, cfg, pixel, sample, st);
       alive = true;
@@ -124,7 +129,6 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
     megakernel_flat(SceneView s, IntegratorSettings cfg, uint32_t sample, bool first,
                     FilmView film, unsigned long long* counters, uint32_t* next_pixel) {
   constexpr uint32_t F = features_of<Spec>();
-  const uint32_t lane = threadIdx.x & 31;
   PathState st;
   ShadowRequest sr;
   sr.valid = false;
@@ -140,11 +144,7 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
     const bool want = !alive && !exhausted;
     const unsigned need = __ballot_sync(active, want);
     if (want) {
-      const int leader = __ffs(need) - 1;
-      uint32_t base = 0;
-      if (int(lane) == leader) base = atomicAdd(next_pixel, uint32_t(__popc(need)));
-      base = __shfl_sync(need, base, leader);
-      const uint32_t pixel = base + __popc(need & ((1u << lane) - 1u));
+      const uint32_t pixel = take_pixel(need, next_pixel);
       if (pixel < film.n) {
         generate_path<F>(s, cfg, pixel, sample, st);
         alive = true;
@@ -512,7 +512,6 @@ uint32_t blocks(uint32_t n) { return (n + kBlock - 1) / kBlock; }
 }  // namespace
 
 
-const char* spec_name(uint32_t spec) { return spec_label(spec); }
 
 // Runs F<Spec> for the runtime value spec; only the bits in `relevant` select a variant, so a
 // kernel that ignores a feature is compiled once for it.

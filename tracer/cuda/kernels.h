@@ -10,7 +10,6 @@
 namespace tracer {
 
 // kSpec*, kGeneralSpec, features_of<Spec>() and spec_for_features() are in core/features.h.
-const char* spec_name(uint32_t spec);  // e.g. "triangles, pinhole, diffuse only"
 
 // Structure-of-arrays path pool of `n` paths; path id == pixel index.
 struct WavefrontState {

@@ -214,7 +214,6 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     view_.flat_count = uint32_t(flat_.prims.size());
     view_.flat_quads = flat_.quad_count;
   }
-  view_.use_flat = 0;
 }
 
 }  // namespace tracer
