@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace tracer {
 namespace {
@@ -77,23 +78,66 @@ bool parallelogram(const TriangleVerts& a, const TriangleVerts& b, int& ip, int&
   return length(sub(s, want)) <= 1e-5 * size;
 }
 
+// Whether the plane of triangle (p0, p1, p2) has every vertex and sphere of the scene on one
+// side, within kFlatHullTolerance of the scene's size.
+bool on_hull(vec3 p0, vec3 p1, vec3 p2, const std::vector<TriangleVerts>& tris,
+             const std::vector<Sphere>& spheres, double size) {
+  const DVec o = dv(p0);
+  DVec n = cross(sub(dv(p1), o), sub(dv(p2), o));
+  const double len = length(n);
+  if (!(len > 0.0)) return false;
+  n = {n.x / len, n.y / len, n.z / len};
+  const double tol = kFlatHullTolerance * size;
+  bool above = false, below = false;
+  auto see = [&](DVec p, double r) {
+    const double d = dot(n, sub(p, o));
+    above |= d + r > tol;
+    below |= d - r < -tol;
+  };
+  for (const TriangleVerts& t : tris) {
+    see(dv(t.v0), 0.0);
+    see(dv(t.v1), 0.0);
+    see(dv(t.v2), 0.0);
+  }
+  for (const Sphere& sp : spheres) see(dv(sp.center), double(sp.radius));
+  return !(above && below);
+}
+
 }  // namespace
 
 std::string describe_flat_list(const FlatList& list, uint32_t sphere_count) {
   const size_t entries = list.prims.size();
+  const size_t hull = (list.quad_count - list.quad_blockers) +
+                      (entries - list.triangle_blockers_end);
   return std::to_string(entries) + " entries (" + std::to_string(list.quad_count) + " quads, " +
-         std::to_string(entries - list.quad_count) + " triangles) + " +
-         std::to_string(sphere_count) + " spheres";
+         std::to_string(entries - list.quad_count) + " triangles; " + std::to_string(hull) +
+         " on the hull) + " + std::to_string(sphere_count) + " spheres";
 }
 
-FlatList build_flat_list(const std::vector<TriangleVerts>& tris, uint32_t sphere_count) {
+FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
+                         const std::vector<Sphere>& spheres) {
   FlatList out;
   const size_t n = tris.size();
+  const size_t sphere_count = spheres.size();
   // Each entry is at least one triangle test, each sphere two: larger scenes cannot qualify.
   if (n + 2 * size_t(sphere_count) > 2 * size_t(kFlatMaxCost) || n + sphere_count == 0)
     return out;
   std::vector<FlatPrim> quads, singles;
   std::vector<FlatPrimInfo> quad_info, single_info;
+  std::vector<bool> quad_hull, single_hull;
+  // The scene's size, for the hull test's tolerance.
+  DVec lo = {1e300, 1e300, 1e300}, hi = {-1e300, -1e300, -1e300};
+  auto grow = [&](DVec p, double r) {
+    lo = {std::min(lo.x, p.x - r), std::min(lo.y, p.y - r), std::min(lo.z, p.z - r)};
+    hi = {std::max(hi.x, p.x + r), std::max(hi.y, p.y + r), std::max(hi.z, p.z + r)};
+  };
+  for (const TriangleVerts& t : tris) {
+    grow(dv(t.v0), 0.0);
+    grow(dv(t.v1), 0.0);
+    grow(dv(t.v2), 0.0);
+  }
+  for (const Sphere& sp : spheres) grow(dv(sp.center), double(sp.radius));
+  const double size = length(sub(hi, lo));
   std::vector<bool> used(n, false);
   std::vector<uint32_t> entry_of(n, kInvalid);  // before quads and singles are joined
   std::vector<bool> is_single(n, false);
@@ -128,6 +172,9 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris, uint32_t sphere
       barycentric_map(cb, fi.map1);
       used[j] = true;
       entry_of[i] = entry_of[j] = uint32_t(quads.size());
+      quad_hull.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
+      fp.row_u.w -= 0.5f;  // centred: the inside test is |u|, |v| <= 1/2
+      fp.row_v.w -= 0.5f;
       quads.push_back(fp);
       quad_info.push_back(fi);
       paired = true;
@@ -141,22 +188,44 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris, uint32_t sphere
       std::copy(identity, identity + 6, fi.map1);
       entry_of[i] = uint32_t(singles.size());
       is_single[i] = true;
+      single_hull.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
       singles.push_back(probe);
       single_info.push_back(fi);
     }
   }
   const size_t entries = quads.size() + singles.size();
   if (entries + 2 * size_t(sphere_count) > kFlatMaxCost) return out;
+  // Each group's blockers first, its hull entries last (stable: the order is otherwise kept).
+  auto order = [](const std::vector<bool>& hull, uint32_t& blockers) {
+    std::vector<uint32_t> perm;  // new position -> old
+    for (int pass = 0; pass < 2; ++pass)
+      for (uint32_t k = 0; k < hull.size(); ++k)
+        if (hull[k] == (pass == 1)) perm.push_back(k);
+    blockers = uint32_t(std::count(hull.begin(), hull.end(), false));
+    std::vector<uint32_t> where(perm.size());  // old -> new
+    for (uint32_t k = 0; k < perm.size(); ++k) where[perm[k]] = k;
+    return std::make_pair(perm, where);
+  };
+  uint32_t quad_blockers = 0, single_blockers = 0;
+  const auto [quad_perm, quad_where] = order(quad_hull, quad_blockers);
+  const auto [single_perm, single_where] = order(single_hull, single_blockers);
   out.quad_count = uint32_t(quads.size());
+  out.quad_blockers = quad_blockers;
+  out.triangle_blockers_end = out.quad_count + single_blockers;
   out.degenerate = degenerate;
-  out.prims = quads;
-  out.prims.insert(out.prims.end(), singles.begin(), singles.end());
-  out.info = quad_info;
-  out.info.insert(out.info.end(), single_info.begin(), single_info.end());
+  for (uint32_t k : quad_perm) {
+    out.prims.push_back(quads[k]);
+    out.info.push_back(quad_info[k]);
+  }
+  for (uint32_t k : single_perm) {
+    out.prims.push_back(singles[k]);
+    out.info.push_back(single_info[k]);
+  }
   out.tri_to_flat.assign(n, kInvalid);
   for (size_t i = 0; i < n; ++i)
     if (entry_of[i] != kInvalid)
-      out.tri_to_flat[i] = entry_of[i] + (is_single[i] ? out.quad_count : 0u);
+      out.tri_to_flat[i] = is_single[i] ? out.quad_count + single_where[entry_of[i]]
+                                        : quad_where[entry_of[i]];
   out.enabled = true;
   return out;
 }

@@ -20,8 +20,10 @@
 namespace tracer {
 
 // World -> local affine map: local k = dot(row[k].xyz, p) + row[k].w. Local (u, v) are the
-// parametric coordinates over edges e1 = v1 - v0 and e2 = v2 - v0; w is the distance from the
-// plane in units of |e1 x e2|. 48 bytes: three aligned 16-byte loads on the GPU.
+// parametric coordinates over edges e1 = v1 - v0 and e2 = v2 - v0, for a parallelogram less
+// 1/2 (centred, so that the inside test is |u|, |v| <= 1/2: two comparisons instead of four);
+// w is the distance from the plane in units of |e1 x e2|. 48 bytes: three aligned 16-byte loads
+// on the GPU.
 struct alignas(16) FlatPrim {
   vec4 row_u, row_v, row_w;
 };
@@ -49,21 +51,33 @@ constexpr float kFlatEdgeTolerance = 1e-5f;
 // about 77 warp instructions per ray (PERFORMANCE.md, "Flat primitive list").
 constexpr uint32_t kFlatMaxCost = 64;
 
+// Entries on the scene's convex hull: an entry whose plane has the whole scene on one side (a
+// wall, floor or ceiling of a room, within kFlatHullTolerance of the scene's size) cannot block a
+// ray between two points of the scene, such as a shadow ray from a surface point to a light
+// (both ends offset off their surfaces, towards each other). Each group (quads, triangles) puts
+// its hull entries last, and the megakernel's shadow rays skip them: 5 of the open Cornell box's
+// 18 quads.
+constexpr double kFlatHullTolerance = 1e-6;
+
 struct FlatList {
   std::vector<FlatPrim> prims;         // quads first, then lone triangles
   std::vector<FlatPrimInfo> info;      // one per entry
   std::vector<uint32_t> tri_to_flat;   // triangle -> its entry (kInvalid: degenerate)
   uint32_t quad_count = 0;             // entries [0, quad_count) are parallelograms
+  // Entries [0, quad_blockers) and [quad_count, triangle_blockers_end) can block a ray between
+  // two points of the scene; the rest of each group lie on the scene's hull.
+  uint32_t quad_blockers = 0, triangle_blockers_end = 0;
   uint32_t degenerate = 0;             // triangles of zero area (no ray hits them)
   bool enabled = false;                // the scene is small enough (see kFlatMaxCost)
 };
 
-// "18 entries (18 quads, 0 triangles) + 0 spheres", for `pathtracer info` and the GPU's
-// specialisation string.
+// "18 entries (18 quads, 0 triangles; 5 on the hull) + 0 spheres", for `pathtracer info` and
+// the GPU's specialisation string.
 std::string describe_flat_list(const FlatList& list, uint32_t sphere_count);
 
-// Builds the list for a scene of these triangles and `sphere_count` spheres; `enabled` is false
-// (and the arrays empty) when the scene is too large for it.
-FlatList build_flat_list(const std::vector<TriangleVerts>& tris, uint32_t sphere_count);
+// Builds the list for a scene of these triangles and spheres; `enabled` is false (and the arrays
+// empty) when the scene is too large for it.
+FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
+                         const std::vector<Sphere>& spheres);
 
 }  // namespace tracer

@@ -24,8 +24,9 @@ struct Camera {
   // Ray through film position (x + jitter.x, y + jitter.y), y down, with a lens sample.
   template <uint32_t F = kAllFeatures>
   TRACER_HD Ray generate_ray(uint32_t x, uint32_t y, vec2 jitter, vec2 u_lens) const {
-    const float sx = (2.0f * (float(x) + jitter.x) / float(width) - 1.0f) * tan_half_fov * aspect;
-    const float sy = (1.0f - 2.0f * (float(y) + jitter.y) / float(height)) * tan_half_fov;
+    const float sx =
+        (fast_div(2.0f * (float(x) + jitter.x), float(width)) - 1.0f) * tan_half_fov * aspect;
+    const float sy = (1.0f - fast_div(2.0f * (float(y) + jitter.y), float(height))) * tan_half_fov;
     vec3 d = sx * right + sy * up + forward;  // points at the plane one unit ahead
     Ray r;
     r.o = position;

@@ -13,10 +13,10 @@ TRACER_HD TRACER_INLINE vec2 sample_uniform_disk_concentric(vec2 u) {
   float r, theta;
   if (glm::abs(o.x) > glm::abs(o.y)) {
     r = o.x;
-    theta = 0.25f * kPi * (o.y / o.x);
+    theta = 0.25f * kPi * fast_div(o.y, o.x);
   } else {
     r = o.y;
-    theta = 0.5f * kPi - 0.25f * kPi * (o.x / o.y);
+    theta = 0.5f * kPi - 0.25f * kPi * fast_div(o.x, o.y);
   }
   float s, c;
   fast_sincos(theta, &s, &c);
@@ -74,7 +74,7 @@ TRACER_HD TRACER_INLINE float power_heuristic(float pdf_a, float pdf_b) {
   const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
   if (a == 0.0f) return 0.0f;
   if (!is_finite(a)) return 1.0f;
-  return a / (a + b);
+  return fast_div(a, a + b);
 }
 
 }  // namespace tracer

@@ -83,9 +83,9 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
     material = s.tri_shading[light.prim].material;
     const vec3 to_ref = ref - ls.p;
     const float d2 = glm::dot(to_ref, to_ref);
-    const float cos_l = glm::abs(glm::dot(ls.n, to_ref)) / fast_sqrt(d2);
+    const float cos_l = glm::abs(glm::dot(ls.n, to_ref)) * fast_rsqrt(d2);
     if (cos_l <= 0.0f || d2 <= 0.0f) return ls;
-    ls.pdf = select * d2 / (cos_l * light.area);
+    ls.pdf = fast_div(select * d2, cos_l * light.area);
     const Material& lm = s.materials[material];
     ls.le = material_emission(lm, glm::dot(ls.n, to_ref) > 0.0f);
     // The same textured radiance a path that hits this point sees (shade_path), or MIS breaks.
@@ -155,7 +155,7 @@ TRACER_HD inline LightSample sample_light_2d(const SceneView& s, vec3 ref, vec3 
   }
   const uint32_t li = pick_light(s, u.x);
   const float lo = s.light_cdf[li], width = s.light_cdf[li + 1] - lo;
-  const float x = width > 0.0f ? glm::min((u.x - lo) / width, 0x1.fffffep-1f) : 0.0f;
+  const float x = width > 0.0f ? glm::min(fast_div(u.x - lo, width), 0x1.fffffep-1f) : 0.0f;
   return sample_chosen_light<F>(s, li, ref, ref_n, vec2(glm::max(x, 0.0f), u.y));
 }
 
@@ -176,9 +176,9 @@ TRACER_HD inline float light_pdf(const SceneView& s, uint32_t light_index, vec3 
   }
   const vec3 to_ref = ref - p;
   const float d2 = glm::dot(to_ref, to_ref);
-  const float cos_l = glm::abs(glm::dot(ng, to_ref)) / glm::sqrt(d2);
+  const float cos_l = glm::abs(glm::dot(ng, to_ref)) * fast_rsqrt(d2);
   if (cos_l <= 0.0f) return 0.0f;
-  return select * d2 / (cos_l * light.area);
+  return fast_div(select * d2, cos_l * light.area);
 }
 
 }  // namespace tracer

@@ -148,7 +148,7 @@ TRACER_HD TRACER_INLINE Ray spawn_ray_to(vec3 p, vec3 n_p, vec3 q, vec3 n_q) {
   const float len = glm::length(d);
   Ray r;
   r.o = from;
-  r.d = len > 0.0f ? d / len : vec3(0.0f, 0.0f, 1.0f);
+  r.d = len > 0.0f ? d * fast_div(1.0f, len) : vec3(0.0f, 0.0f, 1.0f);
   r.tmax = len;
   r.pad = 0.0f;
   return r;
@@ -279,7 +279,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
         const vec3 f = bsdf_eval<F>(m, wo, wi);
         if (!is_black(f)) {
           const float w = cfg.mis ? power_heuristic(ls.pdf, bsdf_pdf<F>(m, wo, wi)) : 1.0f;
-          shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * (w / ls.pdf);
+          shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * fast_div(w, ls.pdf);
           shadow.ray = spawn_ray_to(sh.p, geo > 0.0f ? sh.ng : -sh.ng, ls.p, ls.n);
           shadow.target_prim = ls.prim;
           shadow.origin_prim =

@@ -185,7 +185,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
 
   bvh_ = build_bvh(bounds);
   cpu_bvh_ = build_cpu_bvh(bvh_, tri_verts_, tri_count);
-  flat_ = build_flat_list(tri_verts_, uint32_t(spheres_.size()));
+  flat_ = build_flat_list(tri_verts_, spheres_);
 
   view_.nodes = bvh_.nodes.data();
   view_.prim_indices = bvh_.prim_indices.data();
@@ -213,6 +213,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     view_.tri_to_flat = flat_.tri_to_flat.data();
     view_.flat_count = uint32_t(flat_.prims.size());
     view_.flat_quads = flat_.quad_count;
+    view_.flat_quad_blockers = flat_.quad_blockers;
+    view_.flat_triangle_blockers_end = flat_.triangle_blockers_end;
   }
 }
 

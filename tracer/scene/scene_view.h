@@ -61,6 +61,9 @@ struct SceneView {
   const FlatPrimInfo* flat_info = nullptr;
   const uint32_t* tri_to_flat = nullptr;  // tri_count entries
   uint32_t flat_count = 0, flat_quads = 0;
+  // Entries [0, flat_quad_blockers) and [flat_quads, flat_triangle_blockers_end) can block a ray
+  // between two points of the scene; the others lie on its hull (FlatList).
+  uint32_t flat_quad_blockers = 0, flat_triangle_blockers_end = 0;
   uint32_t use_flat = 0;
 };
 
@@ -261,12 +264,13 @@ TRACER_HD TRACER_INLINE void flat_hit(const FlatPrim& p, vec3 o, vec3 d, float& 
   v = flat_affine(p.row_v, x);
 }
 
-// Whether local (u, v) lie in the unit square (kQuads) or the unit triangle, edges widened by
-// kFlatEdgeTolerance.
+// Whether local (u, v) lie in the unit square (kQuads: centred, |u|, |v| <= 1/2) or the unit
+// triangle, edges widened by kFlatEdgeTolerance.
 template <bool kQuads>
 TRACER_HD TRACER_INLINE bool flat_inside(float u, float v) {
   constexpr float e = kFlatEdgeTolerance;
-  return u >= -e && v >= -e && (kQuads ? (u <= 1.0f + e && v <= 1.0f + e) : (u + v <= 1.0f + e));
+  if (kQuads) return glm::abs(u) <= 0.5f + e && glm::abs(v) <= 0.5f + e;
+  return u >= -e && v >= -e && u + v <= 1.0f + e;
 }
 
 // Entries [begin, end) of the flat list against one ray: every lane runs the same iterations
@@ -300,6 +304,10 @@ TRACER_HD TRACER_INLINE Hit flat_entry_hit(const SceneView& s, const Ray& ray, u
   if (best == kInvalid) return hit;
   float t_again, u, v;
   flat_hit(load_flat(s.flat, best), ray.o, ray.d, t_again, u, v);
+  if (best < s.flat_quads) {  // centred parallelogram coordinates
+    u += 0.5f;
+    v += 0.5f;
+  }
   const FlatPrimInfo& info = s.flat_info[best];
   const bool second = info.tri1 != kInvalid && u + v > 1.0f;
   const float* m = second ? info.map1 : info.map0;
@@ -378,20 +386,28 @@ TRACER_HD TRACER_INLINE void flat_range_pair(const FlatPrim* prims, uint32_t beg
 // the same answers as intersect_closest(s, ext, ext_skip) and intersect_any(s, sh, sh_skip,
 // sh_skip2) through the flat list (the same arithmetic), at one loop's cost instead of two.
 // The megakernel uses it for small scenes; its lanes trace a shadow ray together with the next
-// extension ray of their path.
+// extension ray of their path. The shadow ray must run between two points of the scene (as
+// next-event estimation's do): it skips the entries on the scene's hull, which it cannot cross.
+// Without random walks (F without kFeatureSubsurface) rays leave from no skipped triangle.
 template <uint32_t F>
 TRACER_HD TRACER_INLINE Hit flat_closest_and_any(const SceneView& s, const Ray& ext, uint32_t ext_skip,
                                           const Ray& sh, uint32_t sh_skip, uint32_t sh_skip2,
                                           bool& blocked) {
-  const uint32_t fa = ext_skip < s.tri_count ? s.tri_to_flat[ext_skip] : kInvalid;
+  constexpr bool kWalks = (F & kFeatureSubsurface) != 0;
+  const uint32_t fa = kWalks && ext_skip < s.tri_count ? s.tri_to_flat[ext_skip] : kInvalid;
   const uint32_t sa = sh_skip < s.tri_count ? s.tri_to_flat[sh_skip] : kInvalid;
-  const uint32_t sb = sh_skip2 < s.tri_count ? s.tri_to_flat[sh_skip2] : kInvalid;
+  const uint32_t sb = kWalks && sh_skip2 < s.tri_count ? s.tri_to_flat[sh_skip2] : kInvalid;
   float tbest = ext.tmax;
   uint32_t best = kInvalid;
   blocked = false;
-  flat_range_pair<true>(s.flat, 0, s.flat_quads, ext, fa, tbest, best, sh, sa, sb, blocked);
-  flat_range_pair<false>(s.flat, s.flat_quads, s.flat_count, ext, fa, tbest, best, sh, sa, sb,
-                         blocked);
+  flat_range_pair<true>(s.flat, 0, s.flat_quad_blockers, ext, fa, tbest, best, sh, sa, sb,
+                        blocked);
+  flat_range<true, false>(s.flat, s.flat_quad_blockers, s.flat_quads, ext.o, ext.d, fa, kInvalid,
+                          tbest, best);
+  flat_range_pair<false>(s.flat, s.flat_quads, s.flat_triangle_blockers_end, ext, fa, tbest, best,
+                         sh, sa, sb, blocked);
+  flat_range<false, false>(s.flat, s.flat_triangle_blockers_end, s.flat_count, ext.o, ext.d, fa,
+                           kInvalid, tbest, best);
   Hit hit = flat_entry_hit(s, ext, best, tbest);
   if (F & kFeatureSpheres) {
     for (uint32_t k = 0; k < s.sphere_count; ++k) {
