@@ -264,13 +264,17 @@ TRACER_HD TRACER_INLINE void flat_hit(const FlatPrim& p, vec3 o, vec3 d, float& 
   v = flat_affine(p.row_v, x);
 }
 
-// Whether local (u, v) lie in the unit square (kQuads: centred, |u|, |v| <= 1/2) or the unit
-// triangle, edges widened by kFlatEdgeTolerance.
+// Whether a crossing at distance t and local (u, v) is a hit in (0, tmax): (u, v) in the unit
+// square (kQuads: centred, |u|, |v| <= 1/2) or the unit triangle, edges widened by
+// kFlatEdgeTolerance. Written with & rather than &&, so that the GPU chains the comparisons in
+// predicates (one instruction each) instead of branching and keeping booleans in registers.
+// NaN coordinates (a ray in the plane) fail every comparison.
 template <bool kQuads>
-TRACER_HD TRACER_INLINE bool flat_inside(float u, float v) {
+TRACER_HD TRACER_INLINE bool flat_accept(float u, float v, float t, float tmax) {
   constexpr float e = kFlatEdgeTolerance;
-  if (kQuads) return glm::abs(u) <= 0.5f + e && glm::abs(v) <= 0.5f + e;
-  return u >= -e && v >= -e && u + v <= 1.0f + e;
+  const bool inside = kQuads ? (glm::abs(u) <= 0.5f + e) & (glm::abs(v) <= 0.5f + e)
+                             : (u >= -e) & (v >= -e) & (u + v <= 1.0f + e);
+  return inside & (t > 0.0f) & (t < tmax);
 }
 
 // Entries [begin, end) of the flat list against one ray: every lane runs the same iterations
@@ -287,7 +291,7 @@ TRACER_HD TRACER_INLINE void flat_range(const FlatPrim* prims, uint32_t begin, u
   for (uint32_t i = begin; i < end; ++i) {
     float t, u, v;
     flat_hit(load_flat(prims, i), o, d, t, u, v);
-    if (flat_inside<kQuads>(u, v) && t > 0.0f && t < tbest && i != fa && i != fb) {
+    if (flat_accept<kQuads>(u, v, t, tbest) & (i != fa) & (i != fb)) {
       tbest = t;
       best = i;
     }
@@ -369,17 +373,19 @@ TRACER_HD TRACER_INLINE void flat_range_pair(const FlatPrim* prims, uint32_t beg
 #if defined(__CUDACC__)
 #pragma unroll 2
 #endif
+  bool b = blocked;
   for (uint32_t i = begin; i < end; ++i) {
     const FlatPrim p = load_flat(prims, i);
     float t, u, v;
     flat_hit(p, ext.o, ext.d, t, u, v);
-    if (flat_inside<kQuads>(u, v) && t > 0.0f && t < tbest && i != fa) {
+    if (flat_accept<kQuads>(u, v, t, tbest) & (i != fa)) {
       tbest = t;
       best = i;
     }
     flat_hit(p, sh.o, sh.d, t, u, v);
-    blocked |= flat_inside<kQuads>(u, v) && t > 0.0f && t < sh.tmax && i != sa && i != sb;
+    b = b | (flat_accept<kQuads>(u, v, t, sh.tmax) & (i != sa) & (i != sb));
   }
+  blocked = b;
 }
 
 // One pass over the flat list and the spheres for a lane's extension ray and its shadow ray:
