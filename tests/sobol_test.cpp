@@ -206,6 +206,9 @@ TEST(Sobol, PixelsPairsBouncesAndPairedHalvesAreUncorrelated) {
   const Case cases[] = {{"neighbouring pixels", 1, 0, 1, 2, 2, 0, false},
                         {"dimension pairs 2 and 3", 0, 0, 1, 2, 3, 0, false},
                         {"pair 1 x against pair 2 y", 0, 0, 1, 1, 2, 1, false},
+                        // The three scrambles of a pair take seeds from one hash (rotated).
+                        {"x against y of one pair", 0, 0, 1, 2, 2, 1, false},
+                        {"paired: x against y of one pair", 0, 0, 1, 2, 2, 1, true},
                         {"bounces 1 and 2", 0, 0, 2, 2, 2, 0, false},
                         {"paired: neighbouring pixels", 1, 0, 1, 2, 2, 0, true},
                         {"paired: bounces 1 and 2", 0, 0, 2, 2, 2, 0, true},

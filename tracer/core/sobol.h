@@ -157,10 +157,10 @@ TRACER_HD TRACER_INLINE uint32_t owen_sobol_y(uint32_t shuffled, uint32_t seed) 
 // Seeds: one 32-bit vertex seed hashes (user seed, bounce, stream) and then the pixel, where the
 // stream is 2 for the single sequence and the parity for the pairs, so the samplers draw
 // unrelated points (a reference rendered with one is independent of a test with the other at
-// the same seed); each scramble of the vertex (index shuffle, x, y of every pair) takes its own
-// seed from it as SplitMix32 does, hash32(vertex seed + k * golden ratio) for scramble k (Steele
-// et al. 2014, "Fast splittable pseudorandom number generators"). All 32-bit, so the device needs
-// no 64-bit multiplies, and the three seeds of a pair are independent of each other.
+// the same seed); each pair takes its own seed from it as SplitMix32 does, hash32(vertex seed +
+// (pair + 1) * golden ratio) (Steele et al. 2014, "Fast splittable pseudorandom number
+// generators"), and its three scrambles rotations of that (pair_seed below). All 32-bit, so the
+// device needs no 64-bit multiplies.
 struct SobolVertex {
   uint32_t index_reversed;
   uint32_t seed;
@@ -172,22 +172,32 @@ struct SobolVertex {
     seed = hash32(pixel ^ hash32(user_seed + ((bounce << 2) | stream) * kGolden32));
   }
 
-  // Scramble k = 0, 1, 2 of `pair`: the index shuffle, x and y.
+  // One hash per pair, hash32(vertex seed + (pair + 1) * golden ratio); its three scrambles
+  // (k = 0, 1, 2: the index shuffle, x and y) take it rotated by 0, 11 and 22 bits. A scramble's
+  // leading digits depend most on its seed's low bits, which the rotations take from different
+  // bits of the hash: independent bits for the first 10 or 11 digits of each, for one
+  // instruction where a hash per scramble cost eight (Sobol was 13% of the flat megakernel's
+  // instructions; tests/sobol_test.cpp checks nets, uniformity and the absence of correlation).
+  TRACER_HD uint32_t pair_seed(uint32_t pair) const { return hash32(seed + (pair + 1u) * kGolden32); }
+  TRACER_HD static uint32_t sub_seed(uint32_t h, uint32_t k) {
+    const uint32_t r = 11u * k;
+    return r == 0 ? h : (h << r) | (h >> (32u - r));
+  }
   TRACER_HD uint32_t scramble_seed(uint32_t pair, uint32_t k) const {
-    return hash32(seed + (3u * pair + k + 1u) * kGolden32);
+    return sub_seed(pair_seed(pair), k);
   }
   TRACER_HD vec2 get_2d(uint32_t pair) const {
-    const uint32_t shuffled = shuffled_index(index_reversed, scramble_seed(pair, 0));
-    const uint32_t x = laine_karras_permutation(shuffled, scramble_seed(pair, 1));
-    const uint32_t y =
-        laine_karras_permutation(sobol_dim1_reversed(shuffled), scramble_seed(pair, 2));
+    const uint32_t h = pair_seed(pair);
+    const uint32_t shuffled = shuffled_index(index_reversed, h);
+    const uint32_t x = laine_karras_permutation(shuffled, sub_seed(h, 1));
+    const uint32_t y = laine_karras_permutation(sobol_dim1_reversed(shuffled), sub_seed(h, 2));
     const uint64_t xy = reverse_bits64(uint64_t(y) << 32 | x);  // rev(x) high, rev(y) low
     return vec2(fraction_to_float(uint32_t(xy >> 32)), fraction_to_float(uint32_t(xy)));
   }
   // A 1D draw is the first coordinate of its own pair (a (0,1)-sequence, stratified alone).
   TRACER_HD float get_1d(uint32_t pair) const {
-    return fraction_to_float(owen_sobol_x(shuffled_index(index_reversed, scramble_seed(pair, 0)),
-                                          scramble_seed(pair, 1)));
+    const uint32_t h = pair_seed(pair);
+    return fraction_to_float(owen_sobol_x(shuffled_index(index_reversed, h), sub_seed(h, 1)));
   }
 };
 
