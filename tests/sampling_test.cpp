@@ -543,3 +543,24 @@ TEST(LightSamplingTest, PickLightInvertsTheCdf) {
 
 }  // namespace
 }  // namespace tracer
+
+TEST(MathTest, DivideSmallIsIntegerDivisionForEveryImageSize) {
+  // The camera finds a pixel's row with divide_small (a float estimate, then corrected): it must
+  // equal n / d for every width and row the CLI allows (up to 16384 x 16384), at the ends of
+  // every row in particular.
+  std::mt19937 rng(8);
+  for (uint32_t d : {1u, 2u, 3u, 7u, 640u, 1080u, 1280u, 1920u, 3840u, 4095u, 12345u, 16384u}) {
+    for (uint32_t row : {0u, 1u, 2u, 1079u, 4096u, 8191u, 16383u}) {
+      for (int64_t k : {-1, 0, 1}) {
+        const int64_t n = int64_t(row) * d + (k < 0 ? int64_t(d) - 1 : k);
+        if (n < 0 || n >= int64_t(d) * 16384) continue;
+        ASSERT_EQ(tracer::divide_small(uint32_t(n), d), uint32_t(n) / d) << n << " / " << d;
+      }
+    }
+    std::uniform_int_distribution<uint32_t> any(0, d * 16384u - 1u);
+    for (int i = 0; i < 20000; ++i) {
+      const uint32_t n = any(rng);
+      ASSERT_EQ(tracer::divide_small(n, d), n / d) << n << " / " << d;
+    }
+  }
+}

@@ -87,6 +87,16 @@ TRACER_HD TRACER_INLINE float fast_rsqrt(float x) {  // 1 / sqrt(x), x >= 0
   return 1.0f / std::sqrt(x);
 #endif
 }
+// n / d for quotients below 2^16 (a pixel's row: pixel / width): a float estimate, off by at most
+// one (relative error a few 2^-24), then corrected; about a third of the GPU's 32-bit integer
+// division.
+TRACER_HD TRACER_INLINE uint32_t divide_small(uint32_t n, uint32_t d) {
+  uint32_t q = uint32_t(float(n) * fast_div(1.0f, float(d)));
+  const int32_t r = int32_t(n - q * d);
+  if (r < 0) --q;
+  else if (r >= int32_t(d)) ++q;
+  return q;
+}
 TRACER_HD TRACER_INLINE float safe_sqrt(float x) { return fast_sqrt(glm::max(x, 0.0f)); }
 TRACER_HD TRACER_INLINE bool is_finite(float x) { return x - x == 0.0f; }
 TRACER_HD TRACER_INLINE bool is_finite(vec3 v) {

@@ -114,7 +114,8 @@ TRACER_HD inline void generate_path(const SceneView& s, const IntegratorSettings
     jitter = cfg.jitter ? rng.next_2d() : vec2(0.5f);
     lens = rng.next_2d();
   }
-  st.ray = s.camera.template generate_ray<F>(pixel % cfg.width, pixel / cfg.width, jitter, lens);
+  const uint32_t y = divide_small(pixel, cfg.width);
+  st.ray = s.camera.template generate_ray<F>(pixel - y * cfg.width, y, jitter, lens);
   st.throughput = vec3(1.0f);
   st.radiance = vec3(0.0f);
   st.pixel = pixel;
@@ -325,7 +326,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
     const float q = glm::min(1.0f, fast_sqrt(max_component(st.throughput)));
     if (u.rr() >= q) return false;
-    st.throughput /= q;
+    st.throughput *= fast_div(1.0f, q);  // q in (0, 1]
   }
   st.depth += 1;
   return !is_black(st.throughput);
