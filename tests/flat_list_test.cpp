@@ -228,6 +228,8 @@ TEST(FlatList, HullEntriesNeverBlockLightSamples) {
       bool blocked;
       flat_closest_and_any<kAllFeatures>(flat, none, kInvalid, sh, light, kInvalid, blocked);
       const bool exact = intersect_any(bvh, sh, light);
+      // The wavefront's shadow stage asks the same of the list alone.
+      EXPECT_EQ(shadow_blocked(flat, sh, light), blocked) << c.name << " ray " << i;
       blocked_count += exact;
       differ += blocked != exact;
     }

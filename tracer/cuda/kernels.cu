@@ -403,8 +403,8 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontSt
     ray.pad = 0.0f;
     uint32_t origin = kInvalid;
     if (walks) origin = __float_as_uint(w.hit[id].y);
-    if (!intersect_any<features_of<Spec>() | kFeatureFlatList>(s, ray, __float_as_uint(d.w),
-                                           origin < s.tri_count ? origin : kInvalid)) {
+    if (!shadow_blocked<features_of<Spec>() | kFeatureFlatList>(
+            s, ray, __float_as_uint(d.w), origin < s.tri_count ? origin : kInvalid)) {
       r.x += c.x;
       r.y += c.y;
       r.z += c.z;

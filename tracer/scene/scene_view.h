@@ -324,17 +324,20 @@ TRACER_HD TRACER_INLINE Hit flat_entry_hit(const SceneView& s, const Ray& ray, u
 
 // The query over the flat list and the spheres (SceneView::use_flat): the same contract as
 // traverse() below. The entry hit is mapped back to its triangle and barycentrics once, at the
-// end, so that a hit reads the same to shading as one found through the BVH.
-template <uint32_t F, bool kAnyHit>
+// end, so that a hit reads the same to shading as one found through the BVH. kSkipHull leaves
+// out the entries on the scene's hull, for rays between two points of the scene.
+template <uint32_t F, bool kAnyHit, bool kSkipHull = false>
 TRACER_HD inline Hit flat_traverse(const SceneView& s, const Ray& ray, uint32_t skip,
                                    uint32_t skip2) {
   const uint32_t fa = skip < s.tri_count ? s.tri_to_flat[skip] : kInvalid;
   const uint32_t fb = skip2 < s.tri_count ? s.tri_to_flat[skip2] : kInvalid;
   float tbest = ray.tmax;
   uint32_t best = kInvalid;
-  flat_range<true, kAnyHit>(s.flat, 0, s.flat_quads, ray.o, ray.d, fa, fb, tbest, best);
+  const uint32_t quad_end = kSkipHull ? s.flat_quad_blockers : s.flat_quads;
+  const uint32_t tri_end = kSkipHull ? s.flat_triangle_blockers_end : s.flat_count;
+  flat_range<true, kAnyHit>(s.flat, 0, quad_end, ray.o, ray.d, fa, fb, tbest, best);
   if (!kAnyHit || !warp_all(best != kInvalid))
-    flat_range<false, kAnyHit>(s.flat, s.flat_quads, s.flat_count, ray.o, ray.d, fa, fb, tbest,
+    flat_range<false, kAnyHit>(s.flat, s.flat_quads, tri_end, ray.o, ray.d, fa, fb, tbest,
                                best);
   Hit hit;
   if (!kAnyHit) {
@@ -478,6 +481,17 @@ template <uint32_t F = kAllFeatures>
 TRACER_HD inline bool intersect_any(const SceneView& s, const Ray& ray, uint32_t skip,
                                     uint32_t skip2 = kInvalid) {
   return traverse<F, true>(s, ray, skip, skip2).valid();
+}
+
+// Whether anything blocks a ray between two points of the scene, such as a next-event shadow ray
+// (both ends on surfaces, offset towards each other): intersect_any's answer, except that the
+// flat list's hull entries are skipped, since such a ray cannot cross them (FlatList).
+template <uint32_t F = kAllFeatures>
+TRACER_HD inline bool shadow_blocked(const SceneView& s, const Ray& ray, uint32_t skip,
+                                     uint32_t skip2 = kInvalid) {
+  if ((F & kFeatureFlatList) && s.use_flat)
+    return flat_traverse<F, true, true>(s, ray, skip, skip2).valid();
+  return intersect_any<F>(s, ray, skip, skip2);
 }
 
 // Everything the shading stage needs to know about a hit point.
