@@ -68,14 +68,24 @@ TRACER_HD TRACER_INLINE void fast_sincos(float x, float* s, float* c) {  // |x| 
   *c = std::cos(x);
 #endif
 }
-// a / b from the hardware's approximate reciprocal (MUFU.RCP, 1 ulp, denormals flushed) and one
-// multiply: 2 instructions instead of the correctly rounded division's 8 and its slow-path
-// branch. b = 0 gives an infinity (a NaN for a = 0), b = infinity gives 0, as a / b does.
-TRACER_HD TRACER_INLINE float fast_div(float a, float b) {
+// 1 / x: on the GPU the hardware's approximate reciprocal (one MUFU.RCP, 1 ulp, denormals
+// flushed; __fdividef's denormal handling would add four instructions). x = 0 gives an infinity,
+// x = infinity gives 0.
+TRACER_HD TRACER_INLINE float fast_rcp(float x) {
 #if defined(__CUDA_ARCH__)
   float r;
-  asm("rcp.approx.ftz.f32 %0, %1;" : "=f"(r) : "f"(b));
-  return a * r;
+  asm("rcp.approx.ftz.f32 %0, %1;" : "=f"(r) : "f"(x));
+  return r;
+#else
+  return 1.0f / x;
+#endif
+}
+// a / b from fast_rcp and one multiply: 2 instructions instead of the correctly rounded
+// division's 8 and its slow-path branch. b = 0 gives an infinity (a NaN for a = 0), b = infinity
+// gives 0, as a / b does.
+TRACER_HD TRACER_INLINE float fast_div(float a, float b) {
+#if defined(__CUDA_ARCH__)
+  return a * fast_rcp(b);
 #else
   return a / b;
 #endif
@@ -91,7 +101,7 @@ TRACER_HD TRACER_INLINE float fast_rsqrt(float x) {  // 1 / sqrt(x), x >= 0
 // one (relative error a few 2^-24), then corrected; about a third of the GPU's 32-bit integer
 // division.
 TRACER_HD TRACER_INLINE uint32_t divide_small(uint32_t n, uint32_t d) {
-  uint32_t q = uint32_t(float(n) * fast_div(1.0f, float(d)));
+  uint32_t q = uint32_t(float(n) * fast_rcp(float(d)));
   const int32_t r = int32_t(n - q * d);
   if (r < 0) --q;
   else if (r >= int32_t(d)) ++q;

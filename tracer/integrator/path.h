@@ -149,7 +149,7 @@ TRACER_HD TRACER_INLINE Ray spawn_ray_to(vec3 p, vec3 n_p, vec3 q, vec3 n_q) {
   const float len = glm::length(d);
   Ray r;
   r.o = from;
-  r.d = len > 0.0f ? d * fast_div(1.0f, len) : vec3(0.0f, 0.0f, 1.0f);
+  r.d = len > 0.0f ? d * fast_rcp(len) : vec3(0.0f, 0.0f, 1.0f);
   r.tmax = len;
   r.pad = 0.0f;
   return r;
@@ -326,7 +326,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
     const float q = glm::min(1.0f, fast_sqrt(max_component(st.throughput)));
     if (u.rr() >= q) return false;
-    st.throughput *= fast_div(1.0f, q);  // q in (0, 1]
+    st.throughput *= fast_rcp(q);  // q in (0, 1]
   }
   st.depth += 1;
   return !is_black(st.throughput);

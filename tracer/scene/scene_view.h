@@ -223,20 +223,6 @@ TRACER_HD TRACER_INLINE FlatPrim load_flat(const FlatPrim* prims, uint32_t i) {
 #endif
 }
 
-// 1 / x; on the GPU the hardware's approximate reciprocal (one MUFU.RCP, 1 ulp; flush to zero),
-// since a correctly rounded division per primitive would add a third to the flat test (and
-// __fdividef's denormal handling four instructions). x = 0 gives an infinity, and the t it
-// makes an infinity or a NaN, which every comparison below rejects.
-TRACER_HD TRACER_INLINE float flat_rcp(float x) {
-#if defined(__CUDA_ARCH__)
-  float r;
-  asm("rcp.approx.ftz.f32 %0, %1;" : "=f"(r) : "f"(x));
-  return r;
-#else
-  return 1.0f / x;
-#endif
-}
-
 // a * b + c: fused on the GPU; on the CPU two operations (a baseline x86-64 build has no FMA
 // instruction, and fmaf would be a library call).
 TRACER_HD TRACER_INLINE float flat_fma(float a, float b, float c) {
@@ -254,11 +240,13 @@ TRACER_HD TRACER_INLINE float flat_affine(vec4 row, vec3 p) {
 
 // The ray's distance to an entry's plane and the local coordinates of the crossing point:
 // w(o + t d) = 0 gives t = -w(o) / (w(d) - w(0)); u and v are read at the point itself, so the
-// point is made once for both.
+// point is made once for both. The reciprocal is the approximate one (fast_rcp): a correctly
+// rounded division per primitive would add a third to the test. A ray parallel to the plane
+// gets an infinite or NaN t, which every comparison of flat_accept rejects.
 TRACER_HD TRACER_INLINE void flat_hit(const FlatPrim& p, vec3 o, vec3 d, float& t, float& u,
                                       float& v) {
   const float dw = flat_fma(p.row_w.x, d.x, flat_fma(p.row_w.y, d.y, p.row_w.z * d.z));
-  t = -flat_affine(p.row_w, o) * flat_rcp(dw);
+  t = -flat_affine(p.row_w, o) * fast_rcp(dw);
   const vec3 x(flat_fma(t, d.x, o.x), flat_fma(t, d.y, o.y), flat_fma(t, d.z, o.z));
   u = flat_affine(p.row_u, x);
   v = flat_affine(p.row_v, x);
