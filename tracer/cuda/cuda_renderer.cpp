@@ -38,6 +38,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<uint32_t> tri_to_flat;
   bool flat_available = false;
   std::string flat_text;             // describe_flat_list of the scene's list
+  FlatParams flat_params;            // the same entries, passed to the kernels that loop over them
   SceneView view;
   uint32_t features = 0;
 
@@ -176,7 +177,7 @@ struct CudaRenderer::Impl {
 
   void megakernel_wave(uint32_t sample, bool first, bool timed) {
     mark(timed, kMega);  // start
-    launch_megakernel(spec(), view, cfg, sample, first, film_view(sample), counters.get(),
+    launch_megakernel(spec(), view, flat_params, cfg, sample, first, film_view(sample), counters.get(),
                       count.get(), stream);
     mark(timed, kMega);
   }
@@ -208,7 +209,7 @@ struct CudaRenderer::Impl {
       if (b == 0 && use_cache && cache_valid) {
         launch_copy_hits(cached_hits.get(), w.hit, n(), stream);
       } else {
-        launch_intersect(sp, view, w, q, c, opts.dynamic_fetch, stream);
+        launch_intersect(sp, view, flat_params, w, q, c, opts.dynamic_fetch, stream);
         if (b == 0 && use_cache) {
           launch_copy_hits(w.hit, cached_hits.get(), n(), stream);
           cache_valid = true;
@@ -228,7 +229,7 @@ struct CudaRenderer::Impl {
       }
       launch_shade(sp, view, cfg, sample, b, w, q, c, stream);
       mark(timed, kShade);
-      launch_shadow(sp, view, w, q, c, first, film_view(sample), stream);
+      launch_shadow(sp, view, flat_params, w, q, c, first, film_view(sample), stream);
       mark(timed, kShadow);
       if (b + 1 == iterations) {
         if (walks) launch_flush(w, first, film_view(sample), stream);
@@ -285,7 +286,8 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.flat_info.upload(fl.info);
   m.tri_to_flat.upload(fl.tri_to_flat);
   m.view = scene.view();
-  m.view.flat = fl.enabled ? m.flat.get() : nullptr;
+  m.view.flat = m.view.flat_loop = fl.enabled ? m.flat.get() : nullptr;
+  m.flat_params = make_flat_params(fl.enabled ? fl.prims : std::vector<FlatPrim>());
   m.view.flat_info = fl.enabled ? m.flat_info.get() : nullptr;
   m.view.tri_to_flat = fl.enabled ? m.tri_to_flat.get() : nullptr;
   m.choose_accel();

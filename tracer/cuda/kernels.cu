@@ -5,6 +5,8 @@
 #include <thrust/iterator/counting_iterator.h>
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 
 #include "cuda/cuda_check.h"
 #include "cuda/kernels.h"
@@ -29,6 +31,13 @@ constexpr int kBlock = 256;
 #define TRACER_MEGA_FLAT_MIN_BLOCKS(spec) \
   (((spec) & kSpecSpecular) ? TRACER_MEGA_FLAT_SPECULAR_BLOCKS : TRACER_MEGA_FLAT_DIFFUSE_BLOCKS)
 
+
+// The view with its loops reading the flat list from the kernel's parameters (FlatParams).
+__device__ __forceinline__ SceneView with_flat_params(const SceneView& s, const FlatParams& flat) {
+  SceneView v = s;
+  v.flat_loop = reinterpret_cast<const FlatPrim*>(flat.rows);
+  return v;
+}
 
 __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 L, bool first,
                                             unsigned long long* nonfinite) {
@@ -126,9 +135,11 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
 // the next pass, already tracing its new path's camera ray in it.
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
-    megakernel_flat(SceneView s, IntegratorSettings cfg, uint32_t sample, bool first,
-                    FilmView film, unsigned long long* counters, uint32_t* next_pixel) {
+    megakernel_flat(SceneView view, const __grid_constant__ FlatParams flat,
+                    IntegratorSettings cfg, uint32_t sample, bool first, FilmView film,
+                    unsigned long long* counters, uint32_t* next_pixel) {
   constexpr uint32_t F = features_of<Spec>();
+  const SceneView s = with_flat_params(view, flat);
   PathState st;
   ShadowRequest sr;
   sr.valid = false;
@@ -269,9 +280,12 @@ __device__ __forceinline__ void store_hit(const WavefrontState& w, uint32_t id, 
 }
 
 template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, WavefrontState w,
+__global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView view,
+                                                           const __grid_constant__ FlatParams flat,
+                                                           WavefrontState w,
                                                            const uint32_t* queue,
                                                            const uint32_t* count, bool walks) {
+  const SceneView s = with_flat_params(view, flat);
   const uint32_t id = queued_path(w, queue, count);
   if (id == kInvalid) return;
   uint32_t skip;
@@ -383,10 +397,12 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
 }
 
 template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView s, WavefrontState w,
-                                                        const uint32_t* queue,
+__global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
+                                                        const __grid_constant__ FlatParams flat,
+                                                        WavefrontState w, const uint32_t* queue,
                                                         const uint32_t* count, bool first,
                                                         FilmView film, bool walks) {
+  const SceneView s = with_flat_params(view, flat);
   const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= (queue ? *count : w.n)) return;
   const uint32_t id = queue ? queue[i] : i;
@@ -541,14 +557,29 @@ uint32_t persistent_blocks(Kernel kernel, uint32_t n) {
   return std::min<uint32_t>(uint32_t(std::max(1, per_sm) * sms), blocks(n));
 }
 
-void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
-                       uint32_t sample, bool first, FilmView film, unsigned long long* counters,
-                       uint32_t* next_pixel, cudaStream_t stream) {
+FlatParams make_flat_params(const std::vector<FlatPrim>& prims) {
+  FlatParams p;
+  if (prims.size() > kFlatMaxCost)
+    throw std::runtime_error("flat list of " + std::to_string(prims.size()) + " entries, more than " +
+                             std::to_string(kFlatMaxCost));
+  for (size_t i = 0; i < prims.size(); ++i) {
+    const FlatPrim& f = prims[i];
+    p.rows[3 * i + 0] = make_float4(f.row_u.x, f.row_u.y, f.row_u.z, f.row_u.w);
+    p.rows[3 * i + 1] = make_float4(f.row_v.x, f.row_v.y, f.row_v.z, f.row_v.w);
+    p.rows[3 * i + 2] = make_float4(f.row_w.x, f.row_w.y, f.row_w.z, f.row_w.w);
+  }
+  p.count = uint32_t(prims.size());
+  return p;
+}
+
+void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                       const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
+                       unsigned long long* counters, uint32_t* next_pixel, cudaStream_t stream) {
   TRACER_CUDA_CHECK(cudaMemsetAsync(next_pixel, 0, sizeof(uint32_t), stream));
   if (s.use_flat) {
 #define CALL(S)                                                                             \
   megakernel_flat<S><<<persistent_blocks(megakernel_flat<S>, film.n), kBlock, 0, stream>>>( \
-      s, cfg, sample, first, film, counters, next_pixel)
+      s, flat, cfg, sample, first, film, counters, next_pixel)
     TRACER_SPEC_SWITCH(spec, 7u, CALL)
 #undef CALL
     TRACER_CUDA_CHECK_LAUNCH("megakernel_flat");
@@ -575,9 +606,9 @@ void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings
   TRACER_CUDA_CHECK_LAUNCH("generate_kernel");
 }
 
-void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w,
-                      const uint32_t* queue, const uint32_t* count, bool dynamic_fetch,
-                      cudaStream_t stream) {
+void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                      const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
+                      bool dynamic_fetch, cudaStream_t stream) {
   const bool walks = (s.features & kFeatureSubsurface) != 0;
   // The flat list's uniform loop ends for all lanes of a warp at once: nothing to refill.
   if (dynamic_fetch && !s.use_flat) {
@@ -594,7 +625,7 @@ void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w
     return;
   }
 #define CALL(S) \
-  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count, walks)
+  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, walks)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;
@@ -618,11 +649,11 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   TRACER_CUDA_CHECK_LAUNCH("shade_kernel");
 }
 
-void launch_shadow(uint32_t spec, const SceneView& s, const WavefrontState& w,
-                   const uint32_t* queue, const uint32_t* count, bool first, FilmView film,
-                   cudaStream_t stream) {
-#define CALL(S) \
-  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count, first, film, \
+void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                   const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
+                   bool first, FilmView film, cudaStream_t stream) {
+#define CALL(S)                                                                       \
+  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, first, film, \
                                                        (s.features & kFeatureSubsurface) != 0)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;

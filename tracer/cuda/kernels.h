@@ -5,6 +5,8 @@
 
 #include <cuda_runtime.h>
 
+#include <vector>
+
 #include "integrator/path.h"
 
 namespace tracer {
@@ -32,6 +34,18 @@ struct WavefrontState {
   uint32_t* alive_counts = nullptr;    // paths entering each bounce, [max_depth + 1]
 };
 
+// The flat primitive list's entries (SceneView::flat_loop) passed by value to the kernels that
+// loop over them, at most kFlatMaxCost entries of 48 bytes (3 KiB of the 4 KiB of parameters).
+// Every lane of a warp reads the same entry at once; from the L1 cache each such 16-byte load
+// still writes 512 bytes of registers through its data pipe, which limited the wavefront's
+// intersect kernel (88% busy), while a parameter comes from the constant bank.
+struct FlatParams {
+  float4 rows[3 * kFlatMaxCost];  // row_u, row_v, row_w of each entry (FlatPrim)
+  uint32_t count = 0;
+};
+// The entries of a scene's list (empty when it has none).
+FlatParams make_flat_params(const std::vector<FlatPrim>& prims);
+
 // One of the two accumulators (even and odd samples); a launch writes the one of its sample.
 struct FilmView {
   float4* accum = nullptr;  // running sum per pixel
@@ -42,24 +56,24 @@ struct FilmView {
 };
 
 // counters[2] receives the path segments traced (camera rays included); next_pixel is scratch.
-void launch_megakernel(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
-                       uint32_t sample, bool first, FilmView film, unsigned long long* counters,
-                       uint32_t* next_pixel, cudaStream_t stream);
+void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                       const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
+                       unsigned long long* counters, uint32_t* next_pixel, cudaStream_t stream);
 
 void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                      uint32_t sample, const WavefrontState& w, cudaStream_t stream);
 // queue == nullptr: every path (dead ones are skipped); count: device pointer to queue length.
 // dynamic_fetch: persistent warps whose lanes take a new ray between traversal rounds
 // (intersect_fetch_kernel); else one thread per queued ray.
-void launch_intersect(uint32_t spec, const SceneView& s, const WavefrontState& w,
-                      const uint32_t* queue, const uint32_t* count, bool dynamic_fetch,
-                      cudaStream_t stream);
+void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                      const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
+                      bool dynamic_fetch, cudaStream_t stream);
 void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                   uint32_t sample, uint32_t bounce, const WavefrontState& w,
                   const uint32_t* queue, const uint32_t* count, cudaStream_t stream);
-void launch_shadow(uint32_t spec, const SceneView& s, const WavefrontState& w,
-                   const uint32_t* queue, const uint32_t* count, bool first, FilmView film,
-                   cudaStream_t stream);
+void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                   const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
+                   bool first, FilmView film, cudaStream_t stream);
 // Counting sort of the queue by the material type at each path's hit (Cycles-style).
 void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,
                              const uint32_t* count, uint32_t* sorted, cudaStream_t stream);

@@ -208,7 +208,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.camera = make_camera(scene.camera, width, height);
   view_.cpu_bvh = cpu_bvh_.view();
   if (flat_.enabled) {
-    view_.flat = flat_.prims.data();
+    view_.flat = view_.flat_loop = flat_.prims.data();
     view_.flat_info = flat_.info.data();
     view_.tri_to_flat = flat_.tri_to_flat.data();
     view_.flat_count = uint32_t(flat_.prims.size());

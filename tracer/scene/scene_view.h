@@ -58,6 +58,10 @@ struct SceneView {
   // warp-uniform loop instead of walking the BVH. The GPU sets it by default where the scene has
   // a list; the CPU keeps its SSE BVH unless told otherwise.
   const FlatPrim* flat = nullptr;
+  // The same entries as the loops over the list read them: `flat` itself on the CPU; on the GPU
+  // a copy among the kernel's parameters (cuda/kernels.h, FlatParams), so that each warp's
+  // uniform loads come from the constant bank instead of the L1 data pipe.
+  const FlatPrim* flat_loop = nullptr;
   const FlatPrimInfo* flat_info = nullptr;
   const uint32_t* tri_to_flat = nullptr;  // tri_count entries
   uint32_t flat_count = 0, flat_quads = 0;
@@ -223,6 +227,23 @@ TRACER_HD TRACER_INLINE FlatPrim load_flat(const FlatPrim* prims, uint32_t i) {
 #endif
 }
 
+// An entry for the loops over the list (SceneView::flat_loop): plain loads, so that the device
+// compiler reads a list among the kernel parameters from the constant bank (LDC), where
+// load_flat's __ldg would force a global load.
+TRACER_HD TRACER_INLINE FlatPrim load_flat_loop(const FlatPrim* prims, uint32_t i) {
+#if defined(__CUDA_ARCH__)
+  const float4* p = reinterpret_cast<const float4*>(prims + i);
+  const float4 a = p[0], b = p[1], c = p[2];
+  FlatPrim f;
+  f.row_u = vec4(a.x, a.y, a.z, a.w);
+  f.row_v = vec4(b.x, b.y, b.z, b.w);
+  f.row_w = vec4(c.x, c.y, c.z, c.w);
+  return f;
+#else
+  return prims[i];
+#endif
+}
+
 // a * b + c: fused on the GPU; on the CPU two operations (a baseline x86-64 build has no FMA
 // instruction, and fmaf would be a library call).
 TRACER_HD TRACER_INLINE float flat_fma(float a, float b, float c) {
@@ -278,7 +299,7 @@ TRACER_HD TRACER_INLINE void flat_range(const FlatPrim* prims, uint32_t begin, u
 #endif
   for (uint32_t i = begin; i < end; ++i) {
     float t, u, v;
-    flat_hit(load_flat(prims, i), o, d, t, u, v);
+    flat_hit(load_flat_loop(prims, i), o, d, t, u, v);
     if (flat_accept<kQuads>(u, v, t, tbest) & (i != fa) & (i != fb)) {
       tbest = t;
       best = i;
@@ -323,9 +344,9 @@ TRACER_HD inline Hit flat_traverse(const SceneView& s, const Ray& ray, uint32_t 
   uint32_t best = kInvalid;
   const uint32_t quad_end = kSkipHull ? s.flat_quad_blockers : s.flat_quads;
   const uint32_t tri_end = kSkipHull ? s.flat_triangle_blockers_end : s.flat_count;
-  flat_range<true, kAnyHit>(s.flat, 0, quad_end, ray.o, ray.d, fa, fb, tbest, best);
+  flat_range<true, kAnyHit>(s.flat_loop, 0, quad_end, ray.o, ray.d, fa, fb, tbest, best);
   if (!kAnyHit || !warp_all(best != kInvalid))
-    flat_range<false, kAnyHit>(s.flat, s.flat_quads, tri_end, ray.o, ray.d, fa, fb, tbest,
+    flat_range<false, kAnyHit>(s.flat_loop, s.flat_quads, tri_end, ray.o, ray.d, fa, fb, tbest,
                                best);
   Hit hit;
   if (!kAnyHit) {
@@ -361,12 +382,12 @@ TRACER_HD TRACER_INLINE void flat_range_pair(const FlatPrim* prims, uint32_t beg
                                              const Ray& ext, uint32_t fa, float& tbest,
                                              uint32_t& best, const Ray& sh, uint32_t sa,
                                              uint32_t sb, bool& blocked) {
+  bool b = blocked;
 #if defined(__CUDACC__)
 #pragma unroll 2
 #endif
-  bool b = blocked;
   for (uint32_t i = begin; i < end; ++i) {
-    const FlatPrim p = load_flat(prims, i);
+    const FlatPrim p = load_flat_loop(prims, i);
     float t, u, v;
     flat_hit(p, ext.o, ext.d, t, u, v);
     if (flat_accept<kQuads>(u, v, t, tbest) & (i != fa)) {
@@ -397,13 +418,13 @@ TRACER_HD TRACER_INLINE Hit flat_closest_and_any(const SceneView& s, const Ray& 
   float tbest = ext.tmax;
   uint32_t best = kInvalid;
   blocked = false;
-  flat_range_pair<true>(s.flat, 0, s.flat_quad_blockers, ext, fa, tbest, best, sh, sa, sb,
+  flat_range_pair<true>(s.flat_loop, 0, s.flat_quad_blockers, ext, fa, tbest, best, sh, sa, sb,
                         blocked);
-  flat_range<true, false>(s.flat, s.flat_quad_blockers, s.flat_quads, ext.o, ext.d, fa, kInvalid,
+  flat_range<true, false>(s.flat_loop, s.flat_quad_blockers, s.flat_quads, ext.o, ext.d, fa, kInvalid,
                           tbest, best);
-  flat_range_pair<false>(s.flat, s.flat_quads, s.flat_triangle_blockers_end, ext, fa, tbest, best,
+  flat_range_pair<false>(s.flat_loop, s.flat_quads, s.flat_triangle_blockers_end, ext, fa, tbest, best,
                          sh, sa, sb, blocked);
-  flat_range<false, false>(s.flat, s.flat_triangle_blockers_end, s.flat_count, ext.o, ext.d, fa,
+  flat_range<false, false>(s.flat_loop, s.flat_triangle_blockers_end, s.flat_count, ext.o, ext.d, fa,
                            kInvalid, tbest, best);
   Hit hit = flat_entry_hit(s, ext, best, tbest);
   if (F & kFeatureSpheres) {
