@@ -285,6 +285,64 @@ TEST(FlatList, AgreesWithTheBvh) {
   check_agreement(cs, 20000, "triangles and quads");
 }
 
+// The quads that cover a face of the scene's box exactly (the walls, floor and ceiling) are
+// found by one slab test instead of being tested one by one; an open face (the Cornell box's
+// front) has none, and a face covered by two quads is left to the loop.
+vec3 face_normal_of(const CompiledScene& cs, uint32_t entry) {
+  const TriangleVerts& tv = cs.tri_verts()[cs.flat_list().info[entry].tri0];
+  return glm::normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
+}
+
+TEST(FlatList, BoxFacesAreFoundByTheSlabTest) {
+  struct Case {
+    const char* name;
+    uint32_t faces;
+    uint32_t open_face;  // 2 * axis + side, or 6 for none
+  };
+  for (const Case& c : {Case{"cornell_box", 5, 4}, Case{"cornell_closed", 6, 6},
+                        Case{"cornell_spheres", 5, 4}, Case{"smallpt", 0, 6}}) {
+    const Scene s = load_scene(source_dir() + "/assets/scenes/" + c.name + ".json");
+    const CompiledScene cs(s, 16, 16);
+    const FlatList& fl = cs.flat_list();
+    ASSERT_TRUE(fl.enabled) << c.name;
+    EXPECT_EQ(fl.box_faces, c.faces) << c.name;
+    EXPECT_EQ(cs.view().flat_box_faces, c.faces) << c.name;
+    if (c.faces == 0) continue;
+    EXPECT_NE(describe_flat_list(fl, 0).find(std::to_string(c.faces) + " of them box faces"),
+              std::string::npos);
+    const Aabb box = scene_bounds(cs);
+    for (uint32_t f = 0; f < 6; ++f) {
+      const uint32_t e = fl.box_entry[f];
+      if (f == c.open_face) {
+        EXPECT_EQ(e, kInvalid) << c.name << " face " << f;
+        continue;
+      }
+      // The face's entry is one of the last box_faces quads and lies in the face's plane.
+      ASSERT_NE(e, kInvalid) << c.name << " face " << f;
+      EXPECT_GE(e, fl.quad_count - fl.box_faces) << c.name;
+      EXPECT_LT(e, fl.quad_count) << c.name;
+      const int a = int(f / 2);
+      const TriangleVerts& tv = cs.tri_verts()[fl.info[e].tri0];
+      const float plane = f % 2 ? box.hi[a] : box.lo[a];
+      EXPECT_EQ(tv.v0[a], plane) << c.name << " face " << f;
+      EXPECT_NEAR(std::fabs(face_normal_of(cs, e)[a]), 1.0f, 1e-6f) << c.name;
+    }
+  }
+  // A room whose back wall is two quads and whose floor is one: the floor is a box face, the
+  // wall is not (each half is tested in the loop), and queries still agree with the BVH.
+  Scene room;
+  room.materials.push_back({"m", diffuse(vec3(0.5f))});
+  add_quad(room.mesh, vec3(0, 0, 0), vec3(0, 0, 2), vec3(2, 0, 0), 0);        // floor y = 0
+  add_quad(room.mesh, vec3(0, 0, 2), vec3(0, 2, 0), vec3(1, 0, 0), 0);        // back wall, left
+  add_quad(room.mesh, vec3(1, 0, 2), vec3(0, 2, 0), vec3(1, 0, 0), 0);        // and right half
+  add_quad(room.mesh, vec3(0.5f, 0, 0.5f), vec3(0, 1, 0), vec3(1, 0, 0), 0);  // a panel inside
+  const CompiledScene cr(room, 16, 16);
+  EXPECT_EQ(cr.flat_list().box_faces, 1u);
+  EXPECT_NE(cr.flat_list().box_entry[2], kInvalid) << "the floor (low y face)";
+  EXPECT_EQ(cr.flat_list().box_entry[5], kInvalid) << "the back wall is two quads";
+  check_agreement(cr, 20000, "room with a split wall");
+}
+
 TEST(FlatList, ClosedBoxDoesNotLeak) {
   // Rays from inside the closed box aimed at the points where faces meet (edges and corners of
   // the walls and of the blocks) must all hit something: the edge tolerance closes the seams.

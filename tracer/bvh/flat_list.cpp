@@ -3,6 +3,7 @@
 #include "bvh/flat_list.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <utility>
 
@@ -111,7 +112,8 @@ std::string describe_flat_list(const FlatList& list, uint32_t sphere_count) {
                       (entries - list.triangle_blockers_end);
   return std::to_string(entries) + " entries (" + std::to_string(list.quad_count) + " quads, " +
          std::to_string(entries - list.quad_count) + " triangles; " + std::to_string(hull) +
-         " on the hull) + " + std::to_string(sphere_count) + " spheres";
+         " on the hull, " + std::to_string(list.box_faces) + " of them box faces) + " +
+         std::to_string(sphere_count) + " spheres";
 }
 
 FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
@@ -125,6 +127,7 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
   std::vector<FlatPrim> quads, singles;
   std::vector<FlatPrimInfo> quad_info, single_info;
   std::vector<bool> quad_hull, single_hull;
+  std::vector<std::array<DVec, 4>> quad_corners;  // p, q, r, q + r - p of each quad
   // The scene's size, for the hull test's tolerance.
   DVec lo = {1e300, 1e300, 1e300}, hi = {-1e300, -1e300, -1e300};
   auto grow = [&](DVec p, double r) {
@@ -173,6 +176,11 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
       used[j] = true;
       entry_of[i] = entry_of[j] = uint32_t(quads.size());
       quad_hull.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
+      {
+        const DVec p = dv(corner(tris[i], ip)), q = dv(corner(tris[i], iq)),
+                   r = dv(corner(tris[i], ir));
+        quad_corners.push_back({p, q, r, {q.x + r.x - p.x, q.y + r.y - p.y, q.z + r.z - p.z}});
+      }
       fp.row_u.w -= 0.5f;  // centred: the inside test is |u|, |v| <= 1/2
       fp.row_v.w -= 0.5f;
       quads.push_back(fp);
@@ -195,20 +203,59 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
   }
   const size_t entries = quads.size() + singles.size();
   if (entries + 2 * size_t(sphere_count) > kFlatMaxCost) return out;
-  // Each group's blockers first, its hull entries last (stable: the order is otherwise kept).
-  auto order = [](const std::vector<bool>& hull, uint32_t& blockers) {
+  // Classes: 0 blocker, 1 hull, 2 a face of the scene's box that the quad covers exactly (its
+  // four corners are the face's, within the hull tolerance); the first quad per face.
+  const double tol = kFlatHullTolerance * size;
+  const double blo[3] = {lo.x, lo.y, lo.z}, bhi[3] = {hi.x, hi.y, hi.z};
+  const bool solid = size > 0.0 && bhi[0] - blo[0] > tol && bhi[1] - blo[1] > tol &&
+                     bhi[2] - blo[2] > tol;
+  std::vector<int> quad_class(quads.size()), single_class(singles.size());
+  int face_quad[6] = {-1, -1, -1, -1, -1, -1};
+  for (size_t k = 0; k < quads.size(); ++k) {
+    quad_class[k] = quad_hull[k] ? 1 : 0;
+    if (!quad_hull[k] || !solid) continue;
+    for (int f = 0; f < 6 && quad_class[k] == 1; ++f) {
+      const int a = f / 2, b = (a + 1) % 3, c = (a + 2) % 3;
+      const double plane = f % 2 ? bhi[a] : blo[a];
+      bool on_face = true;
+      int seen = 0;  // which of the face's four corners the quad's corners are
+      for (const DVec& v : quad_corners[k]) {
+        const double x[3] = {v.x, v.y, v.z};
+        const bool at_b_lo = std::fabs(x[b] - blo[b]) <= tol, at_b_hi = std::fabs(x[b] - bhi[b]) <= tol;
+        const bool at_c_lo = std::fabs(x[c] - blo[c]) <= tol, at_c_hi = std::fabs(x[c] - bhi[c]) <= tol;
+        on_face = on_face && std::fabs(x[a] - plane) <= tol && (at_b_lo || at_b_hi) &&
+                  (at_c_lo || at_c_hi);
+        seen |= 1 << (int(at_b_hi) * 2 + int(at_c_hi));
+      }
+      if (on_face && seen == 15 && face_quad[f] < 0) {
+        face_quad[f] = int(k);
+        quad_class[k] = 2;
+      }
+    }
+  }
+  for (size_t k = 0; k < singles.size(); ++k) single_class[k] = single_hull[k] ? 1 : 0;
+  // Each group's blockers first, then its hull entries, box faces last (stable otherwise).
+  auto order = [](const std::vector<int>& cls, uint32_t& blockers, uint32_t& faces) {
     std::vector<uint32_t> perm;  // new position -> old
-    for (int pass = 0; pass < 2; ++pass)
-      for (uint32_t k = 0; k < hull.size(); ++k)
-        if (hull[k] == (pass == 1)) perm.push_back(k);
-    blockers = uint32_t(std::count(hull.begin(), hull.end(), false));
+    for (int pass = 0; pass < 3; ++pass)
+      for (uint32_t k = 0; k < cls.size(); ++k)
+        if (cls[k] == pass) perm.push_back(k);
+    blockers = uint32_t(std::count(cls.begin(), cls.end(), 0));
+    faces = uint32_t(std::count(cls.begin(), cls.end(), 2));
     std::vector<uint32_t> where(perm.size());  // old -> new
     for (uint32_t k = 0; k < perm.size(); ++k) where[perm[k]] = k;
     return std::make_pair(perm, where);
   };
-  uint32_t quad_blockers = 0, single_blockers = 0;
-  const auto [quad_perm, quad_where] = order(quad_hull, quad_blockers);
-  const auto [single_perm, single_where] = order(single_hull, single_blockers);
+  uint32_t quad_blockers = 0, single_blockers = 0, box_faces = 0, no_faces = 0;
+  const auto [quad_perm, quad_where] = order(quad_class, quad_blockers, box_faces);
+  const auto [single_perm, single_where] = order(single_class, single_blockers, no_faces);
+  out.box_faces = box_faces;
+  for (int a = 0; a < 3; ++a) {
+    out.box_lo[a] = float(blo[a]);
+    out.box_hi[a] = float(bhi[a]);
+  }
+  for (int f = 0; f < 6; ++f)
+    out.box_entry[f] = face_quad[f] < 0 ? kInvalid : quad_where[uint32_t(face_quad[f])];
   out.quad_count = uint32_t(quads.size());
   out.quad_blockers = quad_blockers;
   out.triangle_blockers_end = out.quad_count + single_blockers;

@@ -67,12 +67,20 @@ struct FlatList {
   // Entries [0, quad_blockers) and [quad_count, triangle_blockers_end) can block a ray between
   // two points of the scene; the rest of each group lie on the scene's hull.
   uint32_t quad_blockers = 0, triangle_blockers_end = 0;
+  // Faces of the scene's bounding box that one quad covers exactly (the walls, floor and ceiling
+  // of a room): the last box_faces quads, after the other hull quads. Queries find the face a ray
+  // meets with one slab test of the box (scene_view.h, flat_box_hit) instead of testing each.
+  // box_entry[2 * axis + side] (side 0: the low face, 1: the high one) is the face's entry, or
+  // kInvalid where the face is open (no entry covers it whole; what lies there is tested as usual).
+  uint32_t box_faces = 0;
+  float box_lo[3] = {0, 0, 0}, box_hi[3] = {0, 0, 0};
+  uint32_t box_entry[6] = {kInvalid, kInvalid, kInvalid, kInvalid, kInvalid, kInvalid};
   uint32_t degenerate = 0;             // triangles of zero area (no ray hits them)
   bool enabled = false;                // the scene is small enough (see kFlatMaxCost)
 };
 
-// "18 entries (18 quads, 0 triangles; 5 on the hull) + 0 spheres", for `pathtracer info` and
-// the GPU's specialisation string.
+// "18 entries (18 quads, 0 triangles; 7 on the hull, 5 of them box faces) + 0 spheres", for
+// `pathtracer info` and the GPU's specialisation string.
 std::string describe_flat_list(const FlatList& list, uint32_t sphere_count);
 
 // Builds the list for a scene of these triangles and spheres; `enabled` is false (and the arrays

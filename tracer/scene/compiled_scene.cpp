@@ -215,6 +215,10 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     view_.flat_quads = flat_.quad_count;
     view_.flat_quad_blockers = flat_.quad_blockers;
     view_.flat_triangle_blockers_end = flat_.triangle_blockers_end;
+    view_.flat_box_faces = flat_.box_faces;
+    view_.flat_box_lo = vec3(flat_.box_lo[0], flat_.box_lo[1], flat_.box_lo[2]);
+    view_.flat_box_hi = vec3(flat_.box_hi[0], flat_.box_hi[1], flat_.box_hi[2]);
+    for (int f = 0; f < 6; ++f) view_.flat_box_entry[f] = flat_.box_entry[f];
   }
 }
 

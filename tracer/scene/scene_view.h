@@ -68,6 +68,11 @@ struct SceneView {
   // Entries [0, flat_quad_blockers) and [flat_quads, flat_triangle_blockers_end) can block a ray
   // between two points of the scene; the others lie on its hull (FlatList).
   uint32_t flat_quad_blockers = 0, flat_triangle_blockers_end = 0;
+  // The last flat_box_faces quads cover faces of the scene's box (FlatList::box_entry): queries
+  // find them with one slab test (flat_box_hit) and loop over the quads before them.
+  uint32_t flat_box_faces = 0;
+  vec3 flat_box_lo = vec3(0.0f), flat_box_hi = vec3(0.0f);
+  uint32_t flat_box_entry[6] = {kInvalid, kInvalid, kInvalid, kInvalid, kInvalid, kInvalid};
   uint32_t use_flat = 0;
 };
 
@@ -331,6 +336,45 @@ TRACER_HD TRACER_INLINE Hit flat_entry_hit(const SceneView& s, const Ray& ray, u
   return hit;
 }
 
+// The face of the scene's box (SceneView::flat_box_entry) that a ray meets first, if that is in
+// (0, tbest) and the face is not entry fa or fb: then tbest and best become its distance and
+// entry. The slab test (Kay & Kajiya 1986) gives where the ray enters the box (tn, through
+// entry en) and leaves it (tf, ef). A ray from inside meets the face it leaves by; one from
+// outside the face it enters by, or, where that face is open, the one it leaves by. Nothing lies
+// outside the box, so no other entry can come first, and entries inside are tested as usual. A
+// ray parallel to a slab gets infinite distances there (or NaN exactly in a face's plane, which
+// leaves that slab out).
+TRACER_HD TRACER_INLINE void flat_box_hit(const SceneView& s, vec3 o, vec3 d, uint32_t fa,
+                                          uint32_t fb, float& tbest, uint32_t& best) {
+  float tn = -kInfinity, tf = kInfinity;
+  uint32_t en = kInvalid, ef = kInvalid;
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (int a = 0; a < 3; ++a) {
+    const float inv = fast_rcp(d[a]);
+    const float t_lo = (s.flat_box_lo[a] - o[a]) * inv, t_hi = (s.flat_box_hi[a] - o[a]) * inv;
+    const bool up = inv >= 0.0f;
+    const float near = up ? t_lo : t_hi, far = up ? t_hi : t_lo;
+    const uint32_t e_lo = s.flat_box_entry[2 * a], e_hi = s.flat_box_entry[2 * a + 1];
+    if (near > tn) {
+      tn = near;
+      en = up ? e_lo : e_hi;
+    }
+    if (far < tf) {
+      tf = far;
+      ef = up ? e_hi : e_lo;
+    }
+  }
+  const bool enter = (tn > 0.0f) & (en != kInvalid) & (en != fa) & (en != fb);
+  const float t = enter ? tn : tf;
+  const uint32_t e = enter ? en : ef;
+  if ((tn <= tf) & (e != kInvalid) & (e != fa) & (e != fb) & (t > 0.0f) & (t < tbest)) {
+    tbest = t;
+    best = e;
+  }
+}
+
 // The query over the flat list and the spheres (SceneView::use_flat): the same contract as
 // traverse() below. The entry hit is mapped back to its triangle and barycentrics once, at the
 // end, so that a hit reads the same to shading as one found through the BVH. kSkipHull leaves
@@ -342,9 +386,12 @@ TRACER_HD inline Hit flat_traverse(const SceneView& s, const Ray& ray, uint32_t 
   const uint32_t fb = skip2 < s.tri_count ? s.tri_to_flat[skip2] : kInvalid;
   float tbest = ray.tmax;
   uint32_t best = kInvalid;
-  const uint32_t quad_end = kSkipHull ? s.flat_quad_blockers : s.flat_quads;
+  const uint32_t quad_end = kSkipHull ? s.flat_quad_blockers : s.flat_quads - s.flat_box_faces;
   const uint32_t tri_end = kSkipHull ? s.flat_triangle_blockers_end : s.flat_count;
   flat_range<true, kAnyHit>(s.flat_loop, 0, quad_end, ray.o, ray.d, fa, fb, tbest, best);
+  // The box faces after the other quads, as in flat_closest_and_any (ties go to the first).
+  if (!kSkipHull && s.flat_box_faces && (!kAnyHit || !warp_all(best != kInvalid)))
+    flat_box_hit(s, ray.o, ray.d, fa, fb, tbest, best);
   if (!kAnyHit || !warp_all(best != kInvalid))
     flat_range<false, kAnyHit>(s.flat_loop, s.flat_quads, tri_end, ray.o, ray.d, fa, fb, tbest,
                                best);
@@ -420,8 +467,9 @@ TRACER_HD TRACER_INLINE Hit flat_closest_and_any(const SceneView& s, const Ray& 
   blocked = false;
   flat_range_pair<true>(s.flat_loop, 0, s.flat_quad_blockers, ext, fa, tbest, best, sh, sa, sb,
                         blocked);
-  flat_range<true, false>(s.flat_loop, s.flat_quad_blockers, s.flat_quads, ext.o, ext.d, fa, kInvalid,
-                          tbest, best);
+  flat_range<true, false>(s.flat_loop, s.flat_quad_blockers, s.flat_quads - s.flat_box_faces,
+                          ext.o, ext.d, fa, kInvalid, tbest, best);
+  if (s.flat_box_faces) flat_box_hit(s, ext.o, ext.d, fa, kInvalid, tbest, best);
   flat_range_pair<false>(s.flat_loop, s.flat_quads, s.flat_triangle_blockers_end, ext, fa, tbest, best,
                          sh, sa, sb, blocked);
   flat_range<false, false>(s.flat_loop, s.flat_triangle_blockers_end, s.flat_count, ext.o, ext.d, fa,
