@@ -248,6 +248,7 @@ struct CudaRenderer::Impl {
         if (left == 0) break;
       }
     }
+    launch_add_alive(w.alive_counts, iterations + 2, w.counters + 6, stream);
   }
 };
 
@@ -369,7 +370,6 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   m.cache_allowed(&st.note);
   m.counters.zero_async(m.stream);
   m.clamp_sum.zero_async(m.stream);
-  uint64_t extension_wavefront = 0;
   uint32_t wavefront_samples = 0;
   for (uint32_t k = 0; k < spp; ++k) {
     const uint32_t sample = m.samples + k;
@@ -402,17 +402,9 @@ FrameStats CudaRenderer::render(uint32_t spp) {
         st.alive_per_bounce = alive;
       }
     }
-    if (mode == KernelMode::kWavefront) {
-      ++wavefront_samples;
-      // Extension rays: every path alive after bounce b traces one more segment.
-      std::vector<uint32_t> alive;
-      if (!timed || k != 0) {
-        TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));  // the copy runs on another stream
-        m.alive_counts.download(alive);
-      }
-      else alive = st.alive_per_bounce;
-      for (size_t b = 1; b < alive.size(); ++b) extension_wavefront += alive[b];
-    }
+    // The wavefront's extension rays (every path alive after a bounce traces one more segment)
+    // are summed on the device (counters[6]), so samples run back to back without a wait.
+    if (mode == KernelMode::kWavefront) ++wavefront_samples;
     if (m.chosen == KernelMode::kAuto && ++m.auto_step == 4) {
       m.chosen = m.auto_ms[0] <= m.auto_ms[1] ? KernelMode::kWavefront : KernelMode::kMegakernel;
     }
@@ -426,7 +418,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   st.rays.shadow = c[0];
   // counters[2] holds the megakernel's segments, camera rays included.
   uint64_t mega_samples = 0;
-  st.rays.extension = extension_wavefront;
+  st.rays.extension = c[6];
   if (c[2] > 0) {
     mega_samples = spp - wavefront_samples;
     st.rays.extension += c[2] - uint64_t(m.n()) * mega_samples;

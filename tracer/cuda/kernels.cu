@@ -436,6 +436,17 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
   }
 }
 
+// The sample's extension rays, the paths that entered a bounce after the first (alive_counts[1..
+// count)), added to *total by one warp: summed on the device, so that samples can run back to
+// back without the host reading the counts after each.
+__global__ void add_alive_kernel(const uint32_t* alive_counts, uint32_t count,
+                                 unsigned long long* total) {
+  unsigned long long sum = 0;
+  for (uint32_t i = 1 + threadIdx.x; i < count; i += 32) sum += alive_counts[i];
+  for (int d = 16; d > 0; d /= 2) sum += __shfl_down_sync(0xffffffffu, sum, d);
+  if (threadIdx.x == 0) atomicAdd(total, sum);
+}
+
 // Paths still alive when the wavefront's iteration limit is reached (only random walks can get
 // there): their samples end now, are added to the film, and are counted as capped walks.
 __global__ void flush_kernel(WavefrontState w, bool first, FilmView film) {
@@ -689,6 +700,12 @@ void launch_compact(const WavefrontState& w, uint32_t* out_queue, uint32_t* out_
 void launch_flush(const WavefrontState& w, bool first, FilmView film, cudaStream_t stream) {
   flush_kernel<<<blocks(w.n), kBlock, 0, stream>>>(w, first, film);
   TRACER_CUDA_CHECK_LAUNCH("flush_kernel");
+}
+
+void launch_add_alive(const uint32_t* alive_counts, uint32_t count, unsigned long long* total,
+                      cudaStream_t stream) {
+  add_alive_kernel<<<1, 32, 0, stream>>>(alive_counts, count, total);
+  TRACER_CUDA_CHECK_LAUNCH("add_alive_kernel");
 }
 
 void launch_copy_hits(const float4* from, float4* to, uint32_t n, cudaStream_t stream) {

@@ -29,7 +29,8 @@ struct WavefrontState {
   uint32_t* sort_bins = nullptr;       // 8 counters
   uint32_t* fetch = nullptr;           // the dynamic-fetch intersect kernel's ray counter
   // [0] shadow rays, [1] non-finite samples, [2] megakernel segments, [3] random walks capped,
-  // [4] paths that left a medium through an open mesh
+  // [4] paths that left a medium through an open mesh, [5] samples the clamp scaled (FilmView),
+  // [6] the wavefront's extension rays (launch_add_alive after each sample)
   unsigned long long* counters = nullptr;
   uint32_t* alive_counts = nullptr;    // paths entering each bounce, [max_depth + 1]
 };
@@ -83,6 +84,9 @@ void launch_compact(const WavefrontState& w, uint32_t* out_queue, uint32_t* out_
                     void* temp, size_t temp_bytes, cudaStream_t stream);
 // Ends the samples of paths still alive after the last wavefront iteration (counted as capped).
 void launch_flush(const WavefrontState& w, bool first, FilmView film, cudaStream_t stream);
+// Adds alive_counts[1 .. count) (the sample's extension rays) to *total.
+void launch_add_alive(const uint32_t* alive_counts, uint32_t count, unsigned long long* total,
+                      cudaStream_t stream);
 // Copies the first-bounce hits out of / into the cache.
 void launch_copy_hits(const float4* from, float4* to, uint32_t n, cudaStream_t stream);
 // Mean radiance as float RGB from the two accumulators: a * wa + b * wb per pixel.
