@@ -126,7 +126,8 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
     return out;
   std::vector<FlatPrim> quads, singles;
   std::vector<FlatPrimInfo> quad_info, single_info;
-  std::vector<bool> quad_hull, single_hull;
+  // Each entry's class: 0 a blocker, 1 on the hull, 2 (quads, below) a face of the scene's box.
+  std::vector<int> quad_class, single_class;
   std::vector<std::array<DVec, 4>> quad_corners;  // p, q, r, q + r - p of each quad
   // The scene's size, for the hull test's tolerance.
   DVec lo = {1e300, 1e300, 1e300}, hi = {-1e300, -1e300, -1e300};
@@ -175,7 +176,7 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
       barycentric_map(cb, fi.map1);
       used[j] = true;
       entry_of[i] = entry_of[j] = uint32_t(quads.size());
-      quad_hull.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
+      quad_class.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
       {
         const DVec p = dv(corner(tris[i], ip)), q = dv(corner(tris[i], iq)),
                    r = dv(corner(tris[i], ir));
@@ -196,24 +197,22 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
       std::copy(identity, identity + 6, fi.map1);
       entry_of[i] = uint32_t(singles.size());
       is_single[i] = true;
-      single_hull.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
+      single_class.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
       singles.push_back(probe);
       single_info.push_back(fi);
     }
   }
   const size_t entries = quads.size() + singles.size();
   if (entries + 2 * size_t(sphere_count) > kFlatMaxCost) return out;
-  // Classes: 0 blocker, 1 hull, 2 a face of the scene's box that the quad covers exactly (its
-  // four corners are the face's, within the hull tolerance); the first quad per face.
+  // A hull quad that covers a face of the scene's box exactly (its four corners are the face's,
+  // within the hull tolerance) becomes class 2; the first quad per face.
   const double tol = kFlatHullTolerance * size;
   const double blo[3] = {lo.x, lo.y, lo.z}, bhi[3] = {hi.x, hi.y, hi.z};
   const bool solid = size > 0.0 && bhi[0] - blo[0] > tol && bhi[1] - blo[1] > tol &&
                      bhi[2] - blo[2] > tol;
-  std::vector<int> quad_class(quads.size()), single_class(singles.size());
   int face_quad[6] = {-1, -1, -1, -1, -1, -1};
   for (size_t k = 0; k < quads.size(); ++k) {
-    quad_class[k] = quad_hull[k] ? 1 : 0;
-    if (!quad_hull[k] || !solid) continue;
+    if (quad_class[k] != 1 || !solid) continue;
     for (int f = 0; f < 6 && quad_class[k] == 1; ++f) {
       const int a = f / 2, b = (a + 1) % 3, c = (a + 2) % 3;
       const double plane = f % 2 ? bhi[a] : blo[a];
@@ -233,7 +232,6 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
       }
     }
   }
-  for (size_t k = 0; k < singles.size(); ++k) single_class[k] = single_hull[k] ? 1 : 0;
   // Each group's blockers first, then its hull entries, box faces last (stable otherwise).
   auto order = [](const std::vector<int>& cls, uint32_t& blockers, uint32_t& faces) {
     std::vector<uint32_t> perm;  // new position -> old
