@@ -51,8 +51,18 @@ struct Result {
 
 // Bytes each wavefront stage reads and writes per path it processes (see kernels.cu's layout);
 // scene data (BVH, triangles, materials) is left out: it is small and mostly cache-resident.
+// A queued stage reads its 4-byte slot and no alive flag (a queue holds live paths only); the
+// pass over every path reads the 1-byte flag of each, live or not (counted apart, per slot).
 struct StageBytes {
-  double generate = 65, intersect = 53, sort = 45, shade = 198, shadow = 85;
+  explicit StageBytes(bool queued) : slot(queued ? 4 : 1) {}
+  double slot;
+  double generate = 65;                      // 4 float4 of state + the alive flag, written
+  double intersect() const { return 48 + slot; }  // ray origin + direction in, hit out
+  double sort = 45;
+  // 5 float4 in, 4 float4 of state + 3 of shadow ray out, the alive flag out; with compaction
+  // in the shade kernel also 4 bytes per path that goes on (the next queue's slot, apart).
+  double shade() const { return 193 + slot; }
+  double shadow() const { return 81 + (slot == 4 ? 4 : 0); }  // also reads the alive flag
 };
 
 Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
@@ -95,6 +105,14 @@ Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
   return res;
 }
 
+nlohmann::json bounce_json(const tracer::StageTimes& t) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const tracer::BounceTimes& b : t.bounces)
+    a.push_back({{"intersect", b.intersect}, {"sort", b.sort}, {"shade", b.shade},
+                 {"shadow", b.shadow}, {"compact", b.compact}});
+  return a;
+}
+
 nlohmann::json to_json(const Result& r) {
   return {{"config", r.name},
           {"kernel", r.kernel},
@@ -111,6 +129,7 @@ nlohmann::json to_json(const Result& r) {
                         {"shadow", r.stages.shadow}, {"compact", r.stages.compact},
                         {"megakernel", r.stages.megakernel}}},
           {"alive_per_bounce", r.alive},
+          {"bounce_stage_ms", bounce_json(r.stages)},
           {"note", r.note}};
 }
 
@@ -181,6 +200,8 @@ int run_bench(const BenchOptions& o) {
     add("wavefront, general", K::kWavefront, false, false, false);
     add("wavefront", K::kWavefront, false, false, true);
     add("wavefront+compaction", K::kWavefront, true, false, true);
+    add("wavefront+compaction (CUB)", K::kWavefront, true, false, true);
+    configs.back().gpu.compaction_cub = true;
     add("wavefront+compaction, no fetch", K::kWavefront, true, false, true);
     configs.back().gpu.dynamic_fetch = false;
     add("wavefront+compaction+sorting", K::kWavefront, true, true, true);
@@ -219,48 +240,103 @@ int run_bench(const BenchOptions& o) {
     std::printf("specialization for this scene: %s\n", results[1].specialization.c_str());
     if (!results.back().note.empty()) std::printf("auto: %s\n", results.back().note.c_str());
 
-    // Stage breakdown and bandwidth of the wavefront with compaction.
-    const StageBytes sb;
+    // Stage breakdown and bandwidth of each wavefront configuration; per bounce for the
+    // compacted ones.
+    const double copy_gbs_measured = out["copy_bandwidth_GBps"].get<double>();
     for (const auto& r : results) {
       if (r.kernel != "wavefront" || r.alive.empty()) continue;
+      const bool queued = r.name.find("compaction") != std::string::npos;
+      const bool in_shade = queued && r.stages.compact == 0;
+      const StageBytes sb(queued);
       double processed = 0;  // path-bounces shaded
       for (uint32_t a : r.alive) processed += a;
       const double n = double(rs.width) * rs.height;
       const double bounces = double(r.alive.size());
+      const double next_slots = processed - n;  // queue slots the shade kernel writes
       auto gbs = [](double bytes, double ms) { return ms > 0 ? bytes / (ms * 1e-3) / 1e9 : 0.0; };
       const double total = r.stages.generate + r.stages.intersect + r.stages.sort +
                            r.stages.shade + r.stages.shadow + r.stages.compact;
       std::printf("\n[%s] stages (ms per spp, share, GB/s against %.0f copy):\n", r.name.c_str(),
-                  out["copy_bandwidth_GBps"].get<double>());
+                  copy_gbs_measured);
       auto row = [&](const char* name, double ms, double bytes) {
         const double g = gbs(bytes, ms);
         std::printf("  %-10s %8.3f ms %5.1f%%  %7.0f GB/s (%4.0f%%)\n", name, ms,
-                    total > 0 ? 100.0 * ms / total : 0.0, g,
-                    100.0 * g / out["copy_bandwidth_GBps"].get<double>());
+                    total > 0 ? 100.0 * ms / total : 0.0, g, 100.0 * g / copy_gbs_measured);
       };
-      const double scan = r.name.find("compaction") != std::string::npos ? processed : n * bounces;
+      // Slots of dead paths that a pass over every path reads the flag of.
+      const double dead = queued ? 0.0 : n * bounces - processed;
+      const double shade_bytes =
+          sb.shade() * processed + dead + (in_shade ? 4.0 * next_slots : 0.0);
       row("generate", r.stages.generate, sb.generate * n);
-      row("intersect", r.stages.intersect, sb.intersect * processed + (scan - processed));
+      row("intersect", r.stages.intersect, sb.intersect() * processed + dead);
       if (r.stages.sort > 0) row("sort", r.stages.sort, sb.sort * processed);
-      row("shade", r.stages.shade, sb.shade * processed + (scan - processed));
-      row("shadow", r.stages.shadow, sb.shadow * processed + (scan - processed));
+      row("shade", r.stages.shade, shade_bytes);
+      row("shadow", r.stages.shadow, sb.shadow() * processed + dead);
       const double bounce_ms = r.stages.intersect - r.stages.intersect_first;
       std::printf("  intersect: camera rays %.0f Mrays/s, bounce rays %.0f Mrays/s\n",
                   n / (r.stages.intersect_first * 1e-3) / 1e6,
                   (processed - n) / (bounce_ms * 1e-3) / 1e6);
       if (r.stages.compact > 0) {
-        row("compact", r.stages.compact, (n + 4.0 * processed));
-        std::printf("  compaction: %.1f us per bounce, %.1f%% of the frame\n",
+        row("compact", r.stages.compact, (n + 4.0 * next_slots));
+        std::printf("  compaction (CUB select): %.1f us per bounce, %.1f%% of the frame\n",
                     1000.0 * r.stages.compact / std::max(1.0, bounces - 1),
                     100.0 * r.stages.compact / total);
+      } else if (in_shade) {
+        std::printf("  compaction: in the shade kernel (each block appends its paths that go on "
+                    "to the next queue)\n");
       }
       std::printf("  bytes per segment (state traffic): %.0f\n",
-                  (sb.generate * n + (sb.intersect + sb.shade + sb.shadow) * processed +
-                   (r.stages.sort > 0 ? sb.sort * processed : 0.0)) /
+                  (sb.generate * n + (sb.intersect() + sb.shadow()) * processed + shade_bytes +
+                   2 * dead + (r.stages.sort > 0 ? sb.sort * processed : 0.0)) /
                       processed);
       std::printf("  paths alive per bounce:");
       for (uint32_t a : r.alive) std::printf(" %u", a);
       std::printf("\n");
+      if (!queued || r.stages.bounces.size() != r.alive.size()) continue;
+      // Per bounce: each stage's time and its bytes against the copy bandwidth; a short queue's
+      // stage is bound by its launch and the GPU's fill and drain, not by its bytes.
+      std::printf("  per bounce (us, %% of copy bandwidth):\n  %6s %9s %16s %16s %16s%s\n",
+                  "bounce", "paths", "intersect", "shade", "shadow",
+                  r.stages.compact > 0 ? "          compact" : "");
+      auto cell = [&](double ms, double bytes) {
+        std::printf(" %9.1f (%3.0f%%)", 1000.0 * ms, 100.0 * gbs(bytes, ms) / copy_gbs_measured);
+      };
+      for (size_t b = 0; b < r.alive.size(); ++b) {
+        const tracer::BounceTimes& t = r.stages.bounces[b];
+        const double paths = r.alive[b];
+        const double next = b + 1 < r.alive.size() ? r.alive[b + 1] : 0.0;
+        std::printf("  %6zu %9.0f", b, paths);
+        cell(t.intersect, sb.intersect() * paths);
+        cell(t.shade, sb.shade() * paths + (in_shade ? 4.0 * next : 0.0));
+        cell(t.shadow, sb.shadow() * paths);
+        if (r.stages.compact > 0) cell(t.compact, n + 4.0 * next);
+        std::printf("\n");
+      }
+    }
+    // The two compactions side by side: CUB's select is a stage of its own; the shade kernel's
+    // appends cost what its shade stage takes beyond the same stage over CUB's queue (the same
+    // paths, the same order of work otherwise).
+    const Result* in_shade = nullptr;
+    const Result* by_cub = nullptr;
+    for (const auto& r : results) {
+      if (r.name == "wavefront+compaction") in_shade = &r;
+      if (r.name == "wavefront+compaction (CUB)") by_cub = &r;
+    }
+    if (in_shade && by_cub && in_shade->alive.size() > 1 && by_cub->stages.compact > 0) {
+      auto frame = [](const tracer::StageTimes& t) {
+        return t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact;
+      };
+      const double compacted = double(by_cub->alive.size() - 1);  // bounces followed by one
+      const double extra = in_shade->stages.shade - by_cub->stages.shade;
+      std::printf("\ncompaction per bounce: CUB select %.1f us (%.1f%% of its frame); in the shade "
+                  "kernel %+.1f us of shade time against the CUB run (%.1f%% of its frame); "
+                  "frames %.3f / %.3f ms\n",
+                  1000.0 * by_cub->stages.compact / compacted,
+                  100.0 * by_cub->stages.compact / frame(by_cub->stages), 1000.0 * extra / compacted,
+                  100.0 * extra / frame(in_shade->stages), frame(in_shade->stages),
+                  frame(by_cub->stages));
+      out["compaction_us_per_bounce"] = {{"cub", 1000.0 * by_cub->stages.compact / compacted},
+                                         {"in_shade", 1000.0 * extra / compacted}};
     }
     std::printf("\npath state: %zu bytes per pixel; BVH: %.1f bytes per triangle\n",
                 cuda->path_state_bytes_per_pixel(), out["bvh_bytes_per_triangle"].get<double>());

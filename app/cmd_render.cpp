@@ -43,7 +43,8 @@ tracer::GpuOptions gpu_options(const RenderOptions& o) {
   g.kernel = o.kernel == "wavefront"    ? tracer::KernelMode::kWavefront
              : o.kernel == "megakernel" ? tracer::KernelMode::kMegakernel
                                         : tracer::KernelMode::kAuto;
-  g.compaction = o.compaction == "on";
+  g.compaction = o.compaction != "off";
+  g.compaction_cub = o.compaction == "cub";
   g.sort_materials = o.sort == "on";
   g.first_bounce_cache = o.cache == "on";
   g.specialize = o.specialize == "on";
@@ -292,8 +293,11 @@ Runner add_render_command(CLI::App& cmd) {
   const char* gpu = "GPU (CUDA backend)";
   cmd.add_option("--kernel", o->kernel, "auto (time both, keep the faster), wavefront or megakernel")
       ->check(CLI::IsMember({"auto", "wavefront", "megakernel"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--compaction", o->compaction, "Compact live path indices after each bounce")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--compaction", o->compaction,
+                 "Compact live path indices after each bounce: on (the shade kernel appends the "
+                 "paths that go on to the next bounce's queue), cub (a CUB select over the alive "
+                 "flags after each bounce) or off")
+      ->check(CLI::IsMember({"on", "cub", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--sort", o->sort, "Sort paths by material before shading")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--cache", o->cache, "First-bounce cache (needs --jitter off and no depth of field)")

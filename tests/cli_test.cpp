@@ -81,6 +81,8 @@ TEST(Cli, BadFlagsAndInputsFail) {
   EXPECT_NE(test::run_command(exe() + " render --backend metal", &log), 0);
   EXPECT_NE(test::run_command(exe() + " render --spp 4 --time 2", &log), 0);
   EXPECT_NE(test::run_command(exe() + " render --bogus", &log), 0);
+  EXPECT_NE(test::run_command(exe() + " render --compaction thrust", &log), 0);
+  EXPECT_NE(log.find("cub"), std::string::npos) << log;  // the choices are named
   EXPECT_NE(test::run_command(exe() + " render /nonexistent/scene.json", &log), 0);
   EXPECT_NE(test::run_command(exe() + " render -q --spp 1 --width 8 --height 8 --out " + tmpdir() +
                                   "/x.bmp", &log), 0);

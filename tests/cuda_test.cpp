@@ -144,7 +144,12 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
   std::vector<Variant> variants;
   GpuOptions o = plain;
   o.compaction = true;
-  variants.push_back({"compaction", o});
+  variants.push_back({"compaction (in the shade kernel)", o});
+  GpuOptions cub = o;
+  cub.compaction_cub = true;
+  variants.push_back({"compaction (CUB select)", cub});
+  cub.sort_materials = true;
+  variants.push_back({"compaction (CUB select)+sorting", cub});
   o.sort_materials = true;
   variants.push_back({"compaction+sorting", o});
   o.specialize = true;
@@ -169,6 +174,8 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
   GpuOptions bvh = plain;
   bvh.flat_list = false;
   variants.push_back({"BVH instead of the flat list", bvh});
+  bvh.compaction = true;  // the dynamic-fetch intersect kernel over the shade kernel's queue
+  variants.push_back({"BVH, compaction", bvh});
   mega.flat_list = false;
   variants.push_back({"megakernel specialized, BVH", mega});
   for (const auto& v : variants) {

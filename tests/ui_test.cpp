@@ -67,6 +67,17 @@ TEST(Workbench, ApplyRejectsBadEditsWithReasons) {
   EXPECT_FALSE(wb->gpu_options().flat_list);
   EXPECT_FALSE(wb->apply("gpu.flat=sometimes", &err));
   EXPECT_NE(err.find("on or off"), std::string::npos) << err;
+  // Compaction: on (in the shade kernel), cub (a CUB select) or off.
+  EXPECT_TRUE(wb->gpu_options().compaction);
+  EXPECT_FALSE(wb->gpu_options().compaction_cub);
+  EXPECT_TRUE(wb->apply("gpu.compaction=cub", &err)) << err;
+  EXPECT_TRUE(wb->gpu_options().compaction && wb->gpu_options().compaction_cub);
+  EXPECT_TRUE(wb->apply("gpu.compaction=off", &err)) << err;
+  EXPECT_FALSE(wb->gpu_options().compaction || wb->gpu_options().compaction_cub);
+  EXPECT_TRUE(wb->apply("gpu.compaction=on", &err)) << err;
+  EXPECT_TRUE(wb->gpu_options().compaction && !wb->gpu_options().compaction_cub);
+  EXPECT_FALSE(wb->apply("gpu.compaction=thrust", &err));
+  EXPECT_NE(err.find("on, cub or off"), std::string::npos) << err;
 }
 
 TEST(Workbench, EditsResetAndDisplayChangesDoNot) {

@@ -254,6 +254,14 @@ void render_panel(Workbench& wb, PanelState& ps) {
       gc = true;
     }
     gc |= ImGui::Checkbox("stream compaction", &g.compaction);
+    if (g.compaction) {
+      ImGui::SameLine();
+      gc |= ImGui::Checkbox("by CUB select", &g.compaction_cub);
+      if (ImGui::IsItemHovered())
+        ImGui::SetTooltip("Off: the shade kernel appends the paths that go on to the next "
+                          "bounce's queue. On: a CUB select over the alive flags after each "
+                          "bounce");
+    }
     gc |= ImGui::Checkbox("material sorting", &g.sort_materials);
     gc |= ImGui::Checkbox("first-bounce cache", &g.first_bounce_cache);
     gc |= ImGui::Checkbox("dynamic ray fetch", &g.dynamic_fetch);

@@ -441,10 +441,19 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
     else if (value == "megakernel") gpu_.kernel = tracer::KernelMode::kMegakernel;
     else return fail("expected auto, wavefront or megakernel");
     changed(Edit::kGpuOptions);
-  } else if (key == "gpu.compaction" || key == "gpu.sort" || key == "gpu.cache" ||
+  } else if (key == "gpu.compaction") {
+    if (value == "cub") {
+      gpu_.compaction = gpu_.compaction_cub = true;
+    } else {
+      if (!parse_bool(value, &b)) return fail("expected on, cub or off");
+      gpu_.compaction = b;
+      gpu_.compaction_cub = false;
+    }
+    changed(Edit::kGpuOptions);
+  } else if (key == "gpu.sort" || key == "gpu.cache" ||
              key == "gpu.specialize" || key == "gpu.fetch" || key == "gpu.flat") {
     if (!parse_bool(value, &b)) return fail("expected on or off");
-    (key == "gpu.compaction" ? gpu_.compaction : key == "gpu.sort" ? gpu_.sort_materials
+    (key == "gpu.sort" ? gpu_.sort_materials
      : key == "gpu.cache" ? gpu_.first_bounce_cache : key == "gpu.fetch" ? gpu_.dynamic_fetch
      : key == "gpu.flat" ? gpu_.flat_list : gpu_.specialize) = b;
     changed(Edit::kGpuOptions);

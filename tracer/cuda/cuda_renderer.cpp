@@ -56,7 +56,9 @@ struct CudaRenderer::Impl {
   DeviceBuffer<float4> ray_o, ray_d, throughput, radiance, hit, shadow_o, shadow_d, shadow_c;
   DeviceBuffer<float4> cached_hits;
   DeviceBuffer<uint8_t> alive;
-  DeviceBuffer<uint32_t> queue, sorted, sort_keys, sort_bins, alive_counts, count, fetch;
+  // queue: CUB's output, or (compaction in the shade kernel) the queues of even bounces, and
+  // queue_odd those of odd ones: a bounce reads one while its shade kernel fills the other.
+  DeviceBuffer<uint32_t> queue, queue_odd, sorted, sort_keys, sort_bins, alive_counts, count, fetch;
   DeviceBuffer<uint8_t> cub_temp;
   bool cache_valid = false;
 
@@ -133,9 +135,10 @@ struct CudaRenderer::Impl {
       b->resize(count_pixels);
     alive.resize(count_pixels);
     queue.resize(count_pixels);
+    queue_odd.resize(count_pixels);
     sorted.resize(count_pixels);
     sort_keys.resize(count_pixels);
-    sort_bins.resize(16);
+    sort_bins.resize(17);
     fetch.resize(1);
     alive_counts.resize(cfg.max_depth + 2);
     count.resize(1);
@@ -169,8 +172,18 @@ struct CudaRenderer::Impl {
     for (size_t i = 1; i < marks.size(); ++i) {
       float ms = 0.0f;
       TRACER_CUDA_CHECK(cudaEventElapsedTime(&ms, marks[i - 1].first, marks[i].first));
-      *slot[marks[i].second] += ms;
-      if (marks[i].second == kIntersectFirst) t.intersect += ms;
+      const int stage = marks[i].second;
+      *slot[stage] += ms;
+      if (stage == kIntersectFirst) t.intersect += ms;
+      // Each bounce starts with its intersect mark (the cache copy's for a cached first one).
+      if (stage == kIntersect || stage == kIntersectFirst) t.bounces.emplace_back();
+      if (t.bounces.empty()) continue;
+      BounceTimes& b = t.bounces.back();
+      if (stage == kIntersect || stage == kIntersectFirst) b.intersect += ms;
+      if (stage == kSort) b.sort += ms;
+      if (stage == kShade) b.shade += ms;
+      if (stage == kShadow) b.shadow += ms;
+      if (stage == kCompact) b.compact += ms;
     }
     marks.clear();
   }
@@ -202,10 +215,15 @@ struct CudaRenderer::Impl {
     if (alive_counts.size() < iterations + 2) alive_counts.resize(iterations + 2);
     w.alive_counts = alive_counts.get();
     TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
+    // Compaction in the shade kernel: bounce b reads the queue its predecessor's shade kernel
+    // wrote (its length: alive_counts[b]) and writes the next one into the other buffer.
+    const bool queue_in_shade = opts.compaction && !opts.compaction_cub;
+    auto bounce_queue = [&](uint32_t b) { return (b & 1) ? queue_odd.get() : queue.get(); };
     for (uint32_t b = 0; b < iterations; ++b) {
       const bool compacted = opts.compaction && b > 0;
-      const uint32_t* q = compacted ? queue.get() : nullptr;
-      const uint32_t* c = compacted ? count.get() : nullptr;
+      const uint32_t* q = compacted ? (queue_in_shade ? bounce_queue(b) : queue.get()) : nullptr;
+      const uint32_t* c =
+          compacted ? (queue_in_shade ? w.alive_counts + b : count.get()) : nullptr;
       if (b == 0 && use_cache && cache_valid) {
         launch_copy_hits(cached_hits.get(), w.hit, n(), stream);
       } else {
@@ -218,16 +236,12 @@ struct CudaRenderer::Impl {
       mark(timed, b == 0 ? kIntersectFirst : kIntersect);
       if (opts.sort_materials) {
         launch_sort_by_material(view, w, q, c, sorted.get(), stream);
-        // The sorted queue holds every queued slot, so its length is the same count.
-        if (!q) {
-          TRACER_CUDA_CHECK(cudaMemcpyAsync(count.get(), &w.n, sizeof(uint32_t),
-                                            cudaMemcpyHostToDevice, stream));
-          c = count.get();
-        }
         q = sorted.get();
+        c = w.sort_bins + 16;  // the live paths among the sorted slots
         mark(timed, kSort);
       }
-      launch_shade(sp, view, cfg, sample, b, w, q, c, stream);
+      launch_shade(sp, view, cfg, sample, b, w, q, c,
+                   queue_in_shade && b + 1 < iterations ? bounce_queue(b + 1) : nullptr, stream);
       mark(timed, kShade);
       launch_shadow(sp, view, flat_params, w, q, c, first, film_view(sample), stream);
       mark(timed, kShadow);
@@ -235,7 +249,7 @@ struct CudaRenderer::Impl {
         if (walks) launch_flush(w, first, film_view(sample), stream);
         break;
       }
-      if (opts.compaction) {
+      if (opts.compaction && opts.compaction_cub) {
         launch_compact(w, queue.get(), count.get(), cub_temp.get(), cub_temp.bytes(), stream);
         mark(timed, kCompact);
       }
@@ -349,8 +363,8 @@ std::string CudaRenderer::chosen_kernel() const {
 }
 
 size_t CudaRenderer::path_state_bytes_per_pixel() const {
-  // 8 float4 arrays, alive flag, queue + sorted queue + sort key, cached hit.
-  return 8 * sizeof(float4) + 1 + 3 * sizeof(uint32_t) + sizeof(float4);
+  // 8 float4 arrays, alive flag, two queues + sorted queue + sort key, cached hit.
+  return 8 * sizeof(float4) + 1 + 4 * sizeof(uint32_t) + sizeof(float4);
 }
 
 size_t CudaRenderer::scene_bytes() const {

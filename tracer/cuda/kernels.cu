@@ -237,13 +237,19 @@ __device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_
   return st;
 }
 
-// The path a queue slot refers to, or kInvalid when the slot is empty or the path is done.
+// The path a queue slot refers to, or kInvalid when the slot is empty or the path is done. A
+// queue (either compaction) holds only paths with alive == 1, so only the pass over every path
+// reads the flag: for a queued path it would be one more dependent load before the state's.
 __device__ __forceinline__ uint32_t queued_path(const WavefrontState& w, const uint32_t* queue,
+                                                uint32_t i, uint32_t total) {
+  if (i >= total) return kInvalid;
+  if (queue) return queue[i];
+  return w.alive[i] == 1 ? i : kInvalid;
+}
+
+__device__ __forceinline__ uint32_t queue_total(const WavefrontState& w, const uint32_t* queue,
                                                 const uint32_t* count) {
-  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= (queue ? *count : w.n)) return kInvalid;
-  const uint32_t id = queue ? queue[i] : i;
-  return w.alive[id] == 1 ? id : kInvalid;
+  return queue ? *count : w.n;
 }
 
 template <uint32_t Spec>
@@ -286,7 +292,8 @@ __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView view,
                                                            const uint32_t* queue,
                                                            const uint32_t* count, bool walks) {
   const SceneView s = with_flat_params(view, flat);
-  const uint32_t id = queued_path(w, queue, count);
+  const uint32_t id = queued_path(w, queue, blockIdx.x * blockDim.x + threadIdx.x,
+                                  queue_total(w, queue, count));
   if (id == kInvalid) return;
   uint32_t skip;
   const Ray ray = extension_ray(s, w, id, walks, &skip);
@@ -333,7 +340,7 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
           retired = true;
         } else {
           id = queue ? queue[k] : k;
-          if (w.alive[id] == 1) {  // a finished path takes another one next round
+          if (queue || w.alive[id] == 1) {  // a finished path takes another one next round
             ray = extension_ray(s, w, id, walks, &skip);
             inv_d = 1.0f / ray.d;
             setup = RayTriSetup(ray, inv_d);
@@ -354,12 +361,19 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
   }
 }
 
+// Shades the queued paths; with next_queue (compaction in the shade kernel) each block appends
+// its paths that go on to the next bounce's queue, in slot order, with one atomic on the next
+// bounce's path count (alive_counts[bounce + 1]). One atomic per warp that waits for its result
+// cost 20 us per bounce where nearly every path goes on (the closed box: 65,000 atomics on one
+// address); the block's 8 warp counts are summed in shared memory first.
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSettings cfg,
                                                        uint32_t sample, uint32_t bounce,
                                                        WavefrontState w, const uint32_t* queue,
-                                                       const uint32_t* count) {
-  const uint32_t id = queued_path(w, queue, count);
+                                                       const uint32_t* count,
+                                                       uint32_t* next_queue) {
+  const uint32_t id = queued_path(w, queue, blockIdx.x * blockDim.x + threadIdx.x,
+                                  queue_total(w, queue, count));
   bool go_on = false, shadow_valid = false;
   if (id != kInvalid) {
     PathState st = load_state(w, id, sample);
@@ -390,10 +404,30 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   // Warp-aggregated statistics: shadow rays traced and paths entering the next bounce.
   const unsigned ballot_shadow = __ballot_sync(0xffffffffu, shadow_valid);
   const unsigned ballot_alive = __ballot_sync(0xffffffffu, go_on);
-  if ((threadIdx.x & 31) == 0) {
-    if (ballot_shadow) atomicAdd(&w.counters[0], (unsigned long long)__popc(ballot_shadow));
-    if (ballot_alive) atomicAdd(&w.alive_counts[bounce + 1], uint32_t(__popc(ballot_alive)));
+  const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  if (lane == 0 && ballot_shadow)
+    atomicAdd(&w.counters[0], (unsigned long long)__popc(ballot_shadow));
+  uint32_t* next_count = &w.alive_counts[bounce + 1];
+  if (!next_queue) {
+    if (lane == 0 && ballot_alive) atomicAdd(next_count, uint32_t(__popc(ballot_alive)));
+    return;
   }
+  __shared__ uint32_t warp_start[kBlock / 32 + 1];  // [kBlock / 32]: the block's start
+  if (lane == 0) warp_start[warp] = __popc(ballot_alive);
+  __syncthreads();
+  if (threadIdx.x == 0) {
+    uint32_t sum = 0;
+    for (int k = 0; k < kBlock / 32; ++k) {
+      const uint32_t c = warp_start[k];
+      warp_start[k] = sum;
+      sum += c;
+    }
+    warp_start[kBlock / 32] = sum ? atomicAdd(next_count, sum) : 0;
+  }
+  __syncthreads();
+  if (go_on)
+    next_queue[warp_start[kBlock / 32] + warp_start[warp] +
+               __popc(ballot_alive & ((1u << lane) - 1u))] = id;
 }
 
 template <uint32_t Spec>
@@ -404,7 +438,7 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
                                                         FilmView film, bool walks) {
   const SceneView s = with_flat_params(view, flat);
   const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i >= (queue ? *count : w.n)) return;
+  if (i >= queue_total(w, queue, count)) return;
   const uint32_t id = queue ? queue[i] : i;
   const uint8_t state = w.alive[id];
   if (state == 0) return;
@@ -490,6 +524,9 @@ __global__ void sort_scatter_kernel(WavefrontState w, const uint32_t* queue, con
       offsets[k] = acc;
       acc += w.sort_bins[k];
     }
+    // The live paths (keys 0-6) come first: the stages after the sort take only them, so that
+    // a queue never holds a dead path (queued_path reads no alive flag).
+    if (blockIdx.x == 0) w.sort_bins[16] = offsets[7];
   }
   __syncthreads();
   const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
@@ -635,8 +672,9 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
     TRACER_CUDA_CHECK_LAUNCH("intersect_fetch_kernel");
     return;
   }
-#define CALL(S) \
-  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, walks)
+#define CALL(S)                                                                        \
+  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>( \
+      s, flat, w, queue, count, walks)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;
@@ -647,9 +685,20 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
 
 void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                   uint32_t sample, uint32_t bounce, const WavefrontState& w,
-                  const uint32_t* queue, const uint32_t* count, cudaStream_t stream) {
-#define CALL(S) \
-  shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count)
+                  const uint32_t* queue, const uint32_t* count, uint32_t* next_queue,
+                  cudaStream_t stream) {
+  // The block's 36 bytes of shared memory (compaction) must not take L1 from the shading's
+  // scene reads: asked for the smallest carveout, once per variant.
+  static bool carveout_set[8] = {};
+#define CALL(S)                                                                           \
+  if (!carveout_set[S]) {                                                                 \
+    TRACER_CUDA_CHECK(cudaFuncSetAttribute(shade_kernel<S>,                               \
+                                           cudaFuncAttributePreferredSharedMemoryCarveout, \
+                                           int(cudaSharedmemCarveoutMaxL1)));             \
+    carveout_set[S] = true;                                                               \
+  }                                                                                       \
+  shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
+                                                      next_queue)
   switch (spec & (kSpecSpheres | kSpecSpecular)) {
     case 0: CALL(0); break;
     case kSpecSpheres: CALL(kSpecSpheres); break;
@@ -664,8 +713,8 @@ void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
                    const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
                    bool first, FilmView film, cudaStream_t stream) {
 #define CALL(S)                                                                       \
-  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, first, film, \
-                                                       (s.features & kFeatureSubsurface) != 0)
+  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(         \
+      s, flat, w, queue, count, first, film, (s.features & kFeatureSubsurface) != 0)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;
@@ -676,7 +725,7 @@ void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
 
 void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,
                              const uint32_t* count, uint32_t* sorted, cudaStream_t stream) {
-  TRACER_CUDA_CHECK(cudaMemsetAsync(w.sort_bins, 0, 16 * sizeof(uint32_t), stream));
+  TRACER_CUDA_CHECK(cudaMemsetAsync(w.sort_bins, 0, 17 * sizeof(uint32_t), stream));
   sort_keys_kernel<<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count);
   TRACER_CUDA_CHECK_LAUNCH("sort_keys_kernel");
   sort_scatter_kernel<<<blocks(w.n), kBlock, 0, stream>>>(w, queue, count, sorted);

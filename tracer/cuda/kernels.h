@@ -26,7 +26,7 @@ struct WavefrontState {
   float4* shadow_c = nullptr;    // contribution, valid (1 or 0)
   uint8_t* alive = nullptr;      // 1 alive, 2 ended this bounce (radiance not yet added), 0 done
   uint32_t* sort_keys = nullptr;
-  uint32_t* sort_bins = nullptr;       // 8 counters
+  uint32_t* sort_bins = nullptr;       // 8 bins, 8 cursors, [16]: live paths in the sorted queue
   uint32_t* fetch = nullptr;           // the dynamic-fetch intersect kernel's ray counter
   // [0] shadow rays, [1] non-finite samples, [2] megakernel segments, [3] random walks capped,
   // [4] paths that left a medium through an open mesh, [5] samples the clamp scaled (FilmView),
@@ -69,13 +69,17 @@ void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings
 void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
                       const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
                       bool dynamic_fetch, cudaStream_t stream);
+// next_queue (compaction in the shade kernel): each path that goes on is appended to it, in
+// slot order within a block, by one atomic per block on alive_counts[bounce + 1]; nullptr: none.
 void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                   uint32_t sample, uint32_t bounce, const WavefrontState& w,
-                  const uint32_t* queue, const uint32_t* count, cudaStream_t stream);
+                  const uint32_t* queue, const uint32_t* count, uint32_t* next_queue,
+                  cudaStream_t stream);
 void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
                    const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
                    bool first, FilmView film, cudaStream_t stream);
-// Counting sort of the queue by the material type at each path's hit (Cycles-style).
+// Counting sort of the queue by the material type at each path's hit (Cycles-style); the live
+// paths come first, and their number goes to w.sort_bins[16] (the sorted queue's length).
 void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,
                              const uint32_t* count, uint32_t* sorted, cudaStream_t stream);
 // CUB select: ids of paths with alive == 1, in id order, and their number.

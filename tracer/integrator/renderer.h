@@ -16,7 +16,11 @@ namespace tracer {
 enum class KernelMode { kAuto, kWavefront, kMegakernel };
 struct GpuOptions {
   KernelMode kernel = KernelMode::kAuto;
-  bool compaction = true;         // compact the indices of live paths after each bounce (CUB)
+  // Compact the indices of live paths after each bounce: by default the shade kernel appends
+  // each path that goes on to the next bounce's queue (one atomic per block on the count it
+  // keeps anyway); compaction_cub instead selects them from the alive flags with CUB.
+  bool compaction = true;
+  bool compaction_cub = false;
   bool sort_materials = false;    // bucket paths by material type before shading
   bool first_bounce_cache = true; // reuse camera-ray hits (only without jitter and DoF)
   bool specialize = true;         // kernels compiled for the scene's features only
@@ -24,10 +28,16 @@ struct GpuOptions {
   bool flat_list = true;          // small scenes: every lane tests every primitive, no BVH
 };
 
+// Milliseconds per stage of one wavefront bounce.
+struct BounceTimes {
+  double intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
+};
+
 // Milliseconds spent per wavefront stage in one call of render() (zero for the megakernel).
 struct StageTimes {
   double generate = 0, intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
   double intersect_first = 0;  // the camera rays' share of `intersect`
+  std::vector<BounceTimes> bounces;  // the same per bounce (wavefront only)
   double megakernel = 0;
 };
 
