@@ -29,6 +29,7 @@ struct BenchOptions {
   std::string json_out;
   bool jitter_off_configs = true;
   std::string nee = "on";
+  float tail = tracer::GpuOptions().tail_fraction;
   ErrorBenchOptions error;
 };
 
@@ -129,6 +130,8 @@ nlohmann::json to_json(const Result& r) {
                         {"shadow", r.stages.shadow}, {"compact", r.stages.compact},
                         {"megakernel", r.stages.megakernel}}},
           {"alive_per_bounce", r.alive},
+          {"tail_from_bounce", r.stages.tail_from},
+          {"tail_ms", r.stages.tail},
           {"bounce_stage_ms", bounce_json(r.stages)},
           {"note", r.note}};
 }
@@ -191,6 +194,7 @@ int run_bench(const BenchOptions& o) {
       c.gpu.sort_materials = sort;
       c.gpu.specialize = specialize;
       c.gpu.first_bounce_cache = !jitter;
+      c.gpu.tail_fraction = o.tail;
       c.jitter = jitter;
       configs.push_back(c);
     };
@@ -202,6 +206,8 @@ int run_bench(const BenchOptions& o) {
     add("wavefront+compaction", K::kWavefront, true, false, true);
     add("wavefront+compaction (CUB)", K::kWavefront, true, false, true);
     configs.back().gpu.compaction_cub = true;
+    add("wavefront+compaction, no tail", K::kWavefront, true, false, true);
+    configs.back().gpu.tail_fraction = 0.0f;
     add("wavefront+compaction, no fetch", K::kWavefront, true, false, true);
     configs.back().gpu.dynamic_fetch = false;
     add("wavefront+compaction+sorting", K::kWavefront, true, true, true);
@@ -248,14 +254,18 @@ int run_bench(const BenchOptions& o) {
       const bool queued = r.name.find("compaction") != std::string::npos;
       const bool in_shade = queued && r.stages.compact == 0;
       const StageBytes sb(queued);
-      double processed = 0;  // path-bounces shaded
-      for (uint32_t a : r.alive) processed += a;
+      // Bounces the stages ran: all, or those before the tail (which takes alive[tail_from]).
+      const size_t staged = r.stages.tail_from ? r.stages.tail_from : r.alive.size();
+      double processed = 0;  // path-bounces shaded by the stages
+      for (size_t b = 0; b < staged && b < r.alive.size(); ++b) processed += r.alive[b];
       const double n = double(rs.width) * rs.height;
-      const double bounces = double(r.alive.size());
-      const double next_slots = processed - n;  // queue slots the shade kernel writes
+      const double bounces = double(staged);
+      // Queue slots the shade kernel writes (the last staged bounce's go to the tail's queue).
+      const double next_slots =
+          processed - n + (r.stages.tail_from ? double(r.alive[r.stages.tail_from]) : 0.0);
       auto gbs = [](double bytes, double ms) { return ms > 0 ? bytes / (ms * 1e-3) / 1e9 : 0.0; };
       const double total = r.stages.generate + r.stages.intersect + r.stages.sort +
-                           r.stages.shade + r.stages.shadow + r.stages.compact;
+                           r.stages.shade + r.stages.shadow + r.stages.compact + r.stages.tail;
       std::printf("\n[%s] stages (ms per spp, share, GB/s against %.0f copy):\n", r.name.c_str(),
                   copy_gbs_measured);
       auto row = [&](const char* name, double ms, double bytes) {
@@ -276,6 +286,16 @@ int run_bench(const BenchOptions& o) {
       std::printf("  intersect: camera rays %.0f Mrays/s, bounce rays %.0f Mrays/s\n",
                   n / (r.stages.intersect_first * 1e-3) / 1e6,
                   (processed - n) / (bounce_ms * 1e-3) / 1e6);
+      if (r.stages.tail_from) {
+        // Its segments: the sample's extension rays less those the stages traced.
+        const double tail_segments =
+            double(r.rays.camera + r.rays.extension) - processed;
+        std::printf("  %-10s %8.3f ms %5.1f%%  bounces %u on of %.0f paths: %.2f M segments, "
+                    "%.0f M segments/s\n",
+                    "tail", r.stages.tail, total > 0 ? 100.0 * r.stages.tail / total : 0.0,
+                    r.stages.tail_from, double(r.alive[r.stages.tail_from]), tail_segments / 1e6,
+                    r.stages.tail > 0 ? tail_segments / (r.stages.tail * 1e-3) / 1e6 : 0.0);
+      }
       if (r.stages.compact > 0) {
         row("compact", r.stages.compact, (n + 4.0 * next_slots));
         std::printf("  compaction (CUB select): %.1f us per bounce, %.1f%% of the frame\n",
@@ -292,7 +312,7 @@ int run_bench(const BenchOptions& o) {
       std::printf("  paths alive per bounce:");
       for (uint32_t a : r.alive) std::printf(" %u", a);
       std::printf("\n");
-      if (!queued || r.stages.bounces.size() != r.alive.size()) continue;
+      if (!queued || r.stages.bounces.size() != staged) continue;
       // Per bounce: each stage's time and its bytes against the copy bandwidth; a short queue's
       // stage is bound by its launch and the GPU's fill and drain, not by its bytes.
       std::printf("  per bounce (us, %% of copy bandwidth):\n  %6s %9s %16s %16s %16s%s\n",
@@ -301,7 +321,7 @@ int run_bench(const BenchOptions& o) {
       auto cell = [&](double ms, double bytes) {
         std::printf(" %9.1f (%3.0f%%)", 1000.0 * ms, 100.0 * gbs(bytes, ms) / copy_gbs_measured);
       };
-      for (size_t b = 0; b < r.alive.size(); ++b) {
+      for (size_t b = 0; b < staged; ++b) {
         const tracer::BounceTimes& t = r.stages.bounces[b];
         const double paths = r.alive[b];
         const double next = b + 1 < r.alive.size() ? r.alive[b + 1] : 0.0;
@@ -324,7 +344,7 @@ int run_bench(const BenchOptions& o) {
     }
     if (in_shade && by_cub && in_shade->alive.size() > 1 && by_cub->stages.compact > 0) {
       auto frame = [](const tracer::StageTimes& t) {
-        return t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact;
+        return t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact + t.tail;
       };
       const double compacted = double(by_cub->alive.size() - 1);  // bounces followed by one
       const double extra = in_shade->stages.shade - by_cub->stages.shade;
@@ -395,10 +415,14 @@ Runner add_bench_command(CLI::App& cmd) {
   CLI::Option* json = cmd.add_option("--json", o->json_out, "Also write the figures to this JSON file");
   CLI::Option* nee = cmd.add_option("--nee", o->nee, "Next-event estimation: on or off")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  CLI::Option* tail = cmd.add_option("--tail", o->tail,
+                     "The wavefront configurations' tail: the megakernel finishes the paths once "
+                     "fewer than this fraction of the pixels remain (0: off)")
+      ->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
   // The speed bench's own options mean nothing to --error (its configurations carry no-nee,
   // its sweep its sample counts, --out its files): combining them is a usage error.
   CLI::Option* error = add_error_bench_options(cmd, &o->error);
-  for (CLI::Option* opt : {spp, cpu_spp, json, nee}) opt->excludes(error);
+  for (CLI::Option* opt : {spp, cpu_spp, json, nee, tail}) opt->excludes(error);
   return [o] {
     if (!o->error.enabled) return run_bench(*o);
     ErrorBenchScene s;

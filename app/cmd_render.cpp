@@ -34,6 +34,7 @@ struct RenderOptions {
   std::string kernel = "auto";
   std::string compaction = "on", sort = "off", cache = "on", specialize = "on", fetch = "on";
   std::string flat = "on";
+  float tail = tracer::GpuOptions().tail_fraction;
   std::string jitter;
   float clamp = -1.0f;  // < 0: the scene's setting
 };
@@ -50,6 +51,7 @@ tracer::GpuOptions gpu_options(const RenderOptions& o) {
   g.specialize = o.specialize == "on";
   g.dynamic_fetch = o.fetch == "on";
   g.flat_list = o.flat == "on";
+  g.tail_fraction = o.tail;
   return g;
 }
 
@@ -311,6 +313,10 @@ Runner add_render_command(CLI::App& cmd) {
                  "Scenes of at most 64 primitives (quads count once, spheres twice): every lane "
                  "tests every primitive in one uniform loop instead of walking the BVH")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--tail", o->tail,
+                 "Wavefront with compaction: once fewer than this fraction of the pixels' paths "
+                 "remain, one megakernel launch runs their remaining bounces (0: off)")
+      ->check(CLI::Range(0.0f, 1.0f))->group(gpu)->capture_default_str();
   return [o] { return run_render(*o); };
 }
 

@@ -78,6 +78,10 @@ TEST(Workbench, ApplyRejectsBadEditsWithReasons) {
   EXPECT_TRUE(wb->gpu_options().compaction && !wb->gpu_options().compaction_cub);
   EXPECT_FALSE(wb->apply("gpu.compaction=thrust", &err));
   EXPECT_NE(err.find("on, cub or off"), std::string::npos) << err;
+  EXPECT_TRUE(wb->apply("gpu.tail=0.5", &err)) << err;
+  EXPECT_EQ(wb->gpu_options().tail_fraction, 0.5f);
+  EXPECT_FALSE(wb->apply("gpu.tail=2", &err));
+  EXPECT_FALSE(wb->apply("gpu.tail=nan", &err));
 }
 
 TEST(Workbench, EditsResetAndDisplayChangesDoNot) {

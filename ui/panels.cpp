@@ -262,6 +262,12 @@ void render_panel(Workbench& wb, PanelState& ps) {
                           "bounce's queue. On: a CUB select over the alive flags after each "
                           "bounce");
     }
+    if (g.compaction) {
+      gc |= ImGui::SliderFloat("tail below", &g.tail_fraction, 0.0f, 1.0f, "%.2f of the pixels");
+      if (ImGui::IsItemHovered())
+        ImGui::SetTooltip("Wavefront: once fewer paths than this fraction of the pixels remain, "
+                          "one megakernel launch runs all their remaining bounces (0: off)");
+    }
     gc |= ImGui::Checkbox("material sorting", &g.sort_materials);
     gc |= ImGui::Checkbox("first-bounce cache", &g.first_bounce_cache);
     gc |= ImGui::Checkbox("dynamic ray fetch", &g.dynamic_fetch);

@@ -349,7 +349,7 @@ std::vector<std::string> Workbench::settable_keys() {
           "render.width", "render.height", "render.nee", "render.mis", "render.russian_roulette",
           "render.rr_start_depth", "render.seed", "render.jitter", "render.samples_per_frame",
           "render.clamp", "render.sampler",
-          "display.exposure", "display.tonemap", "gpu.kernel", "gpu.compaction", "gpu.sort",
+          "display.exposure", "display.tonemap", "gpu.kernel", "gpu.compaction", "gpu.tail", "gpu.sort",
           "gpu.cache", "gpu.specialize", "gpu.fetch", "gpu.flat", "backend", "materials.NAME.type",
           "materials.NAME.albedo", "materials.NAME.emission", "materials.NAME.emission_strength",
           "materials.NAME.ior", "materials.NAME.fresnel", "materials.NAME.absorption",
@@ -449,6 +449,10 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
       gpu_.compaction = b;
       gpu_.compaction_cub = false;
     }
+    changed(Edit::kGpuOptions);
+  } else if (key == "gpu.tail") {
+    if (!number(0.0f, 1.0f)) return fail("expected a fraction of the pixels in [0, 1] (0: off)");
+    gpu_.tail_fraction = f[0];
     changed(Edit::kGpuOptions);
   } else if (key == "gpu.sort" || key == "gpu.cache" ||
              key == "gpu.specialize" || key == "gpu.fetch" || key == "gpu.flat") {

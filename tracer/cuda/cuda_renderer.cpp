@@ -12,7 +12,8 @@ namespace tracer {
 
 namespace {
 enum Stage {
-  kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kIntersectFirst, kStageCount
+  kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kIntersectFirst, kTail,
+  kStageCount
 };
 }
 
@@ -61,6 +62,11 @@ struct CudaRenderer::Impl {
   DeviceBuffer<uint32_t> queue, queue_odd, sorted, sort_keys, sort_bins, alive_counts, count, fetch;
   DeviceBuffer<uint8_t> cub_temp;
   bool cache_valid = false;
+  // Paths entering each bounce in the last timed wavefront sample (zeros from its tail on): the
+  // wavefront hands its paths to the tail kernel at the first bounce where these fall below
+  // opts.tail_fraction of the pixels. Only speed depends on it.
+  std::vector<uint32_t> tail_estimate;
+  uint32_t tail_from = 0;  // the bounce where the last wavefront sample's tail began (0: none)
 
   // --kernel auto: time both designs on the first samples and keep the faster.
   KernelMode chosen = KernelMode::kAuto;
@@ -168,7 +174,8 @@ struct CudaRenderer::Impl {
     if (marks.size() < 2) return;
     TRACER_CUDA_CHECK(cudaEventSynchronize(marks.back().first));
     double* slot[kStageCount] = {&t.generate, &t.intersect,  &t.sort,      &t.shade,
-                                 &t.shadow,   &t.compact,    &t.megakernel, &t.intersect_first};
+                                 &t.shadow,   &t.compact,    &t.megakernel, &t.intersect_first,
+                                 &t.tail};
     for (size_t i = 1; i < marks.size(); ++i) {
       float ms = 0.0f;
       TRACER_CUDA_CHECK(cudaEventElapsedTime(&ms, marks[i - 1].first, marks[i].first));
@@ -219,11 +226,30 @@ struct CudaRenderer::Impl {
     // wrote (its length: alive_counts[b]) and writes the next one into the other buffer.
     const bool queue_in_shade = opts.compaction && !opts.compaction_cub;
     auto bounce_queue = [&](uint32_t b) { return (b & 1) ? queue_odd.get() : queue.get(); };
+    // The tail (needs a queue): from the first bounce whose estimated queue is short, one
+    // megakernel launch runs the remaining bounces of its paths, where each stage of a short
+    // queue would cost its launch and one path's latency (PERFORMANCE.md, "per bounce").
+    tail_from = 0;
+    if (opts.compaction && opts.tail_fraction > 0.0f && !tail_estimate.empty()) {
+      const double limit = double(opts.tail_fraction) * n();
+      for (uint32_t b = 1; b < iterations; ++b) {
+        if (b >= tail_estimate.size() || tail_estimate[b] < limit) {
+          tail_from = b;
+          break;
+        }
+      }
+    }
     for (uint32_t b = 0; b < iterations; ++b) {
       const bool compacted = opts.compaction && b > 0;
       const uint32_t* q = compacted ? (queue_in_shade ? bounce_queue(b) : queue.get()) : nullptr;
       const uint32_t* c =
           compacted ? (queue_in_shade ? w.alive_counts + b : count.get()) : nullptr;
+      if (b == tail_from && b > 0) {
+        launch_tail(sp, view, flat_params, cfg, sample, first, film_view(sample), w, q, c,
+                    stream);
+        mark(timed, kTail);
+        break;
+      }
       if (b == 0 && use_cache && cache_valid) {
         launch_copy_hits(cached_hits.get(), w.hit, n(), stream);
       } else {
@@ -262,7 +288,9 @@ struct CudaRenderer::Impl {
         if (left == 0) break;
       }
     }
-    launch_add_alive(w.alive_counts, iterations + 2, w.counters + 6, stream);
+    // Extension rays of the bounces the stages ran (the tail counts its own).
+    launch_add_alive(w.alive_counts, tail_from ? tail_from : iterations + 2, w.counters + 6,
+                     stream);
   }
 };
 
@@ -330,6 +358,7 @@ void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
   m.view.camera.height = cfg.height;
   m.view.camera.aspect = float(cfg.width) / float(cfg.height);
   m.allocate();
+  m.tail_estimate.clear();
   reset();
 }
 
@@ -347,6 +376,7 @@ void CudaRenderer::set_gpu_options(const GpuOptions& o) {
   impl_->auto_step = 0;
   impl_->auto_ms[0] = impl_->auto_ms[1] = 0.0;
   impl_->cache_valid = false;
+  impl_->tail_estimate.clear();
 }
 
 uint32_t CudaRenderer::samples_done() const { return impl_->samples; }
@@ -405,13 +435,18 @@ FrameStats CudaRenderer::render(uint32_t spp) {
       StageTimes t;
       m.collect(t);
       const double wave_ms = t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact +
-                             t.megakernel;
+                             t.tail + t.megakernel;
       if (k == 0) st.stages = t;
       if (calibrating) m.auto_ms[mode == KernelMode::kWavefront ? 0 : 1] = wave_ms;
-      if (k == 0 && mode == KernelMode::kWavefront) {
+      if (mode == KernelMode::kWavefront) {
         std::vector<uint32_t> alive;
         m.alive_counts.download(alive);
         alive[0] = m.n();
+        m.tail_estimate = alive;
+        if (k == 0) st.stages.tail_from = m.tail_from;
+      }
+      if (k == 0 && mode == KernelMode::kWavefront) {
+        std::vector<uint32_t> alive = m.tail_estimate;
         while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
         st.alive_per_bounce = alive;
       }

@@ -85,16 +85,82 @@ __device__ __forceinline__ uint32_t take_pixel(unsigned need, uint32_t* next_pix
   return base + __popc(need & ((1u << lane) - 1u));
 }
 
+__device__ __forceinline__ void store_state(const WavefrontState& w, uint32_t id,
+                                            const PathState& st) {
+  w.ray_o[id] = make_float4(st.ray.o.x, st.ray.o.y, st.ray.o.z, st.prev_pdf);
+  w.ray_d[id] = make_float4(st.ray.d.x, st.ray.d.y, st.ray.d.z,
+                            __uint_as_float(st.depth | (st.flags << 16)));
+  w.throughput[id] = make_float4(st.throughput.x, st.throughput.y, st.throughput.z,
+                                 __uint_as_float(st.medium));
+  w.radiance[id] = make_float4(st.radiance.x, st.radiance.y, st.radiance.z,
+                               __uint_as_float(st.walk_steps));
+}
+
+__device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_t id,
+                                                uint32_t sample) {
+  PathState st;
+  const float4 o = w.ray_o[id], d = w.ray_d[id], t = w.throughput[id], r = w.radiance[id];
+  st.ray.o = vec3(o.x, o.y, o.z);
+  st.ray.d = vec3(d.x, d.y, d.z);
+  st.ray.tmax = kInfinity;
+  st.ray.pad = 0.0f;
+  st.prev_pdf = o.w;
+  const uint32_t bits = __float_as_uint(d.w);
+  st.depth = bits & 0xffffu;
+  st.flags = bits >> 16;
+  st.throughput = vec3(t.x, t.y, t.z);
+  st.radiance = vec3(r.x, r.y, r.z);
+  st.pixel = id;
+  st.sample = sample;
+  st.medium = __float_as_uint(t.w);
+  st.walk_steps = __float_as_uint(r.w);
+  st.origin_prim = kInvalid;  // set by shade_path when it spawns the next ray
+  return st;
+}
+
+// Where a megakernel's threads take their paths: new camera paths, one per pixel (FromQueue
+// false), or the paths of a wavefront queue, whose state the stages left in the pool (the
+// wavefront's tail: the last bounces of its few remaining paths in one launch).
+struct TailSource {
+  WavefrontState w;
+  const uint32_t* queue = nullptr;
+  const uint32_t* count = nullptr;
+};
+
+template <uint32_t F, bool FromQueue>
+__device__ __forceinline__ uint32_t path_count(const FilmView& film, const TailSource& src) {
+  return FromQueue ? *src.count : film.n;
+}
+
+// Path k of the launch (k < path_count) into st.
+template <uint32_t F, bool FromQueue>
+__device__ __forceinline__ void start_path(const SceneView& s, const IntegratorSettings& cfg,
+                                           uint32_t k, uint32_t sample, const TailSource& src,
+                                           PathState& st) {
+  if (!FromQueue) {
+    generate_path<F>(s, cfg, k, sample, st);
+    return;
+  }
+  const uint32_t id = src.queue[k];
+  st = load_state(src.w, id, sample);
+  // As extension_ray: with random walks the ray skips the triangle it leaves from.
+  if (F & kFeatureSubsurface) {
+    const uint32_t prim = __float_as_uint(src.w.hit[id].y);
+    st.origin_prim = prim < s.tri_count ? prim : kInvalid;
+  }
+}
+
 // Persistent megakernel with path regeneration: each thread runs whole paths, and a thread
 // whose path ends takes the next pixel from a global counter (one atomic per warp), so warps stay
 // full while path lengths differ (Aila & Laine 2009's persistent threads, Novak et al. 2010's
 // path regeneration). Every pixel gets exactly one sample per launch.
-template <uint32_t Spec>
+template <uint32_t Spec, bool FromQueue>
 __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(SceneView s, IntegratorSettings cfg,
                                                      uint32_t sample, bool first, FilmView film,
                                                      unsigned long long* counters,
-                                                     uint32_t* next_pixel) {
+                                                     uint32_t* next_pixel, TailSource src) {
   constexpr uint32_t F = features_of<Spec>();
+  const uint32_t paths = path_count<F, FromQueue>(film, src);
   PathState st;
   bool alive = false;
   uint32_t segments = 0, shadows = 0;
@@ -102,9 +168,9 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
     const unsigned active = __activemask();
     const unsigned need = __ballot_sync(active, !alive);
     if (!alive) {
-      const uint32_t pixel = take_pixel(need, next_pixel);
-      if (pixel >= film.n) break;
-      generate_path<F>(s, cfg, pixel, sample, st);
+      const uint32_t k = take_pixel(need, next_pixel);
+      if (k >= paths) break;
+      start_path<F, FromQueue>(s, cfg, k, sample, src, st);
       alive = true;
     }
     const Hit hit = intersect_closest<F>(s, st.ray, st.origin_prim);
@@ -123,7 +189,8 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
       alive = false;
     }
   }
-  warp_add(&counters[2], segments);
+  // The tail's segments are all extension rays, as the wavefront counts them (counters[6]).
+  warp_add(&counters[FromQueue ? 6 : 2], segments);
   warp_add(&counters[0], shadows);
 }
 
@@ -133,13 +200,14 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
 // lanes that have a shadow ray (which left half the lanes idle in the separate shadow query). A
 // lane whose path ended with a shadow ray in flight keeps that path's pixel and radiance until
 // the next pass, already tracing its new path's camera ray in it.
-template <uint32_t Spec>
+template <uint32_t Spec, bool FromQueue>
 __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
     megakernel_flat(SceneView view, const __grid_constant__ FlatParams flat,
                     IntegratorSettings cfg, uint32_t sample, bool first, FilmView film,
-                    unsigned long long* counters, uint32_t* next_pixel) {
+                    unsigned long long* counters, uint32_t* next_pixel, TailSource src) {
   constexpr uint32_t F = features_of<Spec>();
   const SceneView s = with_flat_params(view, flat);
+  const uint32_t paths = path_count<F, FromQueue>(film, src);
   PathState st;
   ShadowRequest sr;
   sr.valid = false;
@@ -155,9 +223,9 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
     const bool want = !alive && !exhausted;
     const unsigned need = __ballot_sync(active, want);
     if (want) {
-      const uint32_t pixel = take_pixel(need, next_pixel);
-      if (pixel < film.n) {
-        generate_path<F>(s, cfg, pixel, sample, st);
+      const uint32_t k = take_pixel(need, next_pixel);
+      if (k < paths) {
+        start_path<F, FromQueue>(s, cfg, k, sample, src, st);
         alive = true;
       } else {
         exhausted = true;
@@ -200,41 +268,8 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
       alive = false;
     }
   }
-  warp_add(&counters[2], segments);
+  warp_add(&counters[FromQueue ? 6 : 2], segments);
   warp_add(&counters[0], shadows);
-}
-
-__device__ __forceinline__ void store_state(const WavefrontState& w, uint32_t id,
-                                            const PathState& st) {
-  w.ray_o[id] = make_float4(st.ray.o.x, st.ray.o.y, st.ray.o.z, st.prev_pdf);
-  w.ray_d[id] = make_float4(st.ray.d.x, st.ray.d.y, st.ray.d.z,
-                            __uint_as_float(st.depth | (st.flags << 16)));
-  w.throughput[id] = make_float4(st.throughput.x, st.throughput.y, st.throughput.z,
-                                 __uint_as_float(st.medium));
-  w.radiance[id] = make_float4(st.radiance.x, st.radiance.y, st.radiance.z,
-                               __uint_as_float(st.walk_steps));
-}
-
-__device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_t id,
-                                                uint32_t sample) {
-  PathState st;
-  const float4 o = w.ray_o[id], d = w.ray_d[id], t = w.throughput[id], r = w.radiance[id];
-  st.ray.o = vec3(o.x, o.y, o.z);
-  st.ray.d = vec3(d.x, d.y, d.z);
-  st.ray.tmax = kInfinity;
-  st.ray.pad = 0.0f;
-  st.prev_pdf = o.w;
-  const uint32_t bits = __float_as_uint(d.w);
-  st.depth = bits & 0xffffu;
-  st.flags = bits >> 16;
-  st.throughput = vec3(t.x, t.y, t.z);
-  st.radiance = vec3(r.x, r.y, r.z);
-  st.pixel = id;
-  st.sample = sample;
-  st.medium = __float_as_uint(t.w);
-  st.walk_steps = __float_as_uint(r.w);
-  st.origin_prim = kInvalid;  // set by shade_path when it spawns the next ray
-  return st;
 }
 
 // The path a queue slot refers to, or kInvalid when the slot is empty or the path is done. A
@@ -620,25 +655,49 @@ FlatParams make_flat_params(const std::vector<FlatPrim>& prims) {
   return p;
 }
 
+// The megakernels from pixels (queue == nullptr) or from a wavefront queue (the tail).
+template <bool FromQueue>
+void launch_mega(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                 const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
+                 unsigned long long* counters, uint32_t* next_pixel, const TailSource& src,
+                 cudaStream_t stream) {
+  TRACER_CUDA_CHECK(cudaMemsetAsync(next_pixel, 0, sizeof(uint32_t), stream));
+  if (s.use_flat) {
+#define CALL(S)                                                                       \
+  megakernel_flat<S, FromQueue>                                                       \
+      <<<persistent_blocks(megakernel_flat<S, FromQueue>, film.n), kBlock, 0, stream>>>( \
+          s, flat, cfg, sample, first, film, counters, next_pixel, src)
+    TRACER_SPEC_SWITCH(spec, 7u, CALL)
+#undef CALL
+    if (FromQueue) TRACER_CUDA_CHECK_LAUNCH("megakernel_flat (tail)");
+    else TRACER_CUDA_CHECK_LAUNCH("megakernel_flat");
+    return;
+  }
+#define CALL(S)                                                                            \
+  megakernel<S, FromQueue><<<persistent_blocks(megakernel<S, FromQueue>, film.n), kBlock, 0, \
+                             stream>>>(s, cfg, sample, first, film, counters, next_pixel, src)
+  TRACER_SPEC_SWITCH(spec, 7u, CALL)
+#undef CALL
+  if (FromQueue) TRACER_CUDA_CHECK_LAUNCH("megakernel (tail)");
+  else TRACER_CUDA_CHECK_LAUNCH("megakernel");
+}
+
 void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat,
                        const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
                        unsigned long long* counters, uint32_t* next_pixel, cudaStream_t stream) {
-  TRACER_CUDA_CHECK(cudaMemsetAsync(next_pixel, 0, sizeof(uint32_t), stream));
-  if (s.use_flat) {
-#define CALL(S)                                                                             \
-  megakernel_flat<S><<<persistent_blocks(megakernel_flat<S>, film.n), kBlock, 0, stream>>>( \
-      s, flat, cfg, sample, first, film, counters, next_pixel)
-    TRACER_SPEC_SWITCH(spec, 7u, CALL)
-#undef CALL
-    TRACER_CUDA_CHECK_LAUNCH("megakernel_flat");
-    return;
-  }
-#define CALL(S)                                                                       \
-  megakernel<S><<<persistent_blocks(megakernel<S>, film.n), kBlock, 0, stream>>>(     \
-      s, cfg, sample, first, film, counters, next_pixel)
-  TRACER_SPEC_SWITCH(spec, 7u, CALL)
-#undef CALL
-  TRACER_CUDA_CHECK_LAUNCH("megakernel");
+  launch_mega<false>(spec, s, flat, cfg, sample, first, film, counters, next_pixel, TailSource(),
+                     stream);
+}
+
+void launch_tail(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                 const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
+                 const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
+                 cudaStream_t stream) {
+  TailSource src;
+  src.w = w;
+  src.queue = queue;
+  src.count = count;
+  launch_mega<true>(spec, s, flat, cfg, sample, first, film, w.counters, w.fetch, src, stream);
 }
 
 void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,

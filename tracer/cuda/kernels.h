@@ -61,6 +61,13 @@ void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat
                        const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
                        unsigned long long* counters, uint32_t* next_pixel, cudaStream_t stream);
 
+// The wavefront's tail: the megakernel over the paths of a queue (count: its device length),
+// each taken from the pool's state and run to its end (its segments go to counters[6]).
+void launch_tail(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                 const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
+                 const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
+                 cudaStream_t stream);
+
 void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                      uint32_t sample, const WavefrontState& w, cudaStream_t stream);
 // queue == nullptr: every path (dead ones are skipped); count: device pointer to queue length.

@@ -21,6 +21,10 @@ struct GpuOptions {
   // keeps anyway); compaction_cub instead selects them from the alive flags with CUB.
   bool compaction = true;
   bool compaction_cub = false;
+  // The wavefront's tail (with compaction): once a bounce's queue is estimated (from the last
+  // timed sample) to hold fewer paths than this fraction of the pixels, one megakernel launch
+  // runs all their remaining bounces. 0: the stages run every bounce.
+  float tail_fraction = 0.25f;
   bool sort_materials = false;    // bucket paths by material type before shading
   bool first_bounce_cache = true; // reuse camera-ray hits (only without jitter and DoF)
   bool specialize = true;         // kernels compiled for the scene's features only
@@ -38,6 +42,8 @@ struct StageTimes {
   double generate = 0, intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
   double intersect_first = 0;  // the camera rays' share of `intersect`
   std::vector<BounceTimes> bounces;  // the same per bounce (wavefront only)
+  double tail = 0;         // the wavefront's tail kernel
+  uint32_t tail_from = 0;  // the bounce its tail began at (0: none)
   double megakernel = 0;
 };
 
