@@ -204,8 +204,10 @@ int run_bench(const BenchOptions& o) {
     add("wavefront, general", K::kWavefront, false, false, false);
     add("wavefront", K::kWavefront, false, false, true);
     add("wavefront+compaction", K::kWavefront, true, false, true);
+    add("wavefront+compaction (in shade)", K::kWavefront, true, false, true);
+    configs.back().gpu.compaction_by = tracer::GpuOptions::Compaction::kShade;
     add("wavefront+compaction (CUB)", K::kWavefront, true, false, true);
-    configs.back().gpu.compaction_cub = true;
+    configs.back().gpu.compaction_by = tracer::GpuOptions::Compaction::kCub;
     add("wavefront+compaction, no tail", K::kWavefront, true, false, true);
     configs.back().gpu.tail_fraction = 0.0f;
     add("wavefront+compaction, no fetch", K::kWavefront, true, false, true);
@@ -299,7 +301,8 @@ int run_bench(const BenchOptions& o) {
       if (r.stages.compact > 0) {
         row("compact", r.stages.compact, (n + 4.0 * next_slots));
         std::printf("  compaction (CUB select): %.1f us per bounce, %.1f%% of the frame\n",
-                    1000.0 * r.stages.compact / std::max(1.0, bounces - 1),
+                    1000.0 * r.stages.compact /
+                        std::max(1.0, r.stages.tail_from ? bounces : bounces - 1),
                     100.0 * r.stages.compact / total);
       } else if (in_shade) {
         std::printf("  compaction: in the shade kernel (each block appends its paths that go on "
@@ -339,7 +342,7 @@ int run_bench(const BenchOptions& o) {
     const Result* in_shade = nullptr;
     const Result* by_cub = nullptr;
     for (const auto& r : results) {
-      if (r.name == "wavefront+compaction") in_shade = &r;
+      if (r.name == "wavefront+compaction (in shade)") in_shade = &r;
       if (r.name == "wavefront+compaction (CUB)") by_cub = &r;
     }
     if (in_shade && by_cub && in_shade->alive.size() > 1 && by_cub->stages.compact > 0) {

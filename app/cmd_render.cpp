@@ -44,8 +44,9 @@ tracer::GpuOptions gpu_options(const RenderOptions& o) {
   g.kernel = o.kernel == "wavefront"    ? tracer::KernelMode::kWavefront
              : o.kernel == "megakernel" ? tracer::KernelMode::kMegakernel
                                         : tracer::KernelMode::kAuto;
+  using C = tracer::GpuOptions::Compaction;
   g.compaction = o.compaction != "off";
-  g.compaction_cub = o.compaction == "cub";
+  g.compaction_by = o.compaction == "cub" ? C::kCub : o.compaction == "shade" ? C::kShade : C::kAuto;
   g.sort_materials = o.sort == "on";
   g.first_bounce_cache = o.cache == "on";
   g.specialize = o.specialize == "on";
@@ -296,10 +297,11 @@ Runner add_render_command(CLI::App& cmd) {
   cmd.add_option("--kernel", o->kernel, "auto (time both, keep the faster), wavefront or megakernel")
       ->check(CLI::IsMember({"auto", "wavefront", "megakernel"}))->group(gpu)->capture_default_str();
   cmd.add_option("--compaction", o->compaction,
-                 "Compact live path indices after each bounce: on (the shade kernel appends the "
-                 "paths that go on to the next bounce's queue), cub (a CUB select over the alive "
-                 "flags after each bounce) or off")
-      ->check(CLI::IsMember({"on", "cub", "off"}))->group(gpu)->capture_default_str();
+                 "Compact live path indices after each bounce: shade (the shade kernel appends "
+                 "the paths that go on to the next bounce's queue), cub (a CUB select over the "
+                 "alive flags after each bounce), on (shade for diffuse-only scenes, else cub) "
+                 "or off")
+      ->check(CLI::IsMember({"on", "shade", "cub", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--sort", o->sort, "Sort paths by material before shading")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--cache", o->cache, "First-bounce cache (needs --jitter off and no depth of field)")

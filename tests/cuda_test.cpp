@@ -144,6 +144,7 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
   std::vector<Variant> variants;
   GpuOptions o = plain;
   o.compaction = true;
+  o.compaction_by = GpuOptions::Compaction::kShade;  // also on this specular scene
   o.tail_fraction = 0.0f;
   variants.push_back({"compaction (in the shade kernel), no tail", o});
   o.tail_fraction = 0.6f;  // the tail from an early bounce on
@@ -151,7 +152,7 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
   o.tail_fraction = GpuOptions().tail_fraction;
   variants.push_back({"compaction (in the shade kernel)", o});
   GpuOptions cub = o;
-  cub.compaction_cub = true;
+  cub.compaction_by = GpuOptions::Compaction::kCub;
   variants.push_back({"compaction (CUB select)", cub});
   cub.sort_materials = true;
   variants.push_back({"compaction (CUB select)+sorting", cub});
@@ -218,7 +219,7 @@ TEST(Gpu, TailRunsTheSamePaths) {
         GpuOptions o;
         o.kernel = KernelMode::kWavefront;
         o.flat_list = flat;
-        o.compaction_cub = cub;
+        o.compaction_by = cub ? GpuOptions::Compaction::kCub : GpuOptions::Compaction::kShade;
         o.tail_fraction = 0.0f;
         FrameStats plain, tail;
         auto run = [&](const GpuOptions& opts, FrameStats* st) {

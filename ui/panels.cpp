@@ -255,12 +255,15 @@ void render_panel(Workbench& wb, PanelState& ps) {
     }
     gc |= ImGui::Checkbox("stream compaction", &g.compaction);
     if (g.compaction) {
-      ImGui::SameLine();
-      gc |= ImGui::Checkbox("by CUB select", &g.compaction_cub);
+      int by = int(g.compaction_by);
+      if (ImGui::Combo("compaction by", &by, "auto\0shade kernel\0CUB select\0")) {
+        g.compaction_by = tracer::GpuOptions::Compaction(by);
+        gc = true;
+      }
       if (ImGui::IsItemHovered())
-        ImGui::SetTooltip("Off: the shade kernel appends the paths that go on to the next "
-                          "bounce's queue. On: a CUB select over the alive flags after each "
-                          "bounce");
+        ImGui::SetTooltip("shade kernel: it appends the paths that go on to the next bounce's "
+                          "queue; CUB select: over the alive flags after each bounce; auto: the "
+                          "shade kernel for diffuse-only scenes, CUB otherwise");
     }
     if (g.compaction) {
       gc |= ImGui::SliderFloat("tail below", &g.tail_fraction, 0.0f, 1.0f, "%.2f of the pixels");

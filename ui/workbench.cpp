@@ -442,12 +442,14 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
     else return fail("expected auto, wavefront or megakernel");
     changed(Edit::kGpuOptions);
   } else if (key == "gpu.compaction") {
-    if (value == "cub") {
-      gpu_.compaction = gpu_.compaction_cub = true;
+    using C = tracer::GpuOptions::Compaction;
+    if (value == "cub" || value == "shade" || value == "auto") {
+      gpu_.compaction = true;
+      gpu_.compaction_by = value == "cub" ? C::kCub : value == "shade" ? C::kShade : C::kAuto;
     } else {
-      if (!parse_bool(value, &b)) return fail("expected on, cub or off");
+      if (!parse_bool(value, &b)) return fail("expected on (auto), shade, cub or off");
       gpu_.compaction = b;
-      gpu_.compaction_cub = false;
+      gpu_.compaction_by = C::kAuto;
     }
     changed(Edit::kGpuOptions);
   } else if (key == "gpu.tail") {

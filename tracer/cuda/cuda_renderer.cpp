@@ -82,6 +82,11 @@ struct CudaRenderer::Impl {
 
   uint32_t n() const { return cfg.width * cfg.height; }
   uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
+  bool uses_shade_compaction() const {
+    using C = GpuOptions::Compaction;
+    return opts.compaction_by == C::kShade ||
+           (opts.compaction_by == C::kAuto && !(spec() & kSpecSpecular));
+  }
   void choose_accel() { view.use_flat = flat_available && opts.flat_list ? 1u : 0u; }
   std::string accel_name() const {
     return view.use_flat ? "flat list of " + flat_text : "4-wide BVH";
@@ -224,7 +229,7 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
     // Compaction in the shade kernel: bounce b reads the queue its predecessor's shade kernel
     // wrote (its length: alive_counts[b]) and writes the next one into the other buffer.
-    const bool queue_in_shade = opts.compaction && !opts.compaction_cub;
+    const bool queue_in_shade = opts.compaction && uses_shade_compaction();
     auto bounce_queue = [&](uint32_t b) { return (b & 1) ? queue_odd.get() : queue.get(); };
     // The tail (needs a queue): from the first bounce whose estimated queue is short, one
     // megakernel launch runs the remaining bounces of its paths, where each stage of a short
@@ -275,7 +280,7 @@ struct CudaRenderer::Impl {
         if (walks) launch_flush(w, first, film_view(sample), stream);
         break;
       }
-      if (opts.compaction && opts.compaction_cub) {
+      if (opts.compaction && !queue_in_shade) {
         launch_compact(w, queue.get(), count.get(), cub_temp.get(), cub_temp.bytes(), stream);
         mark(timed, kCompact);
       }
@@ -425,7 +430,9 @@ FrameStats CudaRenderer::render(uint32_t spp) {
       mode = (m.auto_step % 2 == 0) ? KernelMode::kMegakernel : KernelMode::kWavefront;
       calibrating = m.auto_step >= 2;
     }
-    const bool timed = k == 0 || calibrating;
+    // Timed: the first sample of a call, and all of auto's four (its first wavefront sample's
+    // alive counts give the second the estimate its tail needs).
+    const bool timed = k == 0 || m.chosen == KernelMode::kAuto;
     if (mode == KernelMode::kMegakernel) {
       m.megakernel_wave(sample, first, timed);
     } else {

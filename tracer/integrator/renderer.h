@@ -16,11 +16,13 @@ namespace tracer {
 enum class KernelMode { kAuto, kWavefront, kMegakernel };
 struct GpuOptions {
   KernelMode kernel = KernelMode::kAuto;
-  // Compact the indices of live paths after each bounce: by default the shade kernel appends
-  // each path that goes on to the next bounce's queue (one atomic per block on the count it
-  // keeps anyway); compaction_cub instead selects them from the alive flags with CUB.
+  // Compact the indices of live paths after each bounce: kShade, the shade kernel appends each
+  // path that goes on to the next bounce's queue (one atomic per block on the count it keeps
+  // anyway); kCub, a CUB select over the alive flags after each bounce; kAuto, kShade for scenes
+  // whose shade kernel is the diffuse-only variant and kCub otherwise (where the heavier
+  // specular variant runs 2 blocks per SM, the block's barrier cost 4-13%, PERFORMANCE.md).
   bool compaction = true;
-  bool compaction_cub = false;
+  enum class Compaction { kAuto, kShade, kCub } compaction_by = Compaction::kAuto;
   // The wavefront's tail (with compaction): once a bounce's queue is estimated (from the last
   // timed sample) to hold fewer paths than this fraction of the pixels, one megakernel launch
   // runs all their remaining bounces. 0: the stages run every bounce.
