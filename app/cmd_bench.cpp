@@ -257,14 +257,18 @@ int run_bench(const BenchOptions& o) {
       const bool in_shade = queued && r.stages.compact == 0;
       const StageBytes sb(queued);
       // Bounces the stages ran: all, or those before the tail (which takes alive[tail_from]).
-      const size_t staged = r.stages.tail_from ? r.stages.tail_from : r.alive.size();
+      const size_t staged = r.stages.tail_from
+                                ? r.stages.tail_from
+                                : std::max(r.alive.size(), r.stages.bounces.size());
       double processed = 0;  // path-bounces shaded by the stages
-      for (size_t b = 0; b < staged && b < r.alive.size(); ++b) processed += r.alive[b];
+      // Paths entering bounce b (0 past the counts' end: trailing zeros are not kept).
+      auto alive_at = [&](size_t b) { return b < r.alive.size() ? double(r.alive[b]) : 0.0; };
+      for (size_t b = 0; b < staged; ++b) processed += alive_at(b);
       const double n = double(rs.width) * rs.height;
       const double bounces = double(staged);
       // Queue slots the shade kernel writes (the last staged bounce's go to the tail's queue).
       const double next_slots =
-          processed - n + (r.stages.tail_from ? double(r.alive[r.stages.tail_from]) : 0.0);
+          processed - n + (r.stages.tail_from ? alive_at(r.stages.tail_from) : 0.0);
       auto gbs = [](double bytes, double ms) { return ms > 0 ? bytes / (ms * 1e-3) / 1e9 : 0.0; };
       const double total = r.stages.generate + r.stages.intersect + r.stages.sort +
                            r.stages.shade + r.stages.shadow + r.stages.compact + r.stages.tail;
@@ -295,7 +299,7 @@ int run_bench(const BenchOptions& o) {
         std::printf("  %-10s %8.3f ms %5.1f%%  bounces %u on of %.0f paths: %.2f M segments, "
                     "%.0f M segments/s\n",
                     "tail", r.stages.tail, total > 0 ? 100.0 * r.stages.tail / total : 0.0,
-                    r.stages.tail_from, double(r.alive[r.stages.tail_from]), tail_segments / 1e6,
+                    r.stages.tail_from, alive_at(r.stages.tail_from), tail_segments / 1e6,
                     r.stages.tail > 0 ? tail_segments / (r.stages.tail * 1e-3) / 1e6 : 0.0);
       }
       if (r.stages.compact > 0) {
@@ -326,8 +330,7 @@ int run_bench(const BenchOptions& o) {
       };
       for (size_t b = 0; b < staged; ++b) {
         const tracer::BounceTimes& t = r.stages.bounces[b];
-        const double paths = r.alive[b];
-        const double next = b + 1 < r.alive.size() ? r.alive[b + 1] : 0.0;
+        const double paths = alive_at(b), next = alive_at(b + 1);
         std::printf("  %6zu %9.0f", b, paths);
         cell(t.intersect, sb.intersect() * paths);
         cell(t.shade, sb.shade() * paths + (in_shade ? 4.0 * next : 0.0));
@@ -345,11 +348,15 @@ int run_bench(const BenchOptions& o) {
       if (r.name == "wavefront+compaction (in shade)") in_shade = &r;
       if (r.name == "wavefront+compaction (CUB)") by_cub = &r;
     }
-    if (in_shade && by_cub && in_shade->alive.size() > 1 && by_cub->stages.compact > 0) {
+    // (Only when both ran the same bounces through their stages.)
+    if (in_shade && by_cub && in_shade->alive.size() > 1 && by_cub->stages.compact > 0 &&
+        in_shade->stages.tail_from == by_cub->stages.tail_from) {
       auto frame = [](const tracer::StageTimes& t) {
         return t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact + t.tail;
       };
-      const double compacted = double(by_cub->alive.size() - 1);  // bounces followed by one
+      // Compactions: after every staged bounce that another bounce or the tail follows.
+      const double compacted = by_cub->stages.tail_from ? double(by_cub->stages.tail_from)
+                                                        : double(by_cub->alive.size() - 1);
       const double extra = in_shade->stages.shade - by_cub->stages.shade;
       std::printf("\ncompaction per bounce: CUB select %.1f us (%.1f%% of its frame); in the shade "
                   "kernel %+.1f us of shade time against the CUB run (%.1f%% of its frame); "
