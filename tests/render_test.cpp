@@ -85,6 +85,28 @@ const PixelStats& reference() {
   return ref;
 }
 
+// The GPU wavefront's choice of the bounce its megakernel tail takes over (host logic, tested
+// here; the tail itself is tested on the GPU by cuda_test's TailRunsTheSamePaths).
+TEST(Render, WavefrontTailStartsAtTheFirstShortQueue) {
+  const uint32_t n = 1000;
+  const std::vector<uint32_t> open_box = {1000, 530, 380, 310, 105, 47, 24, 13};
+  EXPECT_EQ(wavefront_tail_bounce(open_box, 0.25f, n, 8), 4u);
+  EXPECT_EQ(wavefront_tail_bounce(open_box, 0.4f, n, 8), 2u);
+  EXPECT_EQ(wavefront_tail_bounce(open_box, 0.6f, n, 8), 1u);
+  EXPECT_EQ(wavefront_tail_bounce(open_box, 0.01f, n, 8), 0u);  // no queue that short
+  EXPECT_EQ(wavefront_tail_bounce(open_box, 0.0f, n, 8), 0u);   // off
+  EXPECT_EQ(wavefront_tail_bounce({}, 0.25f, n, 8), 0u);        // nothing measured yet
+  // Never the camera rays' bounce, and never past the bounces the stages would run.
+  EXPECT_EQ(wavefront_tail_bounce({1000, 900}, 0.99f, n, 8), 1u);
+  EXPECT_EQ(wavefront_tail_bounce(open_box, 0.25f, n, 3), 0u);
+  // The counts of a sample that had a tail from bounce 4 end there (zeros): the next one starts
+  // at 4 again, or one later when bounce 4's queue has grown past the limit.
+  const std::vector<uint32_t> tailed = {1000, 990, 980, 970, 320, 0, 0, 0};
+  EXPECT_EQ(wavefront_tail_bounce(tailed, 0.25f, n, 8), 5u);
+  EXPECT_EQ(wavefront_tail_bounce(tailed, 0.4f, n, 8), 4u);
+  EXPECT_EQ(wavefront_tail_bounce({1000, 990}, 0.5f, n, 8), 2u);  // past the estimate's end
+}
+
 TEST(Render, BuiltinSceneAgreesWithHighSppReference) {
   const Scene s = builtin_default_scene();
   const PixelStats test = render_pixel_stats(s, small(s), 256);

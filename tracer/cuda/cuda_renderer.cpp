@@ -234,16 +234,9 @@ struct CudaRenderer::Impl {
     // The tail (needs a queue): from the first bounce whose estimated queue is short, one
     // megakernel launch runs the remaining bounces of its paths, where each stage of a short
     // queue would cost its launch and one path's latency (PERFORMANCE.md, "per bounce").
-    tail_from = 0;
-    if (opts.compaction && opts.tail_fraction > 0.0f && !tail_estimate.empty()) {
-      const double limit = double(opts.tail_fraction) * n();
-      for (uint32_t b = 1; b < iterations; ++b) {
-        if (b >= tail_estimate.size() || tail_estimate[b] < limit) {
-          tail_from = b;
-          break;
-        }
-      }
-    }
+    tail_from = opts.compaction
+                    ? wavefront_tail_bounce(tail_estimate, opts.tail_fraction, n(), iterations)
+                    : 0;
     for (uint32_t b = 0; b < iterations; ++b) {
       const bool compacted = opts.compaction && b > 0;
       const uint32_t* q = compacted ? (queue_in_shade ? bounce_queue(b) : queue.get()) : nullptr;

@@ -13,6 +13,15 @@ void Renderer::display_rgba8(std::vector<uint32_t>& out, float exposure_scale, T
   }
 }
 
+uint32_t wavefront_tail_bounce(const std::vector<uint32_t>& estimate, float fraction,
+                               uint32_t pixels, uint32_t iterations) {
+  if (!(fraction > 0.0f) || estimate.empty()) return 0;
+  const double limit = double(fraction) * pixels;
+  for (uint32_t b = 1; b < iterations; ++b)
+    if (b >= estimate.size() || estimate[b] < limit) return b;
+  return 0;
+}
+
 double half_buffer_relmse(const Renderer& r) {
   if (r.samples_done() < 2) return -1.0;
   ImageRGB a, b;

@@ -34,6 +34,13 @@ struct GpuOptions {
   bool flat_list = true;          // small scenes: every lane tests every primitive, no BVH
 };
 
+// The bounce from which the wavefront's tail runs (0: none): the first after the camera rays'
+// whose estimated queue (paths entering each bounce, as measured in an earlier sample; a bounce
+// past its end, or one not measured because an earlier tail took over, counts as short) holds
+// fewer than fraction x pixels, among the `iterations` bounces the stages would run.
+uint32_t wavefront_tail_bounce(const std::vector<uint32_t>& estimate, float fraction,
+                               uint32_t pixels, uint32_t iterations);
+
 // Milliseconds per stage of one wavefront bounce.
 struct BounceTimes {
   double intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
