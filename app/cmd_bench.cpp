@@ -254,7 +254,12 @@ int run_bench(const BenchOptions& o) {
     for (const auto& r : results) {
       if (r.kernel != "wavefront" || r.alive.empty()) continue;
       const bool queued = r.name.find("compaction") != std::string::npos;
-      const bool in_shade = queued && r.stages.compact == 0;
+      // CUB's compactions, one stage each (none with one bounce or a tail at bounce 1).
+      const size_t compactions = size_t(std::count_if(
+          r.stages.bounces.begin(), r.stages.bounces.end(),
+          [](const tracer::BounceTimes& t) { return t.compact > 0; }));
+      const bool in_shade = queued && compactions == 0 &&
+                            (r.stages.bounces.size() > 1 || r.stages.tail_from > 0);
       const StageBytes sb(queued);
       // Bounces the stages ran: all, or those before the tail (which takes alive[tail_from]).
       const size_t staged = r.stages.tail_from
@@ -296,8 +301,8 @@ int run_bench(const BenchOptions& o) {
         // Its segments: the sample's extension rays less those the stages traced.
         const double tail_segments =
             double(r.rays.camera + r.rays.extension) - processed;
-        std::printf("  %-10s %8.3f ms %5.1f%%  bounces %u on of %.0f paths: %.2f M segments, "
-                    "%.0f M segments/s\n",
+        std::printf("  %-10s %8.3f ms %5.1f%%  bounces %u on of %.0f paths: about %.2f M "
+                    "segments, %.0f M segments/s\n",
                     "tail", r.stages.tail, total > 0 ? 100.0 * r.stages.tail / total : 0.0,
                     r.stages.tail_from, alive_at(r.stages.tail_from), tail_segments / 1e6,
                     r.stages.tail > 0 ? tail_segments / (r.stages.tail * 1e-3) / 1e6 : 0.0);
@@ -305,8 +310,7 @@ int run_bench(const BenchOptions& o) {
       if (r.stages.compact > 0) {
         row("compact", r.stages.compact, (n + 4.0 * next_slots));
         std::printf("  compaction (CUB select): %.1f us per bounce, %.1f%% of the frame\n",
-                    1000.0 * r.stages.compact /
-                        std::max(1.0, r.stages.tail_from ? bounces : bounces - 1),
+                    1000.0 * r.stages.compact / double(std::max<size_t>(1, compactions)),
                     100.0 * r.stages.compact / total);
       } else if (in_shade) {
         std::printf("  compaction: in the shade kernel (each block appends its paths that go on "
@@ -354,9 +358,10 @@ int run_bench(const BenchOptions& o) {
       auto frame = [](const tracer::StageTimes& t) {
         return t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact + t.tail;
       };
-      // Compactions: after every staged bounce that another bounce or the tail follows.
-      const double compacted = by_cub->stages.tail_from ? double(by_cub->stages.tail_from)
-                                                        : double(by_cub->alive.size() - 1);
+      // Compactions: one after every staged bounce that another bounce or the tail follows.
+      const double compacted = double(std::count_if(
+          by_cub->stages.bounces.begin(), by_cub->stages.bounces.end(),
+          [](const tracer::BounceTimes& t) { return t.compact > 0; }));
       const double extra = in_shade->stages.shade - by_cub->stages.shade;
       std::printf("\ncompaction per bounce: CUB select %.1f us (%.1f%% of its frame); in the shade "
                   "kernel %+.1f us of shade time against the CUB run (%.1f%% of its frame); "

@@ -237,6 +237,7 @@ struct CudaRenderer::Impl {
     tail_from = opts.compaction
                     ? wavefront_tail_bounce(tail_estimate, opts.tail_fraction, n(), iterations)
                     : 0;
+    bool tail_ran = false;
     for (uint32_t b = 0; b < iterations; ++b) {
       const bool compacted = opts.compaction && b > 0;
       const uint32_t* q = compacted ? (queue_in_shade ? bounce_queue(b) : queue.get()) : nullptr;
@@ -246,6 +247,7 @@ struct CudaRenderer::Impl {
         launch_tail(sp, view, flat_params, cfg, sample, first, film_view(sample), w, q, c,
                     stream);
         mark(timed, kTail);
+        tail_ran = true;
         break;
       }
       if (b == 0 && use_cache && cache_valid) {
@@ -286,6 +288,8 @@ struct CudaRenderer::Impl {
         if (left == 0) break;
       }
     }
+    // (An early stop, every path ended, can come before the bounce chosen for the tail.)
+    if (!tail_ran) tail_from = 0;
     // Extension rays of the bounces the stages ran (the tail counts its own).
     launch_add_alive(w.alive_counts, tail_from ? tail_from : iterations + 2, w.counters + 6,
                      stream);
