@@ -33,7 +33,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize (not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -107,5 +107,27 @@ if [ "$MODE" = all ] || [ "$MODE" = error ]; then
   # The 512x512 reference comes back (the CPU and peer comparison use it); larger ones stay there.
   tar czf "$OUT/error-bench.tgz" -C /tmp --exclude='*1920x1080*.exr' --exclude='*960x540*.exr' \
     error-bench
+fi
+if [ "$MODE" = sanitize ]; then
+  # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction
+  # (its shared memory and barriers), CUB, sorting, the megakernel tail, random walks, the BVH.
+  CS=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
+  echo "== compute-sanitizer ($CS)"
+  for tool in racecheck synccheck memcheck; do
+    for cfg in "cornell_box --compaction shade --sort on --tail 0.6" \
+               "subsurface --compaction shade --tail 0.3" \
+               "subsurface --compaction cub --sort on --tail 0.3" \
+               "cornell_box --max-depth 2 --flat off --compaction cub"; do
+      set -- $cfg
+      sc=$1; shift
+      echo "---- $tool: $sc $*"
+      "$CS" --tool $tool --error-exitcode 3 $DIST/pathtracer render "$(scene $sc)" -q \
+        --backend cuda --kernel wavefront --width 64 --height 48 --spp 3 "$@" \
+        --out /tmp/sanitize.png > /tmp/sanitize.log 2>&1
+      rc=$?
+      tail -2 /tmp/sanitize.log
+      [ $rc = 0 ] || echo "SANITIZER ERRORS ($tool, $sc $*): exit $rc"
+    done
+  done
 fi
 echo "== done"
