@@ -365,11 +365,15 @@ void stats_panel(Workbench& wb, PanelState& ps) {
     ImGui::Text("ms per sample: gen %.3f  isect %.3f  sort %.3f", t.generate, t.intersect, t.sort);
     ImGui::Text("  shade %.3f  shadow %.3f  compact %.3f  mega %.3f", t.shade, t.shadow, t.compact,
                 t.megakernel);
+    if (t.tail_from > 0)
+      ImGui::Text("  tail %.3f (the megakernel from bounce %u on)", t.tail, t.tail_from);
   }
   if (!s.last.alive_per_bounce.empty()) {
     std::vector<float> alive(s.last.alive_per_bounce.begin(), s.last.alive_per_bounce.end());
-    ImGui::PlotHistogram("paths alive\nper bounce", alive.data(), int(alive.size()), 0, nullptr,
-                         0.0f, alive[0], ImVec2(0, 60));
+    ImGui::PlotHistogram(t.tail_from > 0 ? "paths alive\nper bounce\n(to the tail)"
+                                         : "paths alive\nper bounce",
+                         alive.data(), int(alive.size()), 0, nullptr, 0.0f, alive[0],
+                         ImVec2(0, 60));
   }
   if (ImGui::TreeNode("Reference image")) {
     ImGui::InputText("##ref", ps.reference_path, sizeof ps.reference_path);
