@@ -1,7 +1,8 @@
 // `pathtracer bench`: speed figures measured side by side in one run. On the GPU it times the
-// megakernel and the wavefront with each switch (compaction, material sorting, specialisation,
-// first-bounce cache), with per-stage times, paths alive per bounce, bytes moved per segment and
-// the achieved bandwidth against the device's measured copy bandwidth; it also times the CPU
+// megakernel and the wavefront with each switch (compaction in the shade kernel or by CUB, the
+// tail, material sorting, specialisation, first-bounce cache), with per-stage times (also per
+// bounce), paths alive per bounce, bytes moved per segment and the achieved bandwidth against the
+// device's measured copy bandwidth; it also times the CPU
 // backend on the same scene so the CPU/GPU ratio comes from one run.
 #include <algorithm>
 #include <cstdio>

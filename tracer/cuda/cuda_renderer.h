@@ -1,6 +1,7 @@
 // The CUDA backend: the scene in device memory, a float4 progressive accumulator with an O(1)
-// reset, and either the wavefront (with optional compaction, material sorting and first-bounce
-// cache) or the megakernel, each specialised on the scene's features.
+// reset, and either the wavefront (with optional compaction in its shade kernel or by CUB, a
+// megakernel tail for its last short queues, material sorting and first-bounce cache) or the
+// megakernel, each specialised on the scene's features.
 #pragma once
 
 #include <memory>
