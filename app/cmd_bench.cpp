@@ -107,6 +107,13 @@ Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
   return res;
 }
 
+// CUB's compactions in a sample, one stage each: after every staged bounce that another bounce
+// or the tail follows (none with one bounce, or with a tail from bounce 1).
+size_t cub_compactions(const tracer::StageTimes& t) {
+  return size_t(std::count_if(t.bounces.begin(), t.bounces.end(),
+                              [](const tracer::BounceTimes& b) { return b.compact > 0; }));
+}
+
 nlohmann::json bounce_json(const tracer::StageTimes& t) {
   nlohmann::json a = nlohmann::json::array();
   for (const tracer::BounceTimes& b : t.bounces)
@@ -255,10 +262,7 @@ int run_bench(const BenchOptions& o) {
     for (const auto& r : results) {
       if (r.kernel != "wavefront" || r.alive.empty()) continue;
       const bool queued = r.name.find("compaction") != std::string::npos;
-      // CUB's compactions, one stage each (none with one bounce or a tail at bounce 1).
-      const size_t compactions = size_t(std::count_if(
-          r.stages.bounces.begin(), r.stages.bounces.end(),
-          [](const tracer::BounceTimes& t) { return t.compact > 0; }));
+      const size_t compactions = cub_compactions(r.stages);
       const bool in_shade = queued && compactions == 0 &&
                             (r.stages.bounces.size() > 1 || r.stages.tail_from > 0);
       const StageBytes sb(queued);
@@ -276,8 +280,7 @@ int run_bench(const BenchOptions& o) {
       const double next_slots =
           processed - n + (r.stages.tail_from ? alive_at(r.stages.tail_from) : 0.0);
       auto gbs = [](double bytes, double ms) { return ms > 0 ? bytes / (ms * 1e-3) / 1e9 : 0.0; };
-      const double total = r.stages.generate + r.stages.intersect + r.stages.sort +
-                           r.stages.shade + r.stages.shadow + r.stages.compact + r.stages.tail;
+      const double total = r.stages.total();
       std::printf("\n[%s] stages (ms per spp, share, GB/s against %.0f copy):\n", r.name.c_str(),
                   copy_gbs_measured);
       auto row = [&](const char* name, double ms, double bytes) {
@@ -356,21 +359,15 @@ int run_bench(const BenchOptions& o) {
     // (Only when both ran the same bounces through their stages.)
     if (in_shade && by_cub && in_shade->alive.size() > 1 && by_cub->stages.compact > 0 &&
         in_shade->stages.tail_from == by_cub->stages.tail_from) {
-      auto frame = [](const tracer::StageTimes& t) {
-        return t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact + t.tail;
-      };
-      // Compactions: one after every staged bounce that another bounce or the tail follows.
-      const double compacted = double(std::count_if(
-          by_cub->stages.bounces.begin(), by_cub->stages.bounces.end(),
-          [](const tracer::BounceTimes& t) { return t.compact > 0; }));
+      const double compacted = double(cub_compactions(by_cub->stages));
       const double extra = in_shade->stages.shade - by_cub->stages.shade;
       std::printf("\ncompaction per bounce: CUB select %.1f us (%.1f%% of its frame); in the shade "
                   "kernel %+.1f us of shade time against the CUB run (%.1f%% of its frame); "
                   "frames %.3f / %.3f ms\n",
                   1000.0 * by_cub->stages.compact / compacted,
-                  100.0 * by_cub->stages.compact / frame(by_cub->stages), 1000.0 * extra / compacted,
-                  100.0 * extra / frame(in_shade->stages), frame(in_shade->stages),
-                  frame(by_cub->stages));
+                  100.0 * by_cub->stages.compact / by_cub->stages.total(), 1000.0 * extra / compacted,
+                  100.0 * extra / in_shade->stages.total(), in_shade->stages.total(),
+                  by_cub->stages.total());
       out["compaction_us_per_bounce"] = {{"cub", 1000.0 * by_cub->stages.compact / compacted},
                                          {"in_shade", 1000.0 * extra / compacted}};
     }

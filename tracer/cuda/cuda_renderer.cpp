@@ -438,21 +438,17 @@ FrameStats CudaRenderer::render(uint32_t spp) {
     if (timed) {
       StageTimes t;
       m.collect(t);
-      const double wave_ms = t.generate + t.intersect + t.sort + t.shade + t.shadow + t.compact +
-                             t.tail + t.megakernel;
       if (k == 0) st.stages = t;
-      if (calibrating) m.auto_ms[mode == KernelMode::kWavefront ? 0 : 1] = wave_ms;
+      if (calibrating) m.auto_ms[mode == KernelMode::kWavefront ? 0 : 1] = t.total();
       if (mode == KernelMode::kWavefront) {
-        std::vector<uint32_t> alive;
-        m.alive_counts.download(alive);
-        alive[0] = m.n();
-        m.tail_estimate = alive;
-        if (k == 0) st.stages.tail_from = m.tail_from;
-      }
-      if (k == 0 && mode == KernelMode::kWavefront) {
-        std::vector<uint32_t> alive = m.tail_estimate;
-        while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
-        st.alive_per_bounce = alive;
+        m.alive_counts.download(m.tail_estimate);
+        m.tail_estimate[0] = m.n();
+        if (k == 0) {
+          st.stages.tail_from = m.tail_from;
+          std::vector<uint32_t> alive = m.tail_estimate;
+          while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
+          st.alive_per_bounce = alive;
+        }
       }
     }
     // The wavefront's extension rays (every path alive after a bounce traces one more segment)

@@ -127,7 +127,7 @@ struct TailSource {
   const uint32_t* count = nullptr;
 };
 
-template <uint32_t F, bool FromQueue>
+template <bool FromQueue>
 __device__ __forceinline__ uint32_t path_count(const FilmView& film, const TailSource& src) {
   return FromQueue ? *src.count : film.n;
 }
@@ -160,7 +160,7 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
                                                      unsigned long long* counters,
                                                      uint32_t* next_pixel, TailSource src) {
   constexpr uint32_t F = features_of<Spec>();
-  const uint32_t paths = path_count<F, FromQueue>(film, src);
+  const uint32_t paths = path_count<FromQueue>(film, src);
   PathState st;
   bool alive = false;
   uint32_t segments = 0, shadows = 0;
@@ -207,7 +207,7 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
                     unsigned long long* counters, uint32_t* next_pixel, TailSource src) {
   constexpr uint32_t F = features_of<Spec>();
   const SceneView s = with_flat_params(view, flat);
-  const uint32_t paths = path_count<F, FromQueue>(film, src);
+  const uint32_t paths = path_count<FromQueue>(film, src);
   PathState st;
   ShadowRequest sr;
   sr.valid = false;
@@ -731,9 +731,8 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
     TRACER_CUDA_CHECK_LAUNCH("intersect_fetch_kernel");
     return;
   }
-#define CALL(S)                                                                        \
-  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>( \
-      s, flat, w, queue, count, walks)
+#define CALL(S) \
+  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, walks)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;
@@ -771,9 +770,9 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
 void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
                    const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
                    bool first, FilmView film, cudaStream_t stream) {
-#define CALL(S)                                                                       \
-  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(         \
-      s, flat, w, queue, count, first, film, (s.features & kFeatureSubsurface) != 0)
+#define CALL(S)                                                 \
+  shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, first, film, \
+                                                       (s.features & kFeatureSubsurface) != 0)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;

@@ -54,6 +54,10 @@ struct StageTimes {
   double tail = 0;         // the wavefront's tail kernel
   uint32_t tail_from = 0;  // the bounce its tail began at (0: none)
   double megakernel = 0;
+  // The whole sample (intersect includes intersect_first).
+  double total() const {
+    return generate + intersect + sort + shade + shadow + compact + tail + megakernel;
+  }
 };
 
 struct FrameStats {
