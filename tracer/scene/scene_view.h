@@ -218,10 +218,16 @@ TRACER_HD TRACER_INLINE TraversalCursor traversal_start(const SceneView& s) {
   return c;
 }
 
-TRACER_HD TRACER_INLINE FlatPrim load_flat(const FlatPrim* prims, uint32_t i) {
+// Entry i of the flat list. kLoop (the loops over the list, SceneView::flat_loop): plain loads,
+// so that the device compiler reads a list among the kernel parameters from the constant bank
+// (LDC); otherwise (the one entry a lane hit, in global memory) through the read-only cache,
+// whose __ldg would force a global load of a parameter.
+template <bool kLoop>
+TRACER_HD TRACER_INLINE FlatPrim load_flat_entry(const FlatPrim* prims, uint32_t i) {
 #if defined(__CUDA_ARCH__)
   const float4* p = reinterpret_cast<const float4*>(prims + i);
-  const float4 a = __ldg(p), b = __ldg(p + 1), c = __ldg(p + 2);
+  const float4 a = kLoop ? p[0] : __ldg(p), b = kLoop ? p[1] : __ldg(p + 1),
+               c = kLoop ? p[2] : __ldg(p + 2);
   FlatPrim f;
   f.row_u = vec4(a.x, a.y, a.z, a.w);
   f.row_v = vec4(b.x, b.y, b.z, b.w);
@@ -231,22 +237,11 @@ TRACER_HD TRACER_INLINE FlatPrim load_flat(const FlatPrim* prims, uint32_t i) {
   return prims[i];
 #endif
 }
-
-// An entry for the loops over the list (SceneView::flat_loop): plain loads, so that the device
-// compiler reads a list among the kernel parameters from the constant bank (LDC), where
-// load_flat's __ldg would force a global load.
+TRACER_HD TRACER_INLINE FlatPrim load_flat(const FlatPrim* prims, uint32_t i) {
+  return load_flat_entry<false>(prims, i);
+}
 TRACER_HD TRACER_INLINE FlatPrim load_flat_loop(const FlatPrim* prims, uint32_t i) {
-#if defined(__CUDA_ARCH__)
-  const float4* p = reinterpret_cast<const float4*>(prims + i);
-  const float4 a = p[0], b = p[1], c = p[2];
-  FlatPrim f;
-  f.row_u = vec4(a.x, a.y, a.z, a.w);
-  f.row_v = vec4(b.x, b.y, b.z, b.w);
-  f.row_w = vec4(c.x, c.y, c.z, c.w);
-  return f;
-#else
-  return prims[i];
-#endif
+  return load_flat_entry<true>(prims, i);
 }
 
 // a * b + c: fused on the GPU; on the CPU two operations (a baseline x86-64 build has no FMA
