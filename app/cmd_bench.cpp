@@ -49,12 +49,19 @@ struct Result {
   tracer::RayCounts rays;  // per sample
   tracer::StageTimes stages;
   std::vector<uint32_t> alive;
+  std::vector<uint32_t> shadows;  // shadow rays per bounce (queued by the shade kernel), or empty
+  std::vector<uint32_t> finished;  // paths that ended without one, per bounce (the same)
 };
 
 // Bytes each wavefront stage reads and writes per path it processes (see kernels.cu's layout);
 // scene data (BVH, triangles, materials) is left out: it is small and mostly cache-resident.
 // A queued stage reads its 4-byte slot and no alive flag (a queue holds live paths only); the
 // pass over every path reads the 1-byte flag of each, live or not (counted apart, per slot).
+// With the shadow queue (compaction in the shade kernel) the shade kernel writes a shadow ray
+// only where there is one, with its 4-byte slot in the shadow queue, and the shadow stage reads
+// only those: shade_path() per path plus shade_ray() per shadow ray, shadow() per shadow ray.
+// The shadow stage's last lanes then finish the paths that ended without a shadow ray: finish()
+// each. Film sums (16 bytes per finished path) are counted there only.
 struct StageBytes {
   explicit StageBytes(bool queued) : slot(queued ? 4 : 1) {}
   double slot;
@@ -64,7 +71,12 @@ struct StageBytes {
   // 5 float4 in, 4 float4 of state + 3 of shadow ray out, the alive flag out; with compaction
   // in the shade kernel also 4 bytes per path that goes on (the next queue's slot, apart).
   double shade() const { return 193 + slot; }
-  double shadow() const { return 81 + (slot == 4 ? 4 : 0); }  // also reads the alive flag
+  double shade_path() const { return 145 + slot; }
+  double shade_ray = 52;
+  // Shadow ray, contribution and radiance in, radiance out, the alive flag and the slot.
+  double shadow() const { return 81 + (slot == 4 ? 4 : 0); }
+  // Slot, radiance and flags in, the film sum (16 bytes read and written) and the alive flag out.
+  double finish = 4 + 16 + 4 + 32 + 1;
 };
 
 Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
@@ -87,6 +99,8 @@ Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
     if (i == 0) {
       res.stages = st.stages;
       res.alive = st.alive_per_bounce;
+      res.shadows = st.shadow_per_bounce;
+      res.finished = st.finished_per_bounce;
       res.kernel = st.kernel;
       res.specialization = st.specialization;
       res.note = st.note;
@@ -138,6 +152,8 @@ nlohmann::json to_json(const Result& r) {
                         {"shadow", r.stages.shadow}, {"compact", r.stages.compact},
                         {"megakernel", r.stages.megakernel}}},
           {"alive_per_bounce", r.alive},
+          {"shadow_rays_per_bounce", r.shadows},
+          {"finished_without_shadow_ray_per_bounce", r.finished},
           {"tail_from_bounce", r.stages.tail_from},
           {"tail_ms", r.stages.tail},
           {"bounce_stage_ms", bounce_json(r.stages)},
@@ -274,6 +290,26 @@ int run_bench(const BenchOptions& o) {
       // Paths entering bounce b (0 past the counts' end: trailing zeros are not kept).
       auto alive_at = [&](size_t b) { return b < r.alive.size() ? double(r.alive[b]) : 0.0; };
       for (size_t b = 0; b < staged; ++b) processed += alive_at(b);
+      // Shadow rays of bounce b when the shade kernel queued them (r.shadows not empty).
+      const bool shadow_queue = !r.shadows.empty();
+      auto shadows_at = [&](size_t b) {
+        return b < r.shadows.size() ? double(r.shadows[b]) : 0.0;
+      };
+      double traced_shadows = 0;  // shadow rays of the staged bounces
+      for (size_t b = 0; b < staged; ++b) traced_shadows += shadows_at(b);
+      // Bytes of the shade and shadow stages over `paths` paths with `shadows` shadow rays.
+      auto shade_bytes_of = [&](double paths, double shadows) {
+        return shadow_queue ? sb.shade_path() * paths + sb.shade_ray * shadows
+                            : sb.shade() * paths;
+      };
+      auto finished_at = [&](size_t b) {
+        return b < r.finished.size() ? double(r.finished[b]) : 0.0;
+      };
+      double traced_finished = 0;
+      for (size_t b = 0; b < staged; ++b) traced_finished += finished_at(b);
+      auto shadow_bytes_of = [&](double paths, double shadows, double finished) {
+        return shadow_queue ? sb.shadow() * shadows + sb.finish * finished : sb.shadow() * paths;
+      };
       const double n = double(rs.width) * rs.height;
       const double bounces = double(staged);
       // Queue slots the shade kernel writes (the last staged bounce's go to the tail's queue).
@@ -290,13 +326,14 @@ int run_bench(const BenchOptions& o) {
       };
       // Slots of dead paths that a pass over every path reads the flag of.
       const double dead = queued ? 0.0 : n * bounces - processed;
-      const double shade_bytes =
-          sb.shade() * processed + dead + (in_shade ? 4.0 * next_slots : 0.0);
+      const double shade_bytes = shade_bytes_of(processed, traced_shadows) + dead +
+                                 (in_shade ? 4.0 * next_slots : 0.0);
+      const double shadow_bytes = shadow_bytes_of(processed, traced_shadows, traced_finished) + dead;
       row("generate", r.stages.generate, sb.generate * n);
       row("intersect", r.stages.intersect, sb.intersect() * processed + dead);
       if (r.stages.sort > 0) row("sort", r.stages.sort, sb.sort * processed);
       row("shade", r.stages.shade, shade_bytes);
-      row("shadow", r.stages.shadow, sb.shadow() * processed + dead);
+      row("shadow", r.stages.shadow, shadow_bytes);
       const double bounce_ms = r.stages.intersect - r.stages.intersect_first;
       std::printf("  intersect: camera rays %.0f Mrays/s, bounce rays %.0f Mrays/s\n",
                   n / (r.stages.intersect_first * 1e-3) / 1e6,
@@ -321,12 +358,19 @@ int run_bench(const BenchOptions& o) {
                     "to the next queue)\n");
       }
       std::printf("  bytes per segment (state traffic): %.0f\n",
-                  (sb.generate * n + (sb.intersect() + sb.shadow()) * processed + shade_bytes +
-                   2 * dead + (r.stages.sort > 0 ? sb.sort * processed : 0.0)) /
+                  (sb.generate * n + sb.intersect() * processed + shade_bytes + shadow_bytes +
+                   dead + (r.stages.sort > 0 ? sb.sort * processed : 0.0)) /
                       processed);
       std::printf("  paths alive per bounce:");
       for (uint32_t a : r.alive) std::printf(" %u", a);
       std::printf("\n");
+      if (shadow_queue) {
+        std::printf("  shadow rays per bounce (queued by the shade kernel):");
+        for (uint32_t a : r.shadows) std::printf(" %u", a);
+        std::printf("\n  paths ended without one (finished by the shadow stage):");
+        for (uint32_t a : r.finished) std::printf(" %u", a);
+        std::printf("\n");
+      }
       if (!queued || r.stages.bounces.size() != staged) continue;
       // Per bounce: each stage's time and its bytes against the copy bandwidth; a short queue's
       // stage is bound by its launch and the GPU's fill and drain, not by its bytes.
@@ -341,8 +385,8 @@ int run_bench(const BenchOptions& o) {
         const double paths = alive_at(b), next = alive_at(b + 1);
         std::printf("  %6zu %9.0f", b, paths);
         cell(t.intersect, sb.intersect() * paths);
-        cell(t.shade, sb.shade() * paths + (in_shade ? 4.0 * next : 0.0));
-        cell(t.shadow, sb.shadow() * paths);
+        cell(t.shade, shade_bytes_of(paths, shadows_at(b)) + (in_shade ? 4.0 * next : 0.0));
+        cell(t.shadow, shadow_bytes_of(paths, shadows_at(b), finished_at(b)));
         if (r.stages.compact > 0) cell(t.compact, n + 4.0 * next);
         std::printf("\n");
       }

@@ -203,6 +203,57 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
   }
 }
 
+// With compaction in the shade kernel the shade kernel also queues the paths that have a shadow
+// ray, and finishes there the paths that end without one; the shadow stage traces the queue
+// only. Every shadow ray must be in a queue (the queues' lengths add up to the sample's shadow
+// rays), and the image and counts must be those of CUB's compaction, whose shadow stage passes
+// over every path of the bounce.
+TEST(Gpu, ShadowQueueHoldsEveryShadowRay) {
+  REQUIRE_GPU(gpu);
+  for (const char* name : {"cornell_box.json", "cornell_spheres.json", "subsurface.json"}) {
+    const Scene s = load_scene(source_dir() + "/assets/scenes/" + name);
+    RenderSettings rs = s.settings;
+    rs.width = 96;
+    rs.height = 64;
+    const CompiledScene cs(s, rs.width, rs.height);
+    GpuOptions o;
+    o.kernel = KernelMode::kWavefront;
+    o.tail_fraction = 0.0f;
+    FrameStats one, queued, cub;
+    auto run = [&](GpuOptions::Compaction by, FrameStats* st, uint32_t spp) {
+      o.compaction_by = by;
+      gpu->set_gpu_options(o);
+      gpu->set_scene(cs, make_integrator_settings(rs));
+      *st = gpu->render(spp);
+      return gpu->image();
+    };
+    run(GpuOptions::Compaction::kShade, &one, 1);
+    uint64_t queued_rays = 0;
+    for (uint32_t k : one.shadow_per_bounce) queued_rays += k;
+    EXPECT_EQ(queued_rays, one.rays.shadow) << name;
+    EXPECT_GT(one.shadow_per_bounce.size(), 1u) << name;
+    // The paths finished without a shadow ray are among those that ended at their bounce.
+    ASSERT_FALSE(one.finished_per_bounce.empty()) << name;
+    for (size_t b = 0; b < one.finished_per_bounce.size(); ++b) {
+      const uint32_t in = b < one.alive_per_bounce.size() ? one.alive_per_bounce[b] : 0;
+      const uint32_t on = b + 1 < one.alive_per_bounce.size() ? one.alive_per_bounce[b + 1] : 0;
+      EXPECT_LE(one.finished_per_bounce[b], in - on) << name << " bounce " << b;
+    }
+    const ImageRGB a = run(GpuOptions::Compaction::kShade, &queued, 32);
+    const ImageRGB b = run(GpuOptions::Compaction::kCub, &cub, 32);
+    EXPECT_TRUE(cub.shadow_per_bounce.empty()) << name;
+    const double same = identical_fraction(a, b);
+    std::printf("%-22s shadow queue against CUB's pass: identical %.4f, shadow rays %llu / %llu\n",
+                name, same, (unsigned long long)queued.rays.shadow,
+                (unsigned long long)cub.rays.shadow);
+    EXPECT_GT(same, 0.999) << name;
+    EXPECT_EQ(queued.rays.shadow, cub.rays.shadow) << name;
+    EXPECT_EQ(queued.rays.extension, cub.rays.extension) << name;
+    EXPECT_EQ(queued.nonfinite, cub.nonfinite) << name;
+    EXPECT_EQ(queued.rays.walk_capped, cub.rays.walk_capped) << name;
+  }
+}
+
 // The tail kernel takes over the paths of a short queue and runs their remaining bounces: the
 // same paths as the stages would trace (same image, same extension and shadow ray counts), for
 // both compactions, through the flat list and the BVH, and on a scene with random walks.

@@ -172,6 +172,62 @@ TEST(FlatList, PairQueryEqualsTheTwoQueries) {
   }
 }
 
+TEST(FlatList, MultiRayQueryEqualsTheSingleQueries) {
+  // The wavefront's intersect kernel traces two (or four) queued rays per lane in one pass over
+  // the list: each must get exactly the hit of its own query (the same arithmetic and order),
+  // with a skipped triangle (random walks), and with the "no ray" stand-in (tmax = 0) of a lane
+  // whose second slot lies past the queue's end.
+  for (const char* name : {"cornell_box", "cornell_closed", "cornell_spheres", "smallpt"}) {
+    const Scene scene = load_scene(source_dir() + "/assets/scenes/" + name + ".json");
+    const CompiledScene cs(scene, 16, 16);
+    const SceneView v = flat_view(cs);
+    const Aabb box = scene_bounds(cs);
+    const vec3 ext = box.hi - box.lo;
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    auto ray = [&](int i) {
+      Ray r;
+      r.o = box.lo + ext * vec3(u(rng), u(rng), u(rng));
+      r.d = glm::normalize(box.lo + ext * vec3(u(rng), u(rng), u(rng)) - r.o);
+      r.tmax = (i % 9 == 8) ? 0.0f : kInfinity;
+      r.pad = 0.0f;
+      return r;
+    };
+    const uint32_t tri_count = uint32_t(cs.tri_verts().size());
+    int mismatches = 0, hits = 0;
+    auto check = [&](const Ray* rays, const uint32_t* skip, const Hit* multi, int k, int i) {
+      const Hit one = intersect_closest(v, rays[k], skip[k]);
+      hits += one.valid();
+      if (one.prim != multi[k].prim || one.t != multi[k].t || one.u != multi[k].u ||
+          one.v != multi[k].v) {
+        if (mismatches++ < 5)
+          ADD_FAILURE() << name << ": rays " << i << " lane ray " << k << ": " << multi[k].prim
+                        << " " << multi[k].t << " vs " << one.prim << " " << one.t;
+      }
+      if (rays[k].tmax == 0.0f) EXPECT_FALSE(multi[k].valid());
+    };
+    for (int i = 0; i < 3000; ++i) {
+      Ray rays[4];
+      uint32_t skip[4];
+      for (int k = 0; k < 4; ++k) {
+        rays[k] = ray(i + k);
+        skip[k] = (tri_count && (i + k) % 4 == 1) ? uint32_t(rng() % tri_count) : kInvalid;
+      }
+      Hit two[2], four[4], plain[4];
+      flat_closest_multi<kAllFeatures, 2>(v, rays, skip, two);
+      flat_closest_multi<kAllFeatures, 4>(v, rays, skip, four);
+      for (int k = 0; k < 2; ++k) check(rays, skip, two, k, i);
+      for (int k = 0; k < 4; ++k) check(rays, skip, four, k, i);
+      // Without random walks no ray skips a triangle, and the loop makes no skip test.
+      const uint32_t none[4] = {kInvalid, kInvalid, kInvalid, kInvalid};
+      flat_closest_multi<kAllFeatures & ~kFeatureSubsurface, 4>(v, rays, none, plain);
+      for (int k = 0; k < 4; ++k) check(rays, none, plain, k, i);
+    }
+    EXPECT_EQ(mismatches, 0) << name;
+    EXPECT_GT(hits, 3000) << name;
+  }
+}
+
 TEST(FlatList, HullEntriesNeverBlockLightSamples) {
   // The walls, floor and ceiling of the boxes have the whole scene on one side: the megakernel's
   // shadow rays skip them. Next-event rays built as the integrator builds them (spawn_ray_to,

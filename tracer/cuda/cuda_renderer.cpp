@@ -60,6 +60,11 @@ struct CudaRenderer::Impl {
   // queue: CUB's output, or (compaction in the shade kernel) the queues of even bounces, and
   // queue_odd those of odd ones: a bounce reads one while its shade kernel fills the other.
   DeviceBuffer<uint32_t> queue, queue_odd, sorted, sort_keys, sort_bins, alive_counts, count, fetch;
+  // With compaction in the shade kernel: each bounce's paths with a shadow ray (and at the far
+  // end those that end without one), and their numbers per bounce: shadow_counts holds the
+  // shadow rays of bounces [0, stride), then the paths to finish (WavefrontState).
+  DeviceBuffer<uint32_t> shadow_queue, shadow_counts;
+  uint32_t shadow_stride = 0;
   DeviceBuffer<uint8_t> cub_temp;
   bool cache_valid = false;
   // Paths entering each bounce in the last timed wavefront sample (zeros from its tail on): the
@@ -119,6 +124,8 @@ struct CudaRenderer::Impl {
     w.fetch = fetch.get();
     w.counters = counters.get();
     w.alive_counts = alive_counts.get();
+    w.shadow_counts = shadow_counts.get();
+    w.finish_counts = shadow_counts.get() + shadow_stride;
     return w;
   }
 
@@ -147,11 +154,14 @@ struct CudaRenderer::Impl {
     alive.resize(count_pixels);
     queue.resize(count_pixels);
     queue_odd.resize(count_pixels);
+    shadow_queue.resize(count_pixels);
     sorted.resize(count_pixels);
     sort_keys.resize(count_pixels);
     sort_bins.resize(17);
     fetch.resize(1);
     alive_counts.resize(cfg.max_depth + 2);
+    shadow_stride = cfg.max_depth + 2;
+    shadow_counts.resize(2 * shadow_stride);
     count.resize(1);
     cub_temp.resize(std::max<size_t>(1, compaction_temp_bytes(count_pixels)));
     counters.resize(8);
@@ -225,11 +235,21 @@ struct CudaRenderer::Impl {
     const bool walks = (features & kFeatureSubsurface) != 0;
     const uint32_t iterations = walks ? cfg.max_depth + kMaxWalkSteps : cfg.max_depth;
     if (alive_counts.size() < iterations + 2) alive_counts.resize(iterations + 2);
+    if (shadow_stride < iterations + 2) {
+      shadow_stride = iterations + 2;
+      shadow_counts.resize(2 * shadow_stride);
+    }
     w.alive_counts = alive_counts.get();
+    w.shadow_counts = shadow_counts.get();
+    w.finish_counts = shadow_counts.get() + shadow_stride;
     TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
     // Compaction in the shade kernel: bounce b reads the queue its predecessor's shade kernel
     // wrote (its length: alive_counts[b]) and writes the next one into the other buffer.
     const bool queue_in_shade = opts.compaction && uses_shade_compaction();
+    // ... and then a shadow queue too.
+    if (queue_in_shade)
+      TRACER_CUDA_CHECK(cudaMemsetAsync(w.shadow_counts, 0, shadow_counts.bytes(), stream));
+    uint32_t* const shadows = queue_in_shade ? shadow_queue.get() : nullptr;
     auto bounce_queue = [&](uint32_t b) { return (b & 1) ? queue_odd.get() : queue.get(); };
     // The tail (needs a queue): from the first bounce whose estimated queue is short, one
     // megakernel launch runs the remaining bounces of its paths, where each stage of a short
@@ -267,9 +287,10 @@ struct CudaRenderer::Impl {
         mark(timed, kSort);
       }
       launch_shade(sp, view, cfg, sample, b, w, q, c,
-                   queue_in_shade && b + 1 < iterations ? bounce_queue(b + 1) : nullptr, stream);
+                   queue_in_shade && b + 1 < iterations ? bounce_queue(b + 1) : nullptr, shadows,
+                   stream);
       mark(timed, kShade);
-      launch_shadow(sp, view, flat_params, w, q, c, first, film_view(sample), stream);
+      launch_shadow(sp, view, flat_params, w, q, c, shadows, b, first, film_view(sample), stream);
       mark(timed, kShadow);
       if (b + 1 == iterations) {
         if (walks) launch_flush(w, first, film_view(sample), stream);
@@ -395,8 +416,8 @@ std::string CudaRenderer::chosen_kernel() const {
 }
 
 size_t CudaRenderer::path_state_bytes_per_pixel() const {
-  // 8 float4 arrays, alive flag, two queues + sorted queue + sort key, cached hit.
-  return 8 * sizeof(float4) + 1 + 4 * sizeof(uint32_t) + sizeof(float4);
+  // 8 float4 arrays, alive flag, two queues + shadow queue + sorted queue + sort key, cached hit.
+  return 8 * sizeof(float4) + 1 + 5 * sizeof(uint32_t) + sizeof(float4);
 }
 
 size_t CudaRenderer::scene_bytes() const {
@@ -448,6 +469,18 @@ FrameStats CudaRenderer::render(uint32_t spp) {
           std::vector<uint32_t> alive = m.tail_estimate;
           while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
           st.alive_per_bounce = alive;
+          if (m.opts.compaction && m.uses_shade_compaction()) {
+            std::vector<uint32_t> counts;
+            m.shadow_counts.download(counts);
+            auto trimmed = [](std::vector<uint32_t> v) {
+              while (!v.empty() && v.back() == 0) v.pop_back();
+              return v;
+            };
+            st.shadow_per_bounce = trimmed(std::vector<uint32_t>(
+                counts.begin(), counts.begin() + m.shadow_stride));
+            st.finished_per_bounce = trimmed(std::vector<uint32_t>(
+                counts.begin() + m.shadow_stride, counts.begin() + 2 * m.shadow_stride));
+          }
         }
       }
     }

@@ -68,6 +68,16 @@ __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 
   }
 }
 
+// A wavefront path whose sample is complete: its radiance goes to the film, its flags to the
+// counters, and its slot is free (alive 0).
+__device__ __forceinline__ void finish_path(const WavefrontState& w, uint32_t id, vec3 L,
+                                            uint32_t flags, bool first, const FilmView& film) {
+  add_to_film(film, id, L, first, &w.counters[1]);
+  w.alive[id] = 0;
+  if (flags & kPathWalkCapped) atomicAdd(&w.counters[3], 1ull);  // rare: plain atomics
+  if (flags & kPathMediumLeak) atomicAdd(&w.counters[4], 1ull);
+}
+
 // One atomic per warp for a per-thread count (warp-aggregated over the active lanes).
 __device__ __forceinline__ void warp_add(unsigned long long* target, uint32_t value) {
   const unsigned mask = __activemask();
@@ -320,19 +330,69 @@ __device__ __forceinline__ void store_hit(const WavefrontState& w, uint32_t id, 
   w.hit[id] = make_float4(h.t, __uint_as_float(h.prim), h.u, h.v);
 }
 
+// The intersect stage through the BVH, one thread per queued ray (without dynamic fetch).
 template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView view,
-                                                           const __grid_constant__ FlatParams flat,
-                                                           WavefrontState w,
+__global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, WavefrontState w,
                                                            const uint32_t* queue,
                                                            const uint32_t* count, bool walks) {
-  const SceneView s = with_flat_params(view, flat);
   const uint32_t id = queued_path(w, queue, blockIdx.x * blockDim.x + threadIdx.x,
                                   queue_total(w, queue, count));
   if (id == kInvalid) return;
   uint32_t skip;
   const Ray ray = extension_ray(s, w, id, walks, &skip);
-  store_hit(w, id, intersect_closest<features_of<Spec>() | kFeatureFlatList>(s, ray, skip));
+  store_hit(w, id, intersect_closest<features_of<Spec>()>(s, ray, skip));
+}
+
+// Rays per lane of the flat list's intersect kernel (intersect_flat_kernel): 4 (64 registers)
+// without spheres, 2 (40) with them, where 4 took 84 registers and ran slower (PERFORMANCE.md).
+template <uint32_t Spec>
+constexpr int flat_rays() {
+#ifdef TRACER_FLAT_RAYS_PER_LANE
+  return TRACER_FLAT_RAYS_PER_LANE;
+#else
+  return (Spec & kSpecSpheres) ? 2 : 4;
+#endif
+}
+
+// The intersect stage through the flat list: each lane traces flat_rays() queued rays, slots
+// kBlock apart (coalesced), in one pass over the entries (flat_closest_multi). One ray per lane
+// spent 6 of its ~33 instructions per entry on the entry's constant-bank loads, and those loads
+// kept the memory pipes 78% busy (Nsight, bounce 1 of the open box): shared by two rays, the
+// loads and the loop's own instructions are paid once per pair.
+// kWalks: the scene has random walks, whose rays skip the triangle they leave from.
+template <uint32_t Spec, bool kWalks>
+__global__ void __launch_bounds__(kBlock) intersect_flat_kernel(SceneView view,
+                                                                const __grid_constant__ FlatParams flat,
+                                                                WavefrontState w,
+                                                                const uint32_t* queue,
+                                                                const uint32_t* count) {
+  constexpr int kFlatRays = flat_rays<Spec>();
+  constexpr uint32_t F =
+      features_of<Spec>() | kFeatureFlatList | (kWalks ? kFeatureSubsurface : 0u);
+  const SceneView s = with_flat_params(view, flat);
+  const uint32_t total = queue_total(w, queue, count);
+  const uint32_t first = blockIdx.x * (kFlatRays * kBlock) + threadIdx.x;
+  if (first >= total) return;
+  uint32_t id[kFlatRays], skip[kFlatRays];
+  Ray ray[kFlatRays];
+#pragma unroll
+  for (int k = 0; k < kFlatRays; ++k) {
+    id[k] = queued_path(w, queue, first + k * kBlock, total);
+    if (id[k] != kInvalid) {
+      ray[k] = extension_ray(s, w, id[k], kWalks, &skip[k]);
+    } else {
+      ray[k].o = vec3(0.0f);
+      ray[k].d = vec3(0.0f, 0.0f, 1.0f);
+      ray[k].tmax = 0.0f;  // nothing hits it
+      ray[k].pad = 0.0f;
+      skip[k] = kInvalid;
+    }
+  }
+  Hit hit[kFlatRays];
+  flat_closest_multi<F, kFlatRays>(s, ray, skip, hit);
+#pragma unroll
+  for (int k = 0; k < kFlatRays; ++k)
+    if (id[k] != kInvalid) store_hit(w, id[k], hit[k]);
 }
 
 // Lanes of the dynamic-fetch kernel refill in batches of 8: measured on an H100 as fast as 16
@@ -400,13 +460,20 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
 // its paths that go on to the next bounce's queue, in slot order, with one atomic on the next
 // bounce's path count (alive_counts[bounce + 1]). One atomic per warp that waits for its result
 // cost 20 us per bounce where nearly every path goes on (the closed box: 65,000 atomics on one
-// address); the block's 8 warp counts are summed in shared memory first.
+// address); the block's 8 warp counts are summed in shared memory first. With shadow_queue the
+// block appends its paths that have a shadow ray to it the same way (shadow_counts[bounce]), so
+// that the shadow stage traces full warps of rays instead of every path of the bounce (in the
+// open box 63% of them have none); the paths that end without a shadow ray go to the queue's
+// far end (slot n - 1 - k, counted on finish_counts[bounce]), where the shadow stage's last
+// warps add them to the film. (Adding them here instead cost the shade kernel 40-80% more on
+// bounces where many paths end: its film reductions stalled its loads and its barrier.)
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSettings cfg,
                                                        uint32_t sample, uint32_t bounce,
                                                        WavefrontState w, const uint32_t* queue,
                                                        const uint32_t* count,
-                                                       uint32_t* next_queue) {
+                                                       uint32_t* next_queue,
+                                                       uint32_t* shadow_queue) {
   const uint32_t id = queued_path(w, queue, blockIdx.x * blockDim.x + threadIdx.x,
                                   queue_total(w, queue, count));
   bool go_on = false, shadow_valid = false;
@@ -431,7 +498,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
       w.shadow_d[id] = make_float4(sr.ray.d.x, sr.ray.d.y, sr.ray.d.z,
                                    __uint_as_float(sr.target_prim));
       w.shadow_c[id] = make_float4(sr.contribution.x, sr.contribution.y, sr.contribution.z, 1.0f);
-    } else {
+    } else if (!shadow_queue) {
       w.shadow_c[id].w = 0.0f;
     }
     w.alive[id] = go_on ? 1 : 2;
@@ -439,30 +506,56 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   // Warp-aggregated statistics: shadow rays traced and paths entering the next bounce.
   const unsigned ballot_shadow = __ballot_sync(0xffffffffu, shadow_valid);
   const unsigned ballot_alive = __ballot_sync(0xffffffffu, go_on);
+  // Paths that end without a shadow ray (only counted with a shadow queue).
+  const bool finish = id != kInvalid && !go_on && !shadow_valid;
+  const unsigned ballot_finish = __ballot_sync(0xffffffffu, finish);
   const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
   if (lane == 0 && ballot_shadow)
     atomicAdd(&w.counters[0], (unsigned long long)__popc(ballot_shadow));
   uint32_t* next_count = &w.alive_counts[bounce + 1];
-  if (!next_queue) {
+  if (!next_queue && !shadow_queue) {
     if (lane == 0 && ballot_alive) atomicAdd(next_count, uint32_t(__popc(ballot_alive)));
     return;
   }
-  __shared__ uint32_t warp_start[kBlock / 32 + 1];  // [kBlock / 32]: the block's start
-  if (lane == 0) warp_start[warp] = __popc(ballot_alive);
-  __syncthreads();
-  if (threadIdx.x == 0) {
-    uint32_t sum = 0;
-    for (int k = 0; k < kBlock / 32; ++k) {
-      const uint32_t c = warp_start[k];
-      warp_start[k] = sum;
-      sum += c;
-    }
-    warp_start[kBlock / 32] = sum ? atomicAdd(next_count, sum) : 0;
+  // [k]: where warp k's paths go in the block's share; [kBlock / 32]: the block's start.
+  constexpr int kWarps = kBlock / 32;
+  __shared__ uint32_t warp_start[kWarps + 1], shadow_start[kWarps + 1], finish_start[kWarps + 1];
+  if (lane == 0) {
+    warp_start[warp] = __popc(ballot_alive);
+    shadow_start[warp] = __popc(ballot_shadow);
+    finish_start[warp] = __popc(ballot_finish);
   }
   __syncthreads();
-  if (go_on)
-    next_queue[warp_start[kBlock / 32] + warp_start[warp] +
-               __popc(ballot_alive & ((1u << lane) - 1u))] = id;
+  if (threadIdx.x == 0) {
+    uint32_t sum = 0, shadows = 0, finished = 0;
+    for (int k = 0; k < kWarps; ++k) {
+      const uint32_t c = warp_start[k], cs = shadow_start[k], cf = finish_start[k];
+      warp_start[k] = sum;
+      shadow_start[k] = shadows;
+      finish_start[k] = finished;
+      sum += c;
+      shadows += cs;
+      finished += cf;
+    }
+    if (next_queue) {
+      warp_start[kWarps] = sum ? atomicAdd(next_count, sum) : 0;
+    } else if (sum) {
+      atomicAdd(next_count, sum);
+    }
+    if (shadow_queue) {
+      shadow_start[kWarps] = shadows ? atomicAdd(&w.shadow_counts[bounce], shadows) : 0;
+      finish_start[kWarps] = finished ? atomicAdd(&w.finish_counts[bounce], finished) : 0;
+    }
+  }
+  __syncthreads();
+  const unsigned below = (1u << lane) - 1u;
+  if (next_queue && go_on)
+    next_queue[warp_start[kWarps] + warp_start[warp] + __popc(ballot_alive & below)] = id;
+  if (shadow_queue && shadow_valid)
+    shadow_queue[shadow_start[kWarps] + shadow_start[warp] + __popc(ballot_shadow & below)] = id;
+  if (shadow_queue && finish)
+    shadow_queue[w.n - 1 - (finish_start[kWarps] + finish_start[warp] +
+                            __popc(ballot_finish & below))] = id;
 }
 
 template <uint32_t Spec>
@@ -496,13 +589,54 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
       if (state == 1) w.radiance[id] = r;
     }
   }
-  if (state == 2) {  // the path ended in this bounce: its sample is complete
-    add_to_film(film, id, vec3(r.x, r.y, r.z), first, &w.counters[1]);
-    w.alive[id] = 0;
-    const uint32_t flags = __float_as_uint(w.ray_d[id].w) >> 16;
-    if (flags & kPathWalkCapped) atomicAdd(&w.counters[3], 1ull);
-    if (flags & kPathMediumLeak) atomicAdd(&w.counters[4], 1ull);
+  if (state == 2)  // the path ended in this bounce: its sample is complete
+    finish_path(w, id, vec3(r.x, r.y, r.z), __float_as_uint(w.ray_d[id].w) >> 16, first, film);
+}
+
+// The shadow stage over the shadow queue the shade kernel wrote: every lane of the first
+// shadow_counts[b] has a ray, and with no choice to make first, the ray, its contribution, the
+// path's radiance and state are read at once, one dependent step after the queue slot (the pass
+// above waits for the state, then the contribution, then the ray). The lanes after them finish
+// the paths that ended without a shadow ray (finish_counts[b], from the queue's far end).
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) shadow_queued_kernel(SceneView view,
+                                                               const __grid_constant__ FlatParams flat,
+                                                               WavefrontState w,
+                                                               const uint32_t* shadow_queue,
+                                                               uint32_t bounce, bool first,
+                                                               FilmView film, bool walks) {
+  const SceneView s = with_flat_params(view, flat);
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  const uint32_t rays = w.shadow_counts[bounce];
+  if (i >= rays) {
+    const uint32_t k = i - rays;
+    if (k >= w.finish_counts[bounce]) return;
+    const uint32_t id = shadow_queue[w.n - 1 - k];
+    const float4 r = w.radiance[id];
+    finish_path(w, id, vec3(r.x, r.y, r.z), __float_as_uint(w.ray_d[id].w) >> 16, first, film);
+    return;
   }
+  const uint32_t id = shadow_queue[i];
+  const float4 o = w.shadow_o[id], d = w.shadow_d[id], c = w.shadow_c[id];
+  float4 r = w.radiance[id];
+  const uint8_t state = w.alive[id];
+  Ray ray;
+  ray.o = vec3(o.x, o.y, o.z);
+  ray.tmax = o.w;
+  ray.d = vec3(d.x, d.y, d.z);
+  ray.pad = 0.0f;
+  uint32_t origin = kInvalid;
+  if (walks) origin = __float_as_uint(w.hit[id].y);
+  const bool blocked = shadow_blocked<features_of<Spec>() | kFeatureFlatList>(
+      s, ray, __float_as_uint(d.w), origin < s.tri_count ? origin : kInvalid);
+  if (!blocked) {
+    r.x += c.x;
+    r.y += c.y;
+    r.z += c.z;
+    if (state == 1) w.radiance[id] = r;
+  }
+  if (state == 2)
+    finish_path(w, id, vec3(r.x, r.y, r.z), __float_as_uint(w.ray_d[id].w) >> 16, first, film);
 }
 
 // The sample's extension rays, the paths that entered a bounce after the first (alive_counts[1..
@@ -731,8 +865,23 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
     TRACER_CUDA_CHECK_LAUNCH("intersect_fetch_kernel");
     return;
   }
+  if (s.use_flat) {
+#define CALL(S, W)                                                                   \
+  intersect_flat_kernel<S, W>                                                        \
+      <<<(w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock), kBlock, 0, stream>>>( \
+          s, flat, w, queue, count)
+    switch ((spec & kSpecSpheres) | (walks ? 2 : 0)) {
+      case 0: CALL(0, false); break;
+      case 1: CALL(kSpecSpheres, false); break;
+      case 2: CALL(0, true); break;
+      default: CALL(kSpecSpheres, true); break;
+    }
+#undef CALL
+    TRACER_CUDA_CHECK_LAUNCH("intersect_flat_kernel");
+    return;
+  }
 #define CALL(S) \
-  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, walks)
+  intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count, walks)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;
@@ -744,7 +893,7 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
 void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                   uint32_t sample, uint32_t bounce, const WavefrontState& w,
                   const uint32_t* queue, const uint32_t* count, uint32_t* next_queue,
-                  cudaStream_t stream) {
+                  uint32_t* shadow_queue, cudaStream_t stream) {
   // The block's 36 bytes of shared memory (compaction) must not take L1 from the shading's
   // scene reads: asked for the smallest carveout, once per variant.
   static bool carveout_set[8] = {};
@@ -756,7 +905,7 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
     carveout_set[S] = true;                                                               \
   }                                                                                       \
   shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
-                                                      next_queue)
+                                                      next_queue, shadow_queue)
   switch (spec & (kSpecSpheres | kSpecSpecular)) {
     case 0: CALL(0); break;
     case kSpecSpheres: CALL(kSpecSpheres); break;
@@ -769,10 +918,24 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
 
 void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
                    const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
-                   bool first, FilmView film, cudaStream_t stream) {
+                   const uint32_t* shadow_queue, uint32_t bounce, bool first, FilmView film,
+                   cudaStream_t stream) {
+  const bool walks = (s.features & kFeatureSubsurface) != 0;
+  if (shadow_queue) {
+#define CALL(S)                                                                               \
+  shadow_queued_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, shadow_queue, bounce, \
+                                                              first, film, walks)
+    switch (spec & kSpecSpheres) {
+      case 0: CALL(0); break;
+      default: CALL(kSpecSpheres); break;
+    }
+#undef CALL
+    TRACER_CUDA_CHECK_LAUNCH("shadow_queued_kernel");
+    return;
+  }
 #define CALL(S)                                                 \
   shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, first, film, \
-                                                       (s.features & kFeatureSubsurface) != 0)
+                                                       walks)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
     default: CALL(kSpecSpheres); break;

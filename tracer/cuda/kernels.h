@@ -33,6 +33,10 @@ struct WavefrontState {
   // [6] the wavefront's extension rays (launch_add_alive after each sample)
   unsigned long long* counters = nullptr;
   uint32_t* alive_counts = nullptr;    // paths entering each bounce, [max_depth + 1]
+  // With compaction in the shade kernel: the shadow rays of each bounce, the length of the shadow
+  // queue its shade kernel wrote (the shadow stage then traces only those).
+  uint32_t* shadow_counts = nullptr;
+  uint32_t* finish_counts = nullptr;  // ... and its paths that end without one (far end)
 };
 
 // The flat primitive list's entries (SceneView::flat_loop) passed by value to the kernels that
@@ -78,13 +82,19 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
                       bool dynamic_fetch, cudaStream_t stream);
 // next_queue (compaction in the shade kernel): each path that goes on is appended to it, in
 // slot order within a block, by one atomic per block on alive_counts[bounce + 1]; nullptr: none.
+// shadow_queue (nullptr: none; n slots): likewise each path with a shadow ray, from the front,
+// counted on shadow_counts[bounce], and each path that ends without one from the back (slot
+// n - 1 - k), counted on finish_counts[bounce].
 void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                   uint32_t sample, uint32_t bounce, const WavefrontState& w,
                   const uint32_t* queue, const uint32_t* count, uint32_t* next_queue,
-                  cudaStream_t stream);
+                  uint32_t* shadow_queue, cudaStream_t stream);
+// Without shadow_queue: over the bounce's queue (every path shaded, with a shadow ray or not);
+// with it: the shadow rays, then the paths to finish, of the shade kernel's shadow queue.
 void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
                    const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
-                   bool first, FilmView film, cudaStream_t stream);
+                   const uint32_t* shadow_queue, uint32_t bounce, bool first, FilmView film,
+                   cudaStream_t stream);
 // Counting sort of the queue by the material type at each path's hit (Cycles-style); the live
 // paths come first, and their number goes to w.sort_bins[16] (the sorted queue's length).
 void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,

@@ -69,6 +69,12 @@ struct FrameStats {
   double clamped_luminance = 0;  // luminance the clamp removed (sum over samples): its bias
   StageTimes stages;
   std::vector<uint32_t> alive_per_bounce;  // paths entering each bounce (first call's wave)
+  // Shadow rays the wavefront's stages traced per bounce (same wave; only with compaction in the
+  // shade kernel, which queues them; empty otherwise).
+  std::vector<uint32_t> shadow_per_bounce;
+  // ... and the paths that ended without a shadow ray, which the shadow stage's last lanes add
+  // to the film (same wave, same condition).
+  std::vector<uint32_t> finished_per_bounce;
   std::string kernel;                      // "wavefront", "megakernel", "cpu"
   std::string specialization;              // which compiled variant ran
   std::string note;                        // e.g. why the first-bounce cache is off

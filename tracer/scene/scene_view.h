@@ -415,6 +415,84 @@ TRACER_HD inline Hit flat_traverse(const SceneView& s, const Ray& ray, uint32_t 
   return hit;
 }
 
+// Entries [begin, end) against K rays at once, the nearest hit of each in (0, tbest[k]) kept in
+// tbest[k] and best[k] (entry fa[k] skipped): each entry is loaded once for all K rays, so the
+// loads and the loop's own instructions are shared (the wavefront's intersect kernel, where each
+// lane traces K queued rays). Per ray the same arithmetic and order as flat_range. Without
+// kSkips no entry is skipped (fa is not read).
+template <bool kQuads, int K, bool kSkips>
+TRACER_HD TRACER_INLINE void flat_range_multi(const FlatPrim* prims, uint32_t begin, uint32_t end,
+                                              const vec3* o, const vec3* d, const uint32_t* fa,
+                                              float* tbest, uint32_t* best) {
+  for (uint32_t i = begin; i < end; ++i) {
+    const FlatPrim p = load_flat_loop(prims, i);
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+    for (int k = 0; k < K; ++k) {
+      float t, u, v;
+      flat_hit(p, o[k], d[k], t, u, v);
+      if (flat_accept<kQuads>(u, v, t, tbest[k]) & (!kSkips || i != fa[k])) {
+        tbest[k] = t;
+        best[k] = i;
+      }
+    }
+  }
+}
+
+// The nearest hits of K rays through the flat list and the spheres: hits[k] is what
+// intersect_closest(s, rays[k], skip[k]) returns through the list (the same arithmetic and
+// order), at one pass over the entries for all K. A lane with fewer than K rays passes copies
+// with tmax = 0, which nothing hits. Without random walks (F without kFeatureSubsurface) rays
+// leave from no skipped triangle: skip is then ignored, and the loop makes no skip test.
+template <uint32_t F, int K>
+TRACER_HD TRACER_INLINE void flat_closest_multi(const SceneView& s, const Ray* rays,
+                                                const uint32_t* skip, Hit* hits) {
+  constexpr bool kSkips = (F & kFeatureSubsurface) != 0;
+  vec3 o[K], d[K];
+  float tbest[K];
+  uint32_t best[K], fa[K];
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (int k = 0; k < K; ++k) {
+    o[k] = rays[k].o;
+    d[k] = rays[k].d;
+    tbest[k] = rays[k].tmax;
+    best[k] = kInvalid;
+    fa[k] = kSkips && skip[k] < s.tri_count ? s.tri_to_flat[skip[k]] : kInvalid;
+  }
+  flat_range_multi<true, K, kSkips>(s.flat_loop, 0, s.flat_quads - s.flat_box_faces, o, d, fa, tbest,
+                            best);
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (int k = 0; k < K; ++k)
+    if (s.flat_box_faces) flat_box_hit(s, o[k], d[k], fa[k], kInvalid, tbest[k], best[k]);
+  flat_range_multi<false, K, kSkips>(s.flat_loop, s.flat_quads, s.flat_count, o, d, fa, tbest, best);
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (int k = 0; k < K; ++k) {
+    Hit hit = flat_entry_hit(s, rays[k], best[k], tbest[k]);
+    if (F & kFeatureSpheres) {
+      for (uint32_t j = 0; j < s.sphere_count; ++j) {
+        const uint32_t prim = s.tri_count + j;
+        if (kSkips && prim == skip[k]) continue;
+        const Sphere sph = load_sphere(s.spheres, j);
+        float t;
+        if (intersect_sphere(rays[k], sph.center, sph.radius, tbest[k], t)) {
+          tbest[k] = t;
+          hit.t = t;
+          hit.prim = prim;
+          hit.u = hit.v = 0.0f;
+        }
+      }
+    }
+    hits[k] = hit;
+  }
+}
+
 // Entries [begin, end) against two rays at once: the nearest hit of `ext` (kept in tbest/best,
 // skipping entry fa) and whether anything blocks `sh` in (0, sh.tmax) (skipping entries sa and
 // sb). Each entry is loaded once for both; a lane with no ray of one kind passes one with
