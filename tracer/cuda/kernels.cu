@@ -456,6 +456,14 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
   }
 }
 
+// A shadow ray into slot k of the shadow arrays (the path's id, or its shadow queue slot).
+__device__ __forceinline__ void store_shadow_ray(const WavefrontState& w, uint32_t k,
+                                                 const ShadowRequest& sr) {
+  w.shadow_o[k] = make_float4(sr.ray.o.x, sr.ray.o.y, sr.ray.o.z, sr.ray.tmax);
+  w.shadow_d[k] = make_float4(sr.ray.d.x, sr.ray.d.y, sr.ray.d.z, __uint_as_float(sr.target_prim));
+  w.shadow_c[k] = make_float4(sr.contribution.x, sr.contribution.y, sr.contribution.z, 1.0f);
+}
+
 // Shades the queued paths; with next_queue (compaction in the shade kernel) each block appends
 // its paths that go on to the next bounce's queue, in slot order, with one atomic on the next
 // bounce's path count (alive_counts[bounce + 1]). One atomic per warp that waits for its result
@@ -463,7 +471,8 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
 // address); the block's 8 warp counts are summed in shared memory first. With shadow_queue the
 // block appends its paths that have a shadow ray to it the same way (shadow_counts[bounce]), so
 // that the shadow stage traces full warps of rays instead of every path of the bounce (in the
-// open box 63% of them have none); the paths that end without a shadow ray go to the queue's
+// open box 63% of them have none), and stores the rays at their slots (shadow_o/d/c[slot]),
+// where the stage reads them in whole sectors instead of scattered over the pool; the paths that end without a shadow ray go to the queue's
 // far end (slot n - 1 - k, counted on finish_counts[bounce]), where the shadow stage's last
 // warps add them to the film. (Adding them here instead cost the shade kernel 40-80% more on
 // bounces where many paths end: its film reductions stalled its loads and its barrier.)
@@ -477,6 +486,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   const uint32_t id = queued_path(w, queue, blockIdx.x * blockDim.x + threadIdx.x,
                                   queue_total(w, queue, count));
   bool go_on = false, shadow_valid = false;
+  ShadowRequest sr;
   if (id != kInvalid) {
     PathState st = load_state(w, id, sample);
     const float4 h4 = w.hit[id];
@@ -485,7 +495,6 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     hit.prim = __float_as_uint(h4.y);
     hit.u = h4.z;
     hit.v = h4.w;
-    ShadowRequest sr;
     go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
     store_state(w, id, st);
     // A medium scatter continues from no surface; a surface bounce leaves from the triangle that
@@ -493,11 +502,9 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     if ((features_of<Spec>() & kFeatureSubsurface) && go_on && st.origin_prim == kInvalid)
       w.hit[id].y = __uint_as_float(kInvalid);
     shadow_valid = sr.valid;
-    if (sr.valid) {
-      w.shadow_o[id] = make_float4(sr.ray.o.x, sr.ray.o.y, sr.ray.o.z, sr.ray.tmax);
-      w.shadow_d[id] = make_float4(sr.ray.d.x, sr.ray.d.y, sr.ray.d.z,
-                                   __uint_as_float(sr.target_prim));
-      w.shadow_c[id] = make_float4(sr.contribution.x, sr.contribution.y, sr.contribution.z, 1.0f);
+    // With a shadow queue the ray is stored at its queue slot, below.
+    if (sr.valid && !shadow_queue) {
+      store_shadow_ray(w, id, sr);
     } else if (!shadow_queue) {
       w.shadow_c[id].w = 0.0f;
     }
@@ -551,8 +558,11 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   const unsigned below = (1u << lane) - 1u;
   if (next_queue && go_on)
     next_queue[warp_start[kWarps] + warp_start[warp] + __popc(ballot_alive & below)] = id;
-  if (shadow_queue && shadow_valid)
-    shadow_queue[shadow_start[kWarps] + shadow_start[warp] + __popc(ballot_shadow & below)] = id;
+  if (shadow_queue && shadow_valid) {
+    const uint32_t slot = shadow_start[kWarps] + shadow_start[warp] + __popc(ballot_shadow & below);
+    shadow_queue[slot] = id;
+    store_shadow_ray(w, slot, sr);  // consecutive slots: whole sectors, read so by the stage
+  }
   if (shadow_queue && finish)
     shadow_queue[w.n - 1 - (finish_start[kWarps] + finish_start[warp] +
                             __popc(ballot_finish & below))] = id;
@@ -617,7 +627,8 @@ __global__ void __launch_bounds__(kBlock) shadow_queued_kernel(SceneView view,
     return;
   }
   const uint32_t id = shadow_queue[i];
-  const float4 o = w.shadow_o[id], d = w.shadow_d[id], c = w.shadow_c[id];
+  // The ray at its slot (coalesced); the path's radiance and state at its id.
+  const float4 o = w.shadow_o[i], d = w.shadow_d[i], c = w.shadow_c[i];
   float4 r = w.radiance[id];
   const uint8_t state = w.alive[id];
   Ray ray;

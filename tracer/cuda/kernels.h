@@ -21,6 +21,7 @@ struct WavefrontState {
   float4* throughput = nullptr;  // xyz
   float4* radiance = nullptr;    // xyz
   float4* hit = nullptr;         // t, prim (bits), u, v
+  // Shadow rays: at the path's id, or with a shadow queue at the path's slot in it.
   float4* shadow_o = nullptr;    // origin, tmax
   float4* shadow_d = nullptr;    // direction, target prim (bits)
   float4* shadow_c = nullptr;    // contribution, valid (1 or 0)
