@@ -298,9 +298,9 @@ Runner add_render_command(CLI::App& cmd) {
       ->check(CLI::IsMember({"auto", "wavefront", "megakernel"}))->group(gpu)->capture_default_str();
   cmd.add_option("--compaction", o->compaction,
                  "Compact live path indices after each bounce: shade (the shade kernel appends "
-                 "the paths that go on to the next bounce's queue), cub (a CUB select over the "
-                 "alive flags after each bounce), on (shade for diffuse-only scenes, else cub) "
-                 "or off")
+                 "the paths that go on to the next bounce's queue, and the shadow rays to the "
+                 "shadow stage's), cub (a CUB select over the alive flags after each bounce), on "
+                 "(shade, but cub for textured scenes) or off")
       ->check(CLI::IsMember({"on", "shade", "cub", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--sort", o->sort, "Sort paths by material before shading")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();

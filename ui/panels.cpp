@@ -262,8 +262,8 @@ void render_panel(Workbench& wb, PanelState& ps) {
       }
       if (ImGui::IsItemHovered())
         ImGui::SetTooltip("shade kernel: it appends the paths that go on to the next bounce's "
-                          "queue; CUB select: over the alive flags after each bounce; auto: the "
-                          "shade kernel for diffuse-only scenes, CUB otherwise");
+                          "queue, and queues the shadow rays; CUB select: over the alive flags "
+                          "after each bounce; auto: the shade kernel, CUB on textured scenes");
     }
     if (g.compaction) {
       gc |= ImGui::SliderFloat("tail below", &g.tail_fraction, 0.0f, 1.0f, "%.2f of the pixels");

@@ -89,8 +89,11 @@ struct CudaRenderer::Impl {
   uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
   bool uses_shade_compaction() const {
     using C = GpuOptions::Compaction;
+    // Auto: the shade kernel's queues except on textured scenes, whose long, divergent shading
+    // (96 registers, 2 blocks per SM) waits at the block's barrier: there CUB was 10% faster,
+    // elsewhere the queues 0-18% (PERFORMANCE.md, "Rays per lane; a shadow queue").
     return opts.compaction_by == C::kShade ||
-           (opts.compaction_by == C::kAuto && !(spec() & kSpecSpecular));
+           (opts.compaction_by == C::kAuto && !(features & kFeatureTextures));
   }
   void choose_accel() { view.use_flat = flat_available && opts.flat_list ? 1u : 0u; }
   std::string accel_name() const {

@@ -608,8 +608,11 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
 // path's radiance and state are read at once, one dependent step after the queue slot (the pass
 // above waits for the state, then the contribution, then the ray). The lanes after them finish
 // the paths that ended without a shadow ray (finish_counts[b], from the queue's far end).
+#ifndef TRACER_SHADOW_MIN_BLOCKS
+#define TRACER_SHADOW_MIN_BLOCKS 1
+#endif
 template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock) shadow_queued_kernel(SceneView view,
+__global__ void __launch_bounds__(kBlock, TRACER_SHADOW_MIN_BLOCKS) shadow_queued_kernel(SceneView view,
                                                                const __grid_constant__ FlatParams flat,
                                                                WavefrontState w,
                                                                const uint32_t* shadow_queue,

@@ -18,9 +18,9 @@ struct GpuOptions {
   KernelMode kernel = KernelMode::kAuto;
   // Compact the indices of live paths after each bounce: kShade, the shade kernel appends each
   // path that goes on to the next bounce's queue (one atomic per block on the count it keeps
-  // anyway); kCub, a CUB select over the alive flags after each bounce; kAuto, kShade for scenes
-  // whose shade kernel is the diffuse-only variant and kCub otherwise (where the heavier
-  // specular variant runs 2 blocks per SM, the block's barrier cost 4-13%, PERFORMANCE.md).
+  // anyway; it then also queues the shadow rays, stored at their queue slots, for the shadow
+  // stage); kCub, a CUB select over the alive flags after each bounce; kAuto, kShade except on
+  // textured scenes (where the block's barrier after their long shading cost 10%, PERFORMANCE.md).
   bool compaction = true;
   enum class Compaction { kAuto, kShade, kCub } compaction_by = Compaction::kAuto;
   // The wavefront's tail (with compaction): once a bounce's queue is estimated (from the last
