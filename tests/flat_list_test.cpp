@@ -23,6 +23,18 @@ SceneView flat_view(const CompiledScene& cs) {
   return v;
 }
 
+// A ray between two random points of the box, of length tmax.
+Ray random_ray(const Aabb& box, std::mt19937& rng, float tmax) {
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const vec3 ext = box.hi - box.lo;
+  Ray r;
+  r.o = box.lo + ext * vec3(u(rng), u(rng), u(rng));
+  r.d = glm::normalize(box.lo + ext * vec3(u(rng), u(rng), u(rng)) - r.o);
+  r.tmax = tmax;
+  r.pad = 0.0f;
+  return r;
+}
+
 SceneView bvh_view(const CompiledScene& cs) {
   SceneView v = cs.view();
   v.use_flat = 0;
@@ -113,14 +125,7 @@ TEST(FlatList, PairQueryEqualsTheTwoQueries) {
     const vec3 ext = box.hi - box.lo;
     std::mt19937 rng(77);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
-    auto ray = [&] {
-      Ray r;
-      r.o = box.lo + ext * vec3(u(rng), u(rng), u(rng));
-      r.d = glm::normalize(box.lo + ext * vec3(u(rng), u(rng), u(rng)) - r.o);
-      r.tmax = kInfinity;
-      r.pad = 0.0f;
-      return r;
-    };
+    auto ray = [&] { return random_ray(box, rng, kInfinity); };
     const auto& tris = cs.tri_verts();
     auto inner_point = [&] {
       if (tris.empty()) return box.lo + ext * vec3(u(rng), u(rng), u(rng));
@@ -182,17 +187,8 @@ TEST(FlatList, MultiRayQueryEqualsTheSingleQueries) {
     const CompiledScene cs(scene, 16, 16);
     const SceneView v = flat_view(cs);
     const Aabb box = scene_bounds(cs);
-    const vec3 ext = box.hi - box.lo;
     std::mt19937 rng(31);
-    std::uniform_real_distribution<float> u(0.0f, 1.0f);
-    auto ray = [&](int i) {
-      Ray r;
-      r.o = box.lo + ext * vec3(u(rng), u(rng), u(rng));
-      r.d = glm::normalize(box.lo + ext * vec3(u(rng), u(rng), u(rng)) - r.o);
-      r.tmax = (i % 9 == 8) ? 0.0f : kInfinity;
-      r.pad = 0.0f;
-      return r;
-    };
+    auto ray = [&](int i) { return random_ray(box, rng, (i % 9 == 8) ? 0.0f : kInfinity); };
     const uint32_t tri_count = uint32_t(cs.tri_verts().size());
     int mismatches = 0, hits = 0;
     auto check = [&](const Ray* rays, const uint32_t* skip, const Hit* multi, int k, int i) {

@@ -568,6 +568,22 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
                             __popc(ballot_finish & below))] = id;
 }
 
+// Whether the shadow ray (o: origin, tmax; d: direction, target primitive) of path id reaches
+// its light; with random walks it also skips the triangle the path's hit names.
+template <uint32_t Spec>
+__device__ __forceinline__ bool shadow_reaches(const SceneView& s, const WavefrontState& w,
+                                               uint32_t id, float4 o, float4 d, bool walks) {
+  Ray ray;
+  ray.o = vec3(o.x, o.y, o.z);
+  ray.tmax = o.w;
+  ray.d = vec3(d.x, d.y, d.z);
+  ray.pad = 0.0f;
+  uint32_t origin = kInvalid;
+  if (walks) origin = __float_as_uint(w.hit[id].y);
+  return !shadow_blocked<features_of<Spec>() | kFeatureFlatList>(
+      s, ray, __float_as_uint(d.w), origin < s.tri_count ? origin : kInvalid);
+}
+
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
                                                         const __grid_constant__ FlatParams flat,
@@ -583,16 +599,7 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
   const float4 c = w.shadow_c[id];
   float4 r = w.radiance[id];
   if (c.w != 0.0f) {
-    const float4 o = w.shadow_o[id], d = w.shadow_d[id];
-    Ray ray;
-    ray.o = vec3(o.x, o.y, o.z);
-    ray.tmax = o.w;
-    ray.d = vec3(d.x, d.y, d.z);
-    ray.pad = 0.0f;
-    uint32_t origin = kInvalid;
-    if (walks) origin = __float_as_uint(w.hit[id].y);
-    if (!shadow_blocked<features_of<Spec>() | kFeatureFlatList>(
-            s, ray, __float_as_uint(d.w), origin < s.tri_count ? origin : kInvalid)) {
+    if (shadow_reaches<Spec>(s, w, id, w.shadow_o[id], w.shadow_d[id], walks)) {
       r.x += c.x;
       r.y += c.y;
       r.z += c.z;
@@ -609,12 +616,15 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
 // above waits for the state, then the contribution, then the ray). The lanes after them finish
 // the paths that ended without a shadow ray (finish_counts[b], from the queue's far end).
 // Minimum resident blocks per SM asked of the compiler for the queued shadow stage: none (59
-// registers, 4 blocks); 5 (48 registers) and 6 (40) were 0-3% and 2-6% slower (PERFORMANCE.md).
-#ifndef TRACER_SHADOW_MIN_BLOCKS
-#define TRACER_SHADOW_MIN_BLOCKS 1
+// registers, 4 blocks); 5 (48 registers) and 6 (40) were 0-3% and 2-6% slower, and even an
+// explicit 1 changes the sphere variant's code and cost smallpt 1.5% (PERFORMANCE.md).
+#ifdef TRACER_SHADOW_MIN_BLOCKS
+#define TRACER_SHADOW_BOUNDS __launch_bounds__(kBlock, TRACER_SHADOW_MIN_BLOCKS)
+#else
+#define TRACER_SHADOW_BOUNDS __launch_bounds__(kBlock)
 #endif
 template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock, TRACER_SHADOW_MIN_BLOCKS) shadow_queued_kernel(SceneView view,
+__global__ void TRACER_SHADOW_BOUNDS shadow_queued_kernel(SceneView view,
                                                                const __grid_constant__ FlatParams flat,
                                                                WavefrontState w,
                                                                const uint32_t* shadow_queue,
@@ -636,16 +646,7 @@ __global__ void __launch_bounds__(kBlock, TRACER_SHADOW_MIN_BLOCKS) shadow_queue
   const float4 o = w.shadow_o[i], d = w.shadow_d[i], c = w.shadow_c[i];
   float4 r = w.radiance[id];
   const uint8_t state = w.alive[id];
-  Ray ray;
-  ray.o = vec3(o.x, o.y, o.z);
-  ray.tmax = o.w;
-  ray.d = vec3(d.x, d.y, d.z);
-  ray.pad = 0.0f;
-  uint32_t origin = kInvalid;
-  if (walks) origin = __float_as_uint(w.hit[id].y);
-  const bool blocked = shadow_blocked<features_of<Spec>() | kFeatureFlatList>(
-      s, ray, __float_as_uint(d.w), origin < s.tri_count ? origin : kInvalid);
-  if (!blocked) {
+  if (shadow_reaches<Spec>(s, w, id, o, d, walks)) {
     r.x += c.x;
     r.y += c.y;
     r.z += c.z;
