@@ -290,20 +290,22 @@ int run_bench(const BenchOptions& o) {
       // Paths entering bounce b (0 past the counts' end: trailing zeros are not kept).
       auto alive_at = [&](size_t b) { return b < r.alive.size() ? double(r.alive[b]) : 0.0; };
       for (size_t b = 0; b < staged; ++b) processed += alive_at(b);
-      // Shadow rays of bounce b when the shade kernel queued them (r.shadows not empty).
-      const bool shadow_queue = !r.shadows.empty();
+      // Shadow rays of bounce b when the shade kernel queued them (with NEE off only the paths
+      // it finished are counted, so either list says the queue ran).
+      const bool shadow_queue = in_shade || !r.shadows.empty() || !r.finished.empty();
       auto shadows_at = [&](size_t b) {
         return b < r.shadows.size() ? double(r.shadows[b]) : 0.0;
       };
       double traced_shadows = 0;  // shadow rays of the staged bounces
       for (size_t b = 0; b < staged; ++b) traced_shadows += shadows_at(b);
-      // Bytes of the shade and shadow stages over `paths` paths with `shadows` shadow rays.
-      auto shade_bytes_of = [&](double paths, double shadows) {
-        return shadow_queue ? sb.shade_path() * paths + sb.shade_ray * shadows
-                            : sb.shade() * paths;
-      };
       auto finished_at = [&](size_t b) {
         return b < r.finished.size() ? double(r.finished[b]) : 0.0;
+      };
+      // Bytes of the shade and shadow stages over `paths` paths with `shadows` shadow rays and
+      // `finished` paths ended without one (their 4-byte slot at the shadow queue's far end).
+      auto shade_bytes_of = [&](double paths, double shadows, double finished) {
+        return shadow_queue ? sb.shade_path() * paths + sb.shade_ray * shadows + 4.0 * finished
+                            : sb.shade() * paths;
       };
       double traced_finished = 0;
       for (size_t b = 0; b < staged; ++b) traced_finished += finished_at(b);
@@ -326,7 +328,7 @@ int run_bench(const BenchOptions& o) {
       };
       // Slots of dead paths that a pass over every path reads the flag of.
       const double dead = queued ? 0.0 : n * bounces - processed;
-      const double shade_bytes = shade_bytes_of(processed, traced_shadows) + dead +
+      const double shade_bytes = shade_bytes_of(processed, traced_shadows, traced_finished) + dead +
                                  (in_shade ? 4.0 * next_slots : 0.0);
       const double shadow_bytes = shadow_bytes_of(processed, traced_shadows, traced_finished) + dead;
       row("generate", r.stages.generate, sb.generate * n);
@@ -385,7 +387,8 @@ int run_bench(const BenchOptions& o) {
         const double paths = alive_at(b), next = alive_at(b + 1);
         std::printf("  %6zu %9.0f", b, paths);
         cell(t.intersect, sb.intersect() * paths);
-        cell(t.shade, shade_bytes_of(paths, shadows_at(b)) + (in_shade ? 4.0 * next : 0.0));
+        cell(t.shade, shade_bytes_of(paths, shadows_at(b), finished_at(b)) +
+                          (in_shade ? 4.0 * next : 0.0));
         cell(t.shadow, shadow_bytes_of(paths, shadows_at(b), finished_at(b)));
         if (r.stages.compact > 0) cell(t.compact, n + 4.0 * next);
         std::printf("\n");

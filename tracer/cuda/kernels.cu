@@ -911,7 +911,7 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
                   uint32_t sample, uint32_t bounce, const WavefrontState& w,
                   const uint32_t* queue, const uint32_t* count, uint32_t* next_queue,
                   uint32_t* shadow_queue, cudaStream_t stream) {
-  // The block's 36 bytes of shared memory (compaction) must not take L1 from the shading's
+  // The block's 108 bytes of shared memory (compaction) must not take L1 from the shading's
   // scene reads: asked for the smallest carveout, once per variant.
   static bool carveout_set[8] = {};
 #define CALL(S)                                                                           \

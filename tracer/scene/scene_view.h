@@ -444,7 +444,8 @@ TRACER_HD TRACER_INLINE void flat_range_multi(const FlatPrim* prims, uint32_t be
 // intersect_closest(s, rays[k], skip[k]) returns through the list (the same arithmetic and
 // order), at one pass over the entries for all K. A lane with fewer than K rays passes copies
 // with tmax = 0, which nothing hits. Without random walks (F without kFeatureSubsurface) rays
-// leave from no skipped triangle: skip is then ignored, and the loop makes no skip test.
+// leave from no skipped triangle: skip is then ignored (callers must pass kInvalid, or the
+// hits differ from intersect_closest's), and the loop makes no skip test.
 template <uint32_t F, int K>
 TRACER_HD TRACER_INLINE void flat_closest_multi(const SceneView& s, const Ray* rays,
                                                 const uint32_t* skip, Hit* hits) {
