@@ -87,6 +87,8 @@ struct CudaRenderer::Impl {
 
   uint32_t n() const { return cfg.width * cfg.height; }
   uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
+  // The shade kernel writes the queues (next bounce's and the shadow queue) this wave.
+  bool queues_in_shade() const { return opts.compaction && uses_shade_compaction(); }
   bool uses_shade_compaction() const {
     using C = GpuOptions::Compaction;
     // Auto: the shade kernel's queues except on textured scenes, whose long, divergent shading
@@ -248,7 +250,7 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
     // Compaction in the shade kernel: bounce b reads the queue its predecessor's shade kernel
     // wrote (its length: alive_counts[b]) and writes the next one into the other buffer.
-    const bool queue_in_shade = opts.compaction && uses_shade_compaction();
+    const bool queue_in_shade = queues_in_shade();
     // ... and then a shadow queue too.
     if (queue_in_shade)
       TRACER_CUDA_CHECK(cudaMemsetAsync(w.shadow_counts, 0, shadow_counts.bytes(), stream));
@@ -472,7 +474,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
           std::vector<uint32_t> alive = m.tail_estimate;
           while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
           st.alive_per_bounce = alive;
-          if (m.opts.compaction && m.uses_shade_compaction()) {
+          if (m.queues_in_shade()) {
             std::vector<uint32_t> counts;
             m.shadow_counts.download(counts);
             auto trimmed = [](std::vector<uint32_t> v) {
