@@ -110,10 +110,14 @@ std::string describe_flat_list(const FlatList& list, uint32_t sphere_count) {
   const size_t entries = list.prims.size();
   const size_t hull = (list.quad_count - list.quad_blockers) +
                       (entries - list.triangle_blockers_end);
+  std::string solids;
+  if (!list.solids.empty())
+    solids = "; " + std::to_string(6 * list.solids.size()) + " the faces of " +
+             std::to_string(list.solids.size()) + (list.solids.size() == 1 ? " solid box" : " solid boxes");
   return std::to_string(entries) + " entries (" + std::to_string(list.quad_count) + " quads, " +
          std::to_string(entries - list.quad_count) + " triangles; " + std::to_string(hull) +
-         " on the hull, " + std::to_string(list.box_faces) + " of them box faces) + " +
-         std::to_string(sphere_count) + " spheres";
+         " on the hull, " + std::to_string(list.box_faces) + " of them box faces" + solids +
+         ") + " + std::to_string(sphere_count) + " spheres";
 }
 
 FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
@@ -232,21 +236,116 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
       }
     }
   }
-  // Each group's blockers first, then its hull entries, box faces last (stable otherwise).
-  auto order = [](const std::vector<int>& cls, uint32_t& blockers, uint32_t& faces) {
+  // Solid boxes among the blockers: six quads that close a parallelepiped (faces_of below).
+  std::vector<std::array<uint32_t, 6>> solid_faces;
+  std::vector<FlatPrim> solids;
+  {
+    std::vector<bool> in_solid(quads.size(), false);
+    // Blockers and hull quads (a block's bottom lies in the floor's plane), not box faces.
+    auto free_blocker = [&](size_t k) { return quad_class[k] != 2 && !in_solid[k]; };
+    // Whether two sets of four corners are the same points (within tol), in any order.
+    auto same = [&](const std::array<DVec, 4>& a, const std::array<DVec, 4>& b) {
+      for (const DVec& x : a) {
+        bool found = false;
+        for (const DVec& y : b) found = found || length(sub(x, y)) <= tol;
+        if (!found) return false;
+      }
+      for (const DVec& y : b) {
+        bool found = false;
+        for (const DVec& x : a) found = found || length(sub(x, y)) <= tol;
+        if (!found) return false;
+      }
+      return true;
+    };
+    auto add = [](DVec a, DVec b) { return DVec{a.x + b.x, a.y + b.y, a.z + b.z}; };
+    auto find_free = [&](const std::array<DVec, 4>& want, size_t not1, size_t not2) -> int {
+      for (size_t k = 0; k < quads.size(); ++k)
+        if (k != not1 && k != not2 && free_blocker(k) && same(quad_corners[k], want))
+          return int(k);
+      return -1;
+    };
+    for (size_t a = 0; a < quads.size() && solids.size() < kFlatMaxSolids; ++a) {
+      if (!free_blocker(a)) continue;
+      const auto& c = quad_corners[a];  // p, q, r, s = q + r - p
+      const DVec p = c[0], q = c[1], r = c[2], s4 = c[3];
+      const DVec e1 = sub(q, p), e2 = sub(r, p), n = cross(e1, e2);
+      const double n_len = length(n);
+      for (size_t b = 0; b < quads.size(); ++b) {
+        if (b == a || !free_blocker(b)) continue;
+        bool done = false;
+        for (const DVec& cb : quad_corners[b]) {
+          // The opposite face: quad a moved by e3 (off its plane), corner p onto cb.
+          const DVec e3 = sub(cb, p);
+          if (!(std::fabs(dot(e3, n)) > tol * n_len)) continue;
+          if (!same({add(p, e3), add(q, e3), add(r, e3), add(s4, e3)}, quad_corners[b])) continue;
+          // The four sides, in the order of the local axes: e1 low / high, e2 low / high.
+          const std::array<DVec, 4> sides[4] = {{p, r, add(p, e3), add(r, e3)},
+                                                {q, s4, add(q, e3), add(s4, e3)},
+                                                {p, q, add(p, e3), add(q, e3)},
+                                                {r, s4, add(r, e3), add(s4, e3)}};
+          std::array<uint32_t, 6> faces{};
+          bool all = true;
+          for (int k = 0; k < 4 && all; ++k) {
+            const int f = find_free(sides[k], a, b);
+            // A quad cannot be two sides (the sides are distinct planes).
+            for (int j = 0; j < k && f >= 0; ++j) all = all && faces[size_t(j)] != uint32_t(f);
+            all = all && f >= 0;
+            if (all) faces[size_t(k)] = uint32_t(f);
+          }
+          if (!all) continue;
+          faces[4] = uint32_t(a);
+          faces[5] = uint32_t(b);
+          // World -> centred local coordinates: x = p + (l0 + 1/2) e1 + (l1 + 1/2) e2 +
+          // (l2 + 1/2) e3, through the inverse of [e1 e2 e3] (its rows: the cross products of
+          // the other two columns over the determinant).
+          const double det = dot(e1, cross(e2, e3));
+          const DVec rows[3] = {cross(e2, e3), cross(e3, e1), cross(e1, e2)};
+          FlatPrim m;
+          vec4* out_rows[3] = {&m.row_u, &m.row_v, &m.row_w};
+          for (int k = 0; k < 3; ++k) {
+            const DVec rk = {rows[k].x / det, rows[k].y / det, rows[k].z / det};
+            *out_rows[k] = vec4(float(rk.x), float(rk.y), float(rk.z), float(-dot(rk, p) - 0.5));
+          }
+          for (uint32_t f : faces) in_solid[f] = true;
+          solid_faces.push_back(faces);
+          solids.push_back(m);
+          done = true;
+          break;
+        }
+        if (done) break;
+      }
+    }
+  }
+  // Each group's blockers first (solids' faces at the very front, six per solid in face order),
+  // then its hull entries, box faces last (stable otherwise).
+  std::vector<int> solid_slot(quads.size(), -1);  // quad -> its position among solid faces
+  for (size_t g = 0; g < solid_faces.size(); ++g)
+    for (int f = 0; f < 6; ++f) solid_slot[solid_faces[g][size_t(f)]] = int(6 * g) + f;
+  const uint32_t solid_entries = uint32_t(6 * solid_faces.size());
+  auto order = [&](const std::vector<int>& cls, bool quads_group, uint32_t& blockers,
+                   uint32_t& faces) {
     std::vector<uint32_t> perm;  // new position -> old
+    if (quads_group) {
+      perm.resize(solid_entries);
+      for (uint32_t k = 0; k < cls.size(); ++k)
+        if (solid_slot[k] >= 0) perm[uint32_t(solid_slot[k])] = k;
+    }
+    blockers = uint32_t(perm.size());  // the solids' faces are blockers, whatever their class
     for (int pass = 0; pass < 3; ++pass)
       for (uint32_t k = 0; k < cls.size(); ++k)
-        if (cls[k] == pass) perm.push_back(k);
-    blockers = uint32_t(std::count(cls.begin(), cls.end(), 0));
+        if (cls[k] == pass && !(quads_group && solid_slot[k] >= 0)) {
+          perm.push_back(k);
+          if (pass == 0) ++blockers;
+        }
     faces = uint32_t(std::count(cls.begin(), cls.end(), 2));
     std::vector<uint32_t> where(perm.size());  // old -> new
     for (uint32_t k = 0; k < perm.size(); ++k) where[perm[k]] = k;
     return std::make_pair(perm, where);
   };
   uint32_t quad_blockers = 0, single_blockers = 0, box_faces = 0, no_faces = 0;
-  const auto [quad_perm, quad_where] = order(quad_class, quad_blockers, box_faces);
-  const auto [single_perm, single_where] = order(single_class, single_blockers, no_faces);
+  const auto [quad_perm, quad_where] = order(quad_class, true, quad_blockers, box_faces);
+  const auto [single_perm, single_where] = order(single_class, false, single_blockers, no_faces);
+  out.solids = solids;
   out.box_faces = box_faces;
   for (int a = 0; a < 3; ++a) {
     out.box_lo[a] = float(blo[a]);

@@ -50,6 +50,8 @@ constexpr float kFlatEdgeTolerance = 1e-5f;
 // costs about 40 instructions per lane, and the BVH's closest-hit query on the Cornell box
 // about 77 warp instructions per ray (PERFORMANCE.md, "Flat primitive list").
 constexpr uint32_t kFlatMaxCost = 64;
+// Solid boxes a list finds at most (FlatList::solids; further boxes stay six quads each).
+constexpr uint32_t kFlatMaxSolids = 8;
 
 // Entries on the scene's convex hull: an entry whose plane has the whole scene on one side (a
 // wall, floor or ceiling of a room, within kFlatHullTolerance of the scene's size) cannot block a
@@ -75,6 +77,13 @@ struct FlatList {
   uint32_t box_faces = 0;
   float box_lo[3] = {0, 0, 0}, box_hi[3] = {0, 0, 0};
   uint32_t box_entry[6] = {kInvalid, kInvalid, kInvalid, kInvalid, kInvalid, kInvalid};
+  // Solid boxes: six quads that close a parallelepiped (the Cornell box's blocks, any box object
+  // rotated or sheared) are its faces, entries [6 g, 6 g + 6) of solid g, f = 2 * axis + side in
+  // the order of solids[g]'s rows; solids[g] maps world space onto the centred unit cube (each
+  // local coordinate in [-1/2, 1/2]), and queries find the face a ray meets with one slab test
+  // in those coordinates (scene_view.h, flat_solid_hit) instead of testing the six quads. The
+  // loops over the quads start after them, at entry 6 * solids.size(). At most kFlatMaxSolids.
+  std::vector<FlatPrim> solids;
   uint32_t degenerate = 0;             // triangles of zero area (no ray hits them)
   bool enabled = false;                // the scene is small enough (see kFlatMaxCost)
 };

@@ -36,6 +36,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<uint32_t> texels;     // all textures' RGBA8 texels in one allocation
   DeviceBuffer<FlatPrim> flat;       // the flat primitive list, small scenes only
   DeviceBuffer<FlatPrimInfo> flat_info;
+  DeviceBuffer<FlatPrim> flat_solids;  // the solid boxes' maps
   DeviceBuffer<uint32_t> tri_to_flat;
   bool flat_available = false;
   std::string flat_text;             // describe_flat_list of the scene's list
@@ -357,8 +358,11 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.flat_info.upload(fl.info);
   m.tri_to_flat.upload(fl.tri_to_flat);
   m.view = scene.view();
+  m.flat_solids.upload(fl.solids);
   m.view.flat = m.view.flat_loop = fl.enabled ? m.flat.get() : nullptr;
-  m.flat_params = make_flat_params(fl.enabled ? fl.prims : std::vector<FlatPrim>());
+  m.view.flat_solids = fl.enabled ? m.flat_solids.get() : nullptr;
+  m.flat_params = make_flat_params(fl.enabled ? fl.prims : std::vector<FlatPrim>(),
+                                   fl.enabled ? fl.solids : std::vector<FlatPrim>());
   m.view.flat_info = fl.enabled ? m.flat_info.get() : nullptr;
   m.view.tri_to_flat = fl.enabled ? m.tri_to_flat.get() : nullptr;
   m.choose_accel();

@@ -36,6 +36,7 @@ constexpr int kBlock = 256;
 __device__ __forceinline__ SceneView with_flat_params(const SceneView& s, const FlatParams& flat) {
   SceneView v = s;
   v.flat_loop = reinterpret_cast<const FlatPrim*>(flat.rows);
+  v.flat_solids = reinterpret_cast<const FlatPrim*>(flat.solids);
   return v;
 }
 
@@ -360,6 +361,34 @@ constexpr int flat_rays() {
 // kept the memory pipes 78% busy (Nsight, bounce 1 of the open box): shared by two rays, the
 // loads and the loop's own instructions are paid once per pair.
 // kWalks: the scene has random walks, whose rays skip the triangle they leave from.
+// KK rays of lane `lane`: queue slots lane + (j + k) * lanes, k < KK (coalesced over a warp).
+template <uint32_t F, int KK>
+__device__ __forceinline__ void intersect_rows(const SceneView& s, const WavefrontState& w,
+                                               const uint32_t* queue, uint32_t total,
+                                               uint32_t lane, uint32_t lanes, uint32_t j) {
+  constexpr bool kWalks = (F & kFeatureSubsurface) != 0;
+  uint32_t id[KK], skip[KK];
+  Ray ray[KK];
+#pragma unroll
+  for (int k = 0; k < KK; ++k) {
+    id[k] = queued_path(w, queue, lane + (j + k) * lanes, total);
+    if (id[k] != kInvalid) {
+      ray[k] = extension_ray(s, w, id[k], kWalks, &skip[k]);
+    } else {
+      ray[k].o = vec3(0.0f);
+      ray[k].d = vec3(0.0f, 0.0f, 1.0f);
+      ray[k].tmax = 0.0f;  // nothing hits it
+      ray[k].pad = 0.0f;
+      skip[k] = kInvalid;
+    }
+  }
+  Hit hit[KK];
+  flat_closest_multi<F, KK>(s, ray, skip, hit);
+#pragma unroll
+  for (int k = 0; k < KK; ++k)
+    if (id[k] != kInvalid) store_hit(w, id[k], hit[k]);
+}
+
 template <uint32_t Spec, bool kWalks>
 __global__ void __launch_bounds__(kBlock) intersect_flat_kernel(SceneView view,
                                                                 const __grid_constant__ FlatParams flat,
@@ -371,28 +400,27 @@ __global__ void __launch_bounds__(kBlock) intersect_flat_kernel(SceneView view,
       features_of<Spec>() | kFeatureFlatList | (kWalks ? kFeatureSubsurface : 0u);
   const SceneView s = with_flat_params(view, flat);
   const uint32_t total = queue_total(w, queue, count);
+#ifdef TRACER_FLAT_BALANCED
+  // A grid of resident blocks; each warp takes the rows (slots lane + j * lanes) below the
+  // queue's end, kFlatRays at a time and its last ones in a shorter pass, so that every warp
+  // has the same work to within one ray per lane (no last wave of few blocks).
+  const uint32_t lanes = gridDim.x * kBlock;
+  const uint32_t lane = blockIdx.x * kBlock + threadIdx.x;
+  const uint32_t warp_first = lane & ~31u;
+  if (warp_first >= total) return;
+  const uint32_t rows = (total - warp_first + lanes - 1) / lanes;
+  uint32_t j = 0;
+  for (; j + kFlatRays <= rows; j += kFlatRays)
+    intersect_rows<F, kFlatRays>(s, w, queue, total, lane, lanes, j);
+  const uint32_t left = rows - j;
+  if (kFlatRays > 2 && left == 3) intersect_rows<F, (kFlatRays > 2 ? 3 : 1)>(s, w, queue, total, lane, lanes, j);
+  else if (kFlatRays > 2 && left == 2) intersect_rows<F, 2>(s, w, queue, total, lane, lanes, j);
+  else if (left == 1) intersect_rows<F, 1>(s, w, queue, total, lane, lanes, j);
+  return;
+#endif
   const uint32_t first = blockIdx.x * (kFlatRays * kBlock) + threadIdx.x;
   if (first >= total) return;
-  uint32_t id[kFlatRays], skip[kFlatRays];
-  Ray ray[kFlatRays];
-#pragma unroll
-  for (int k = 0; k < kFlatRays; ++k) {
-    id[k] = queued_path(w, queue, first + k * kBlock, total);
-    if (id[k] != kInvalid) {
-      ray[k] = extension_ray(s, w, id[k], kWalks, &skip[k]);
-    } else {
-      ray[k].o = vec3(0.0f);
-      ray[k].d = vec3(0.0f, 0.0f, 1.0f);
-      ray[k].tmax = 0.0f;  // nothing hits it
-      ray[k].pad = 0.0f;
-      skip[k] = kInvalid;
-    }
-  }
-  Hit hit[kFlatRays];
-  flat_closest_multi<F, kFlatRays>(s, ray, skip, hit);
-#pragma unroll
-  for (int k = 0; k < kFlatRays; ++k)
-    if (id[k] != kInvalid) store_hit(w, id[k], hit[k]);
+  intersect_rows<F, kFlatRays>(s, w, queue, total, first, kBlock, 0);
 }
 
 // Lanes of the dynamic-fetch kernel refill in batches of 8: measured on an H100 as fast as 16
@@ -791,17 +819,22 @@ uint32_t persistent_blocks(Kernel kernel, uint32_t n) {
   return std::min<uint32_t>(uint32_t(std::max(1, per_sm) * sms), blocks(n));
 }
 
-FlatParams make_flat_params(const std::vector<FlatPrim>& prims) {
+FlatParams make_flat_params(const std::vector<FlatPrim>& prims,
+                            const std::vector<FlatPrim>& solids) {
   FlatParams p;
   if (prims.size() > kFlatMaxCost)
     throw std::runtime_error("flat list of " + std::to_string(prims.size()) + " entries, more than " +
                              std::to_string(kFlatMaxCost));
-  for (size_t i = 0; i < prims.size(); ++i) {
-    const FlatPrim& f = prims[i];
-    p.rows[3 * i + 0] = make_float4(f.row_u.x, f.row_u.y, f.row_u.z, f.row_u.w);
-    p.rows[3 * i + 1] = make_float4(f.row_v.x, f.row_v.y, f.row_v.z, f.row_v.w);
-    p.rows[3 * i + 2] = make_float4(f.row_w.x, f.row_w.y, f.row_w.z, f.row_w.w);
-  }
+  if (solids.size() > kFlatMaxSolids)
+    throw std::runtime_error("flat list of " + std::to_string(solids.size()) +
+                             " solid boxes, more than " + std::to_string(kFlatMaxSolids));
+  auto put = [](float4* rows, size_t i, const FlatPrim& f) {
+    rows[3 * i + 0] = make_float4(f.row_u.x, f.row_u.y, f.row_u.z, f.row_u.w);
+    rows[3 * i + 1] = make_float4(f.row_v.x, f.row_v.y, f.row_v.z, f.row_v.w);
+    rows[3 * i + 2] = make_float4(f.row_w.x, f.row_w.y, f.row_w.z, f.row_w.w);
+  };
+  for (size_t i = 0; i < prims.size(); ++i) put(p.rows, i, prims[i]);
+  for (size_t i = 0; i < solids.size(); ++i) put(p.solids, i, solids[i]);
   p.count = uint32_t(prims.size());
   return p;
 }
@@ -882,11 +915,14 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
     TRACER_CUDA_CHECK_LAUNCH("intersect_fetch_kernel");
     return;
   }
+#ifdef TRACER_FLAT_BALANCED
+#define FLAT_GRID(S, W) persistent_blocks(intersect_flat_kernel<S, W>, w.n)
+#else
+#define FLAT_GRID(S, W) (w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock)
+#endif
   if (s.use_flat) {
 #define CALL(S, W)                                                                   \
-  intersect_flat_kernel<S, W>                                                        \
-      <<<(w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock), kBlock, 0, stream>>>( \
-          s, flat, w, queue, count)
+  intersect_flat_kernel<S, W><<<FLAT_GRID(S, W), kBlock, 0, stream>>>(s, flat, w, queue, count)
     switch ((spec & kSpecSpheres) | (walks ? 2 : 0)) {
       case 0: CALL(0, false); break;
       case 1: CALL(kSpecSpheres, false); break;
@@ -894,6 +930,7 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
       default: CALL(kSpecSpheres, true); break;
     }
 #undef CALL
+#undef FLAT_GRID
     TRACER_CUDA_CHECK_LAUNCH("intersect_flat_kernel");
     return;
   }

@@ -47,10 +47,12 @@ struct WavefrontState {
 // intersect kernel (88% busy), while a parameter comes from the constant bank.
 struct FlatParams {
   float4 rows[3 * kFlatMaxCost];  // row_u, row_v, row_w of each entry (FlatPrim)
+  float4 solids[3 * kFlatMaxSolids];  // the solid boxes' maps (FlatList::solids), likewise
   uint32_t count = 0;
 };
-// The entries of a scene's list (empty when it has none).
-FlatParams make_flat_params(const std::vector<FlatPrim>& prims);
+// The entries and solid boxes of a scene's list (empty when it has none).
+FlatParams make_flat_params(const std::vector<FlatPrim>& prims,
+                            const std::vector<FlatPrim>& solids);
 
 // One of the two accumulators (even and odd samples); a launch writes the one of its sample.
 struct FilmView {

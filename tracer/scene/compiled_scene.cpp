@@ -219,6 +219,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     view_.flat_box_lo = vec3(flat_.box_lo[0], flat_.box_lo[1], flat_.box_lo[2]);
     view_.flat_box_hi = vec3(flat_.box_hi[0], flat_.box_hi[1], flat_.box_hi[2]);
     for (int f = 0; f < 6; ++f) view_.flat_box_entry[f] = flat_.box_entry[f];
+    view_.flat_solids = flat_.solids.data();
+    view_.flat_solid_count = uint32_t(flat_.solids.size());
   }
 }
 

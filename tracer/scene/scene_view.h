@@ -73,8 +73,18 @@ struct SceneView {
   uint32_t flat_box_faces = 0;
   vec3 flat_box_lo = vec3(0.0f), flat_box_hi = vec3(0.0f);
   uint32_t flat_box_entry[6] = {kInvalid, kInvalid, kInvalid, kInvalid, kInvalid, kInvalid};
+  // Solid boxes (FlatList::solids): each a map onto the centred unit cube, its six faces
+  // entries [6 g, 6 g + 6); the quad loops start after them (flat_quads_begin). On the GPU the
+  // maps too come from the kernel's parameters where it has them.
+  const FlatPrim* flat_solids = nullptr;
+  uint32_t flat_solid_count = 0;
   uint32_t use_flat = 0;
 };
+
+// The first quad that the loops over the flat list test (the solids' faces come before it).
+TRACER_HD TRACER_INLINE uint32_t flat_quads_begin(const SceneView& s) {
+  return 6 * s.flat_solid_count;
+}
 
 // True when `pred` holds for every active lane of the warp (on the CPU: for this thread).
 TRACER_HD TRACER_INLINE bool warp_all(bool pred) {
@@ -339,8 +349,16 @@ TRACER_HD TRACER_INLINE Hit flat_entry_hit(const SceneView& s, const Ray& ray, u
 // outside the box, so no other entry can come first, and entries inside are tested as usual. A
 // ray parallel to a slab gets infinite distances there (or NaN exactly in a face's plane, which
 // leaves that slab out).
-TRACER_HD TRACER_INLINE void flat_box_hit(const SceneView& s, vec3 o, vec3 d, uint32_t fa,
-                                          uint32_t fb, float& tbest, uint32_t& best) {
+// The slab test shared by the scene's box and the solid boxes: o and d in the box's own
+// coordinates, lo[a] / hi[a] its faces' planes, entry(f) the entry of face f = 2 * axis + side
+// (kOpen: kInvalid where a face is open). A ray from inside meets the face it leaves by; one
+// from outside the face it enters by, or, where that face is open or skipped, the one it leaves
+// by. A ray parallel to a slab gets infinite distances there (or NaN exactly in a face's plane,
+// which leaves that slab out).
+template <bool kOpen, typename Entry>
+TRACER_HD TRACER_INLINE void slab_faces(const float* o, const float* d, const float* lo,
+                                        const float* hi, Entry entry, uint32_t fa, uint32_t fb,
+                                        float& tbest, uint32_t& best) {
   float tn = -kInfinity, tf = kInfinity;
   uint32_t en = kInvalid, ef = kInvalid;
 #if defined(__CUDACC__)
@@ -348,10 +366,10 @@ TRACER_HD TRACER_INLINE void flat_box_hit(const SceneView& s, vec3 o, vec3 d, ui
 #endif
   for (int a = 0; a < 3; ++a) {
     const float inv = fast_rcp(d[a]);
-    const float t_lo = (s.flat_box_lo[a] - o[a]) * inv, t_hi = (s.flat_box_hi[a] - o[a]) * inv;
+    const float t_lo = (lo[a] - o[a]) * inv, t_hi = (hi[a] - o[a]) * inv;
     const bool up = inv >= 0.0f;
     const float near = up ? t_lo : t_hi, far = up ? t_hi : t_lo;
-    const uint32_t e_lo = s.flat_box_entry[2 * a], e_hi = s.flat_box_entry[2 * a + 1];
+    const uint32_t e_lo = entry(2 * a), e_hi = entry(2 * a + 1);
     if (near > tn) {
       tn = near;
       en = up ? e_lo : e_hi;
@@ -361,12 +379,50 @@ TRACER_HD TRACER_INLINE void flat_box_hit(const SceneView& s, vec3 o, vec3 d, ui
       ef = up ? e_hi : e_lo;
     }
   }
-  const bool enter = (tn > 0.0f) & (en != kInvalid) & (en != fa) & (en != fb);
+  const bool enter = (tn > 0.0f) & (!kOpen || en != kInvalid) & (en != fa) & (en != fb);
   const float t = enter ? tn : tf;
   const uint32_t e = enter ? en : ef;
-  if ((tn <= tf) & (e != kInvalid) & (e != fa) & (e != fb) & (t > 0.0f) & (t < tbest)) {
+  if ((tn <= tf) & (!kOpen || e != kInvalid) & (e != fa) & (e != fb) & (t > 0.0f) & (t < tbest)) {
     tbest = t;
     best = e;
+  }
+}
+
+TRACER_HD TRACER_INLINE void flat_box_hit(const SceneView& s, vec3 o, vec3 d, uint32_t fa,
+                                          uint32_t fb, float& tbest, uint32_t& best) {
+  const float oc[3] = {o.x, o.y, o.z}, dc[3] = {d.x, d.y, d.z};
+  const float lo[3] = {s.flat_box_lo.x, s.flat_box_lo.y, s.flat_box_lo.z};
+  const float hi[3] = {s.flat_box_hi.x, s.flat_box_hi.y, s.flat_box_hi.z};
+  slab_faces<true>(oc, dc, lo, hi, [&](int f) { return s.flat_box_entry[f]; }, fa, fb, tbest,
+                   best);
+}
+
+// Solid g (its map m, SceneView::flat_solids): the face a ray meets first, if that is in
+// (0, tbest) and not entry fa or fb: then tbest and best become its distance and entry. In the
+// solid's coordinates the box is the centred unit cube, the same slab test as the scene's box
+// (one affine map of the ray instead of six quad tests). The distance t is the same along the
+// ray in both spaces (the map is affine).
+TRACER_HD TRACER_INLINE void flat_solid_hit(const FlatPrim& m, uint32_t g, vec3 o, vec3 d,
+                                            uint32_t fa, uint32_t fb, float& tbest,
+                                            uint32_t& best) {
+  const float oc[3] = {flat_affine(m.row_u, o), flat_affine(m.row_v, o), flat_affine(m.row_w, o)};
+  const float dc[3] = {flat_fma(m.row_u.x, d.x, flat_fma(m.row_u.y, d.y, m.row_u.z * d.z)),
+                       flat_fma(m.row_v.x, d.x, flat_fma(m.row_v.y, d.y, m.row_v.z * d.z)),
+                       flat_fma(m.row_w.x, d.x, flat_fma(m.row_w.y, d.y, m.row_w.z * d.z))};
+  const float lo[3] = {-0.5f, -0.5f, -0.5f}, hi[3] = {0.5f, 0.5f, 0.5f};
+  const uint32_t first = 6 * g;
+  slab_faces<false>(oc, dc, lo, hi, [first](int f) { return first + uint32_t(f); }, fa, fb,
+                    tbest, best);
+}
+
+// Solids [0, s.flat_solid_count) against one ray (kAnyHit: until every active lane of the warp
+// has a hit).
+template <bool kAnyHit>
+TRACER_HD TRACER_INLINE void flat_solids(const SceneView& s, vec3 o, vec3 d, uint32_t fa,
+                                         uint32_t fb, float& tbest, uint32_t& best) {
+  for (uint32_t g = 0; g < s.flat_solid_count; ++g) {
+    if (kAnyHit && warp_all(best != kInvalid)) return;
+    flat_solid_hit(load_flat_loop(s.flat_solids, g), g, o, d, fa, fb, tbest, best);
   }
 }
 
@@ -383,7 +439,11 @@ TRACER_HD inline Hit flat_traverse(const SceneView& s, const Ray& ray, uint32_t 
   uint32_t best = kInvalid;
   const uint32_t quad_end = kSkipHull ? s.flat_quad_blockers : s.flat_quads - s.flat_box_faces;
   const uint32_t tri_end = kSkipHull ? s.flat_triangle_blockers_end : s.flat_count;
-  flat_range<true, kAnyHit>(s.flat_loop, 0, quad_end, ray.o, ray.d, fa, fb, tbest, best);
+  // The solids first (blockers: also for rays between two points of the scene).
+  flat_solids<kAnyHit>(s, ray.o, ray.d, fa, fb, tbest, best);
+  if (!kAnyHit || !warp_all(best != kInvalid))
+    flat_range<true, kAnyHit>(s.flat_loop, flat_quads_begin(s), quad_end, ray.o, ray.d, fa, fb,
+                              tbest, best);
   // The box faces after the other quads, as in flat_closest_and_any (ties go to the first).
   if (!kSkipHull && s.flat_box_faces && (!kAnyHit || !warp_all(best != kInvalid)))
     flat_box_hit(s, ray.o, ray.d, fa, fb, tbest, best);
@@ -463,8 +523,16 @@ TRACER_HD TRACER_INLINE void flat_closest_multi(const SceneView& s, const Ray* r
     best[k] = kInvalid;
     fa[k] = kSkips && skip[k] < s.tri_count ? s.tri_to_flat[skip[k]] : kInvalid;
   }
-  flat_range_multi<true, K, kSkips>(s.flat_loop, 0, s.flat_quads - s.flat_box_faces, o, d, fa, tbest,
-                            best);
+  // The solids, each map loaded once for the K rays.
+  for (uint32_t g = 0; g < s.flat_solid_count; ++g) {
+    const FlatPrim m = load_flat_loop(s.flat_solids, g);
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+    for (int k = 0; k < K; ++k) flat_solid_hit(m, g, o[k], d[k], fa[k], kInvalid, tbest[k], best[k]);
+  }
+  flat_range_multi<true, K, kSkips>(s.flat_loop, flat_quads_begin(s), s.flat_quads - s.flat_box_faces,
+                                    o, d, fa, tbest, best);
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
@@ -539,8 +607,17 @@ TRACER_HD TRACER_INLINE Hit flat_closest_and_any(const SceneView& s, const Ray& 
   float tbest = ext.tmax;
   uint32_t best = kInvalid;
   blocked = false;
-  flat_range_pair<true>(s.flat_loop, 0, s.flat_quad_blockers, ext, fa, tbest, best, sh, sa, sb,
-                        blocked);
+  // The solids: the extension ray's nearest face, and whether one blocks the shadow ray.
+  for (uint32_t g = 0; g < s.flat_solid_count; ++g) {
+    const FlatPrim m = load_flat_loop(s.flat_solids, g);
+    flat_solid_hit(m, g, ext.o, ext.d, fa, kInvalid, tbest, best);
+    float ts = sh.tmax;
+    uint32_t bs = kInvalid;
+    flat_solid_hit(m, g, sh.o, sh.d, sa, sb, ts, bs);
+    blocked = blocked | (bs != kInvalid);
+  }
+  flat_range_pair<true>(s.flat_loop, flat_quads_begin(s), s.flat_quad_blockers, ext, fa, tbest,
+                        best, sh, sa, sb, blocked);
   flat_range<true, false>(s.flat_loop, s.flat_quad_blockers, s.flat_quads - s.flat_box_faces,
                           ext.o, ext.d, fa, kInvalid, tbest, best);
   if (s.flat_box_faces) flat_box_hit(s, ext.o, ext.d, fa, kInvalid, tbest, best);
