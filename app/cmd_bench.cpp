@@ -62,11 +62,15 @@ struct Result {
 // only those: shade_path() per path plus shade_ray() per shadow ray, shadow() per shadow ray.
 // The shadow stage's last lanes then finish the paths that ended without a shadow ray: finish()
 // each. Film sums (16 bytes per finished path) are counted there only.
+// With rays at their queue slots the intersect stage reads no queue slot (its ray's index is
+// the slot itself).
 struct StageBytes {
-  explicit StageBytes(bool queued) : slot(queued ? 4 : 1) {}
+  StageBytes(bool queued, bool at_slots) : slot(queued ? 4 : 1), at_slots(at_slots) {}
   double slot;
+  bool at_slots;
   double generate = 65;                      // 4 float4 of state + the alive flag, written
-  double intersect() const { return 48 + slot; }  // ray origin + direction in, hit out
+  // ray origin + direction in, hit out
+  double intersect() const { return 48 + (at_slots ? 0 : slot); }
   double sort = 45;
   // 5 float4 in, 4 float4 of state + 3 of shadow ray out, the alive flag out; with compaction
   // in the shade kernel also 4 bytes per path that goes on (the next queue's slot, apart).
@@ -155,6 +159,7 @@ nlohmann::json to_json(const Result& r) {
           {"shadow_rays_per_bounce", r.shadows},
           {"finished_without_shadow_ray_per_bounce", r.finished},
           {"tail_from_bounce", r.stages.tail_from},
+          {"rays_at_slots", r.stages.rays_at_slots},
           {"tail_ms", r.stages.tail},
           {"bounce_stage_ms", bounce_json(r.stages)},
           {"note", r.note}};
@@ -236,6 +241,8 @@ int run_bench(const BenchOptions& o) {
     configs.back().gpu.tail_fraction = 0.0f;
     add("wavefront+compaction, no fetch", K::kWavefront, true, false, true);
     configs.back().gpu.dynamic_fetch = false;
+    add("wavefront+compaction, rays at ids", K::kWavefront, true, false, true);
+    configs.back().gpu.rays_at_slots = false;
     add("wavefront+compaction+sorting", K::kWavefront, true, true, true);
     add("wavefront+sorting", K::kWavefront, false, true, true);
     if (o.jitter_off_configs && !(cs.features() & tracer::kFeatureDepthOfField)) {
@@ -281,7 +288,7 @@ int run_bench(const BenchOptions& o) {
       const size_t compactions = cub_compactions(r.stages);
       const bool in_shade = queued && compactions == 0 &&
                             (r.stages.bounces.size() > 1 || r.stages.tail_from > 0);
-      const StageBytes sb(queued);
+      const StageBytes sb(queued, r.stages.rays_at_slots);
       // Bounces the stages ran: all, or those before the tail (which takes alive[tail_from]).
       const size_t staged = r.stages.tail_from
                                 ? r.stages.tail_from

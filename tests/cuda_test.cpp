@@ -151,6 +151,9 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
   variants.push_back({"compaction, tail below 0.6", o});
   o.tail_fraction = GpuOptions().tail_fraction;
   variants.push_back({"compaction (in the shade kernel)", o});
+  GpuOptions at_ids = o;  // the rays and hits at their paths' ids instead of their queue slots
+  at_ids.rays_at_slots = false;
+  variants.push_back({"compaction, rays at their ids", at_ids});
   GpuOptions cub = o;
   cub.compaction_by = GpuOptions::Compaction::kCub;
   variants.push_back({"compaction (CUB select)", cub});

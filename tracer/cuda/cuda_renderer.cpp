@@ -56,6 +56,8 @@ struct CudaRenderer::Impl {
 
   // Wavefront pool.
   DeviceBuffer<float4> ray_o, ray_d, throughput, radiance, hit, shadow_o, shadow_d, shadow_c;
+  // The odd bounces' rays when they are stored at their queue slots (rays_at_slots()).
+  DeviceBuffer<float4> ray_o_odd, ray_d_odd;
   DeviceBuffer<float4> cached_hits;
   DeviceBuffer<uint8_t> alive;
   // queue: CUB's output, or (compaction in the shade kernel) the queues of even bounces, and
@@ -98,6 +100,13 @@ struct CudaRenderer::Impl {
     return opts.compaction_by == C::kShade ||
            (opts.compaction_by == C::kAuto && !(features & kFeatureTextures));
   }
+  // Rays and hits at their queue slots: only over the shade kernel's queues, which a sort
+  // would reorder, and without random walks, whose rays look up the triangle they leave from by
+  // the path's id (and whose flags finish_path counts).
+  bool rays_at_slots() const {
+    return opts.rays_at_slots && queues_in_shade() && !opts.sort_materials &&
+           !(features & kFeatureSubsurface);
+  }
   void choose_accel() { view.use_flat = flat_available && opts.flat_list ? 1u : 0u; }
   std::string accel_name() const {
     return view.use_flat ? "flat list of " + flat_text : "4-wide BVH";
@@ -121,6 +130,8 @@ struct CudaRenderer::Impl {
     w.throughput = throughput.get();
     w.radiance = radiance.get();
     w.hit = hit.get();
+    w.next_ray_o = w.ray_o;
+    w.next_ray_d = w.ray_d;
     w.shadow_o = shadow_o.get();
     w.shadow_d = shadow_d.get();
     w.shadow_c = shadow_c.get();
@@ -155,7 +166,8 @@ struct CudaRenderer::Impl {
     const uint32_t count_pixels = n();
     film[0].resize(count_pixels);
     film[1].resize(count_pixels);
-    for (auto* b : {&ray_o, &ray_d, &throughput, &radiance, &hit, &shadow_o, &shadow_d, &shadow_c})
+    for (auto* b : {&ray_o, &ray_d, &ray_o_odd, &ray_d_odd, &throughput, &radiance, &hit,
+                    &shadow_o, &shadow_d, &shadow_c})
       b->resize(count_pixels);
     alive.resize(count_pixels);
     queue.resize(count_pixels);
@@ -264,7 +276,15 @@ struct CudaRenderer::Impl {
                     ? wavefront_tail_bounce(tail_estimate, opts.tail_fraction, n(), iterations)
                     : 0;
     bool tail_ran = false;
+    const bool at_slots = rays_at_slots();
+    w.rays_at_slots = at_slots;
     for (uint32_t b = 0; b < iterations; ++b) {
+      if (at_slots) {  // bounce b's rays in one buffer, the next bounce's in the other
+        w.ray_o = (b & 1) ? ray_o_odd.get() : ray_o.get();
+        w.ray_d = (b & 1) ? ray_d_odd.get() : ray_d.get();
+        w.next_ray_o = (b & 1) ? ray_o.get() : ray_o_odd.get();
+        w.next_ray_d = (b & 1) ? ray_d.get() : ray_d_odd.get();
+      }
       const bool compacted = opts.compaction && b > 0;
       const uint32_t* q = compacted ? (queue_in_shade ? bounce_queue(b) : queue.get()) : nullptr;
       const uint32_t* c =
@@ -425,8 +445,9 @@ std::string CudaRenderer::chosen_kernel() const {
 }
 
 size_t CudaRenderer::path_state_bytes_per_pixel() const {
-  // 8 float4 arrays, alive flag, two queues + shadow queue + sorted queue + sort key, cached hit.
-  return 8 * sizeof(float4) + 1 + 5 * sizeof(uint32_t) + sizeof(float4);
+  // 10 float4 arrays (8 + the odd bounces' rays), alive flag, two queues + shadow queue +
+  // sorted queue + sort key, cached hit.
+  return 10 * sizeof(float4) + 1 + 5 * sizeof(uint32_t) + sizeof(float4);
 }
 
 size_t CudaRenderer::scene_bytes() const {
@@ -475,6 +496,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
         m.tail_estimate[0] = m.n();
         if (k == 0) {
           st.stages.tail_from = m.tail_from;
+          st.stages.rays_at_slots = m.rays_at_slots();
           std::vector<uint32_t> alive = m.tail_estimate;
           while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
           st.alive_per_bounce = alive;

@@ -69,6 +69,12 @@ __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 
   }
 }
 
+// The flags of path id for finish_path: with rays at their slots (never with random walks,
+// the only source of the flags it counts) none are kept by id.
+__device__ __forceinline__ uint32_t path_flags(const WavefrontState& w, uint32_t id) {
+  return w.rays_at_slots ? 0u : __float_as_uint(w.ray_d[id].w) >> 16;
+}
+
 // A wavefront path whose sample is complete: its radiance goes to the film, its flags to the
 // counters, and its slot is free (alive 0).
 __device__ __forceinline__ void finish_path(const WavefrontState& w, uint32_t id, vec3 L,
@@ -96,21 +102,34 @@ __device__ __forceinline__ uint32_t take_pixel(unsigned need, uint32_t* next_pix
   return base + __popc(need & ((1u << lane) - 1u));
 }
 
-__device__ __forceinline__ void store_state(const WavefrontState& w, uint32_t id,
-                                            const PathState& st) {
-  w.ray_o[id] = make_float4(st.ray.o.x, st.ray.o.y, st.ray.o.z, st.prev_pdf);
-  w.ray_d[id] = make_float4(st.ray.d.x, st.ray.d.y, st.ray.d.z,
-                            __uint_as_float(st.depth | (st.flags << 16)));
+// The path's ray (with its pdf, depth and flags) into slot k of the ray arrays o, d.
+__device__ __forceinline__ void store_ray(float4* o, float4* d, uint32_t k, const PathState& st) {
+  o[k] = make_float4(st.ray.o.x, st.ray.o.y, st.ray.o.z, st.prev_pdf);
+  d[k] = make_float4(st.ray.d.x, st.ray.d.y, st.ray.d.z,
+                     __uint_as_float(st.depth | (st.flags << 16)));
+}
+
+// Throughput and radiance, always at the path's id.
+__device__ __forceinline__ void store_path(const WavefrontState& w, uint32_t id,
+                                           const PathState& st) {
   w.throughput[id] = make_float4(st.throughput.x, st.throughput.y, st.throughput.z,
                                  __uint_as_float(st.medium));
   w.radiance[id] = make_float4(st.radiance.x, st.radiance.y, st.radiance.z,
                                __uint_as_float(st.walk_steps));
 }
 
-__device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_t id,
+__device__ __forceinline__ void store_state(const WavefrontState& w, uint32_t id,
+                                            const PathState& st) {
+  store_ray(w.ray_o, w.ray_d, id, st);
+  store_path(w, id, st);
+}
+
+// Path id's state; its ray at index ri of the ray arrays (its queue slot with rays_at_slots,
+// else its id).
+__device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_t id, uint32_t ri,
                                                 uint32_t sample) {
   PathState st;
-  const float4 o = w.ray_o[id], d = w.ray_d[id], t = w.throughput[id], r = w.radiance[id];
+  const float4 o = w.ray_o[ri], d = w.ray_d[ri], t = w.throughput[id], r = w.radiance[id];
   st.ray.o = vec3(o.x, o.y, o.z);
   st.ray.d = vec3(d.x, d.y, d.z);
   st.ray.tmax = kInfinity;
@@ -153,9 +172,11 @@ __device__ __forceinline__ void start_path(const SceneView& s, const IntegratorS
     return;
   }
   const uint32_t id = src.queue[k];
-  st = load_state(src.w, id, sample);
-  // As extension_ray: with random walks the ray skips the triangle it leaves from.
-  if (F & kFeatureSubsurface) {
+  st = load_state(src.w, id, src.w.rays_at_slots ? k : id, sample);
+  // As extension_ray: with random walks the ray skips the triangle it leaves from. (With rays at
+  // their slots the pool keeps no hit by id; the scene then has no random walks, and the stages'
+  // rays skip no triangle either. The specular kernels compile the walks' code for such scenes.)
+  if ((F & kFeatureSubsurface) && !src.w.rays_at_slots) {
     const uint32_t prim = __float_as_uint(src.w.hit[id].y);
     st.origin_prim = prim < s.tri_count ? prim : kInvalid;
   }
@@ -336,12 +357,13 @@ template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, WavefrontState w,
                                                            const uint32_t* queue,
                                                            const uint32_t* count, bool walks) {
-  const uint32_t id = queued_path(w, queue, blockIdx.x * blockDim.x + threadIdx.x,
-                                  queue_total(w, queue, count));
-  if (id == kInvalid) return;
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x, total = queue_total(w, queue, count);
+  // The ray's index: its slot, or its path's id.
+  const uint32_t ri = w.rays_at_slots ? (i < total ? i : kInvalid) : queued_path(w, queue, i, total);
+  if (ri == kInvalid) return;
   uint32_t skip;
-  const Ray ray = extension_ray(s, w, id, walks, &skip);
-  store_hit(w, id, intersect_closest<features_of<Spec>()>(s, ray, skip));
+  const Ray ray = extension_ray(s, w, ri, walks, &skip);
+  store_hit(w, ri, intersect_closest<features_of<Spec>()>(s, ray, skip));
 }
 
 // Rays per lane of the flat list's intersect kernel (intersect_flat_kernel): 4 (64 registers)
@@ -361,7 +383,8 @@ constexpr int flat_rays() {
 // kept the memory pipes 78% busy (Nsight, bounce 1 of the open box): shared by two rays, the
 // loads and the loop's own instructions are paid once per pair.
 // kWalks: the scene has random walks, whose rays skip the triangle they leave from.
-// KK rays of lane `lane`: queue slots lane + (j + k) * lanes, k < KK (coalesced over a warp).
+// KK rays of lane `lane`: queue slots lane + (j + k) * lanes, k < KK (coalesced over a warp);
+// id[k] below is the index of the ray and its hit (its slot, or its path's id).
 template <uint32_t F, int KK>
 __device__ __forceinline__ void intersect_rows(const SceneView& s, const WavefrontState& w,
                                                const uint32_t* queue, uint32_t total,
@@ -371,7 +394,8 @@ __device__ __forceinline__ void intersect_rows(const SceneView& s, const Wavefro
   Ray ray[KK];
 #pragma unroll
   for (int k = 0; k < KK; ++k) {
-    id[k] = queued_path(w, queue, lane + (j + k) * lanes, total);
+    const uint32_t slot = lane + (j + k) * lanes;
+    id[k] = w.rays_at_slots ? (slot < total ? slot : kInvalid) : queued_path(w, queue, slot, total);
     if (id[k] != kInvalid) {
       ray[k] = extension_ray(s, w, id[k], kWalks, &skip[k]);
     } else {
@@ -400,24 +424,6 @@ __global__ void __launch_bounds__(kBlock) intersect_flat_kernel(SceneView view,
       features_of<Spec>() | kFeatureFlatList | (kWalks ? kFeatureSubsurface : 0u);
   const SceneView s = with_flat_params(view, flat);
   const uint32_t total = queue_total(w, queue, count);
-#ifdef TRACER_FLAT_BALANCED
-  // A grid of resident blocks; each warp takes the rows (slots lane + j * lanes) below the
-  // queue's end, kFlatRays at a time and its last ones in a shorter pass, so that every warp
-  // has the same work to within one ray per lane (no last wave of few blocks).
-  const uint32_t lanes = gridDim.x * kBlock;
-  const uint32_t lane = blockIdx.x * kBlock + threadIdx.x;
-  const uint32_t warp_first = lane & ~31u;
-  if (warp_first >= total) return;
-  const uint32_t rows = (total - warp_first + lanes - 1) / lanes;
-  uint32_t j = 0;
-  for (; j + kFlatRays <= rows; j += kFlatRays)
-    intersect_rows<F, kFlatRays>(s, w, queue, total, lane, lanes, j);
-  const uint32_t left = rows - j;
-  if (kFlatRays > 2 && left == 3) intersect_rows<F, (kFlatRays > 2 ? 3 : 1)>(s, w, queue, total, lane, lanes, j);
-  else if (kFlatRays > 2 && left == 2) intersect_rows<F, 2>(s, w, queue, total, lane, lanes, j);
-  else if (left == 1) intersect_rows<F, 1>(s, w, queue, total, lane, lanes, j);
-  return;
-#endif
   const uint32_t first = blockIdx.x * (kFlatRays * kBlock) + threadIdx.x;
   if (first >= total) return;
   intersect_rows<F, kFlatRays>(s, w, queue, total, first, kBlock, 0);
@@ -462,7 +468,7 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
         if (k >= total) {
           retired = true;
         } else {
-          id = queue ? queue[k] : k;
+          id = queue && !w.rays_at_slots ? queue[k] : k;  // the ray's index
           if (queue || w.alive[id] == 1) {  // a finished path takes another one next round
             ray = extension_ray(s, w, id, walks, &skip);
             inv_d = 1.0f / ray.d;
@@ -511,23 +517,29 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
                                                        const uint32_t* count,
                                                        uint32_t* next_queue,
                                                        uint32_t* shadow_queue) {
-  const uint32_t id = queued_path(w, queue, blockIdx.x * blockDim.x + threadIdx.x,
-                                  queue_total(w, queue, count));
+  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  const uint32_t id = queued_path(w, queue, i, queue_total(w, queue, count));
+  const uint32_t ri = w.rays_at_slots ? i : id;  // where its ray and hit are
   bool go_on = false, shadow_valid = false;
   ShadowRequest sr;
+  PathState st;
   if (id != kInvalid) {
-    PathState st = load_state(w, id, sample);
-    const float4 h4 = w.hit[id];
+    st = load_state(w, id, ri, sample);
+    const float4 h4 = w.hit[ri];
     Hit hit;
     hit.t = h4.x;
     hit.prim = __float_as_uint(h4.y);
     hit.u = h4.z;
     hit.v = h4.w;
     go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
-    store_state(w, id, st);
+    store_path(w, id, st);
+    // With rays at their slots the next ray goes to its slot in the next queue, below.
+    if (!w.rays_at_slots) store_ray(w.next_ray_o, w.next_ray_d, id, st);
     // A medium scatter continues from no surface; a surface bounce leaves from the triangle that
     // hit[id] already names, which the next intersect and this bounce's shadow ray skip.
-    if ((features_of<Spec>() & kFeatureSubsurface) && go_on && st.origin_prim == kInvalid)
+    // (With rays at their slots hit[] is indexed by slot and read by no later stage.)
+    if ((features_of<Spec>() & kFeatureSubsurface) && !w.rays_at_slots && go_on &&
+        st.origin_prim == kInvalid)
       w.hit[id].y = __uint_as_float(kInvalid);
     shadow_valid = sr.valid;
     // With a shadow queue the ray is stored at its queue slot, below.
@@ -584,8 +596,11 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   }
   __syncthreads();
   const unsigned below = (1u << lane) - 1u;
-  if (next_queue && go_on)
-    next_queue[warp_start[kWarps] + warp_start[warp] + __popc(ballot_alive & below)] = id;
+  if (next_queue && go_on) {
+    const uint32_t slot = warp_start[kWarps] + warp_start[warp] + __popc(ballot_alive & below);
+    next_queue[slot] = id;
+    if (w.rays_at_slots) store_ray(w.next_ray_o, w.next_ray_d, slot, st);  // whole sectors
+  }
   if (shadow_queue && shadow_valid) {
     const uint32_t slot = shadow_start[kWarps] + shadow_start[warp] + __popc(ballot_shadow & below);
     shadow_queue[slot] = id;
@@ -635,7 +650,7 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
     }
   }
   if (state == 2)  // the path ended in this bounce: its sample is complete
-    finish_path(w, id, vec3(r.x, r.y, r.z), __float_as_uint(w.ray_d[id].w) >> 16, first, film);
+    finish_path(w, id, vec3(r.x, r.y, r.z), path_flags(w, id), first, film);
 }
 
 // The shadow stage over the shadow queue the shade kernel wrote: every lane of the first
@@ -666,7 +681,7 @@ __global__ void TRACER_SHADOW_BOUNDS shadow_queued_kernel(SceneView view,
     if (k >= w.finish_counts[bounce]) return;
     const uint32_t id = shadow_queue[w.n - 1 - k];
     const float4 r = w.radiance[id];
-    finish_path(w, id, vec3(r.x, r.y, r.z), __float_as_uint(w.ray_d[id].w) >> 16, first, film);
+    finish_path(w, id, vec3(r.x, r.y, r.z), path_flags(w, id), first, film);
     return;
   }
   const uint32_t id = shadow_queue[i];
@@ -681,7 +696,7 @@ __global__ void TRACER_SHADOW_BOUNDS shadow_queued_kernel(SceneView view,
     if (state == 1) w.radiance[id] = r;
   }
   if (state == 2)
-    finish_path(w, id, vec3(r.x, r.y, r.z), __float_as_uint(w.ray_d[id].w) >> 16, first, film);
+    finish_path(w, id, vec3(r.x, r.y, r.z), path_flags(w, id), first, film);
 }
 
 // The sample's extension rays, the paths that entered a bounce after the first (alive_counts[1..
@@ -915,11 +930,7 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
     TRACER_CUDA_CHECK_LAUNCH("intersect_fetch_kernel");
     return;
   }
-#ifdef TRACER_FLAT_BALANCED
-#define FLAT_GRID(S, W) persistent_blocks(intersect_flat_kernel<S, W>, w.n)
-#else
 #define FLAT_GRID(S, W) (w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock)
-#endif
   if (s.use_flat) {
 #define CALL(S, W)                                                                   \
   intersect_flat_kernel<S, W><<<FLAT_GRID(S, W), kBlock, 0, stream>>>(s, flat, w, queue, count)

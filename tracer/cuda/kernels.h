@@ -21,6 +21,14 @@ struct WavefrontState {
   float4* throughput = nullptr;  // xyz
   float4* radiance = nullptr;    // xyz
   float4* hit = nullptr;         // t, prim (bits), u, v
+  // With rays_at_slots (compaction in the shade kernel, no sorting, no random walks) ray_o,
+  // ray_d and hit hold a bounce's rays and hits at the slots of its queue (bounce 0: slot = id),
+  // and the shade kernel writes each next ray at its slot in the next queue, into next_ray_o /
+  // next_ray_d (the other of two buffers). Otherwise all are at the path's id and next_ray_*
+  // are ray_*.
+  float4* next_ray_o = nullptr;
+  float4* next_ray_d = nullptr;
+  bool rays_at_slots = false;
   // Shadow rays: at the path's id, or with a shadow queue at the path's slot in it.
   float4* shadow_o = nullptr;    // origin, tmax
   float4* shadow_d = nullptr;    // direction, target prim (bits)

@@ -31,6 +31,10 @@ struct GpuOptions {
   bool first_bounce_cache = true; // reuse camera-ray hits (only without jitter and DoF)
   bool specialize = true;         // kernels compiled for the scene's features only
   bool dynamic_fetch = true;      // wavefront intersect: lanes take new rays between rounds
+  // Wavefront with compaction in the shade kernel (no sorting, no random walks): each extension
+  // ray and its hit are stored at the path's slot in its bounce's queue, not at its id, so the
+  // intersect and shade kernels read and write them in whole sectors however few paths are left.
+  bool rays_at_slots = true;
   bool flat_list = true;          // small scenes: every lane tests every primitive, no BVH
 };
 
@@ -53,6 +57,7 @@ struct StageTimes {
   std::vector<BounceTimes> bounces;  // the same per bounce (wavefront only)
   double tail = 0;         // the wavefront's tail kernel
   uint32_t tail_from = 0;  // the bounce its tail began at (0: none)
+  bool rays_at_slots = false;  // its rays and hits were stored at their queue slots
   double megakernel = 0;
   // The whole sample (intersect includes intersect_first).
   double total() const {
