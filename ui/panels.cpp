@@ -274,6 +274,10 @@ void render_panel(Workbench& wb, PanelState& ps) {
     gc |= ImGui::Checkbox("material sorting", &g.sort_materials);
     gc |= ImGui::Checkbox("first-bounce cache", &g.first_bounce_cache);
     gc |= ImGui::Checkbox("dynamic ray fetch", &g.dynamic_fetch);
+    gc |= ImGui::Checkbox("rays at queue slots", &g.rays_at_slots);
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("Wavefront with the shade kernel's queues: each extension ray and its hit "
+                        "are stored at the path's queue slot, read in whole sectors");
     gc |= ImGui::Checkbox("flat list (small scenes)", &g.flat_list);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("Scenes of at most 64 primitives: every lane tests every primitive in one "
