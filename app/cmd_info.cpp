@@ -59,6 +59,8 @@ int run_info(const InfoOptions& o) {
   j["flat_list"] = {{"enabled", fl.enabled},
                     {"entries", fl.prims.size()},
                     {"quads", fl.quad_count},
+                    {"box_faces", fl.box_faces},
+                    {"solid_boxes", fl.solids.size()},
                     {"degenerate_triangles", fl.degenerate},
                     {"max_cost", tracer::kFlatMaxCost}};
   j["features"] = tracer::describe_features(cs.features());

@@ -113,7 +113,15 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
   // Five walls and the light are six quads; with the two spheres the GPU uses the flat list.
   EXPECT_TRUE(j["flat_list"]["enabled"].get<bool>());
   EXPECT_EQ(j["flat_list"]["quads"].get<int>(), 6);
+  EXPECT_EQ(j["flat_list"]["box_faces"].get<int>(), 5);
+  EXPECT_EQ(j["flat_list"]["solid_boxes"].get<int>(), 0);
   EXPECT_EQ(j["gpu_specialization"].get<std::string>(), "spheres+triangles, pinhole, specular");
+  // The Cornell box's two blocks are solid boxes (one slab test each on the GPU).
+  ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
+                                  "/assets/scenes/cornell_box.json", &log), 0) << log;
+  const auto b = nlohmann::json::parse(log.substr(log.find('{')));
+  EXPECT_EQ(b["flat_list"]["solid_boxes"].get<int>(), 2);
+  EXPECT_EQ(b["flat_list"]["quads"].get<int>(), 18);
 }
 
 TEST(Cli, CompareReportsMetricsAndDiff) {
