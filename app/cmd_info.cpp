@@ -53,7 +53,8 @@ int run_info(const InfoOptions& o) {
   const tracer::FlatList& fl = cs.flat_list();
   const std::string flat_text =
       fl.enabled ? tracer::describe_flat_list(fl, v.sphere_count) +
-                       ": the GPU tests them in one uniform loop (box faces and solid boxes by slab tests) instead of the BVH"
+                       ": the GPU tests them in one uniform loop (box faces and solid boxes "
+                       "by slab tests) instead of the BVH"
                  : "none (more than " + std::to_string(tracer::kFlatMaxCost) +
                        " entries): the GPU walks the BVH";
   j["flat_list"] = {{"enabled", fl.enabled},

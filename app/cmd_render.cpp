@@ -204,7 +204,8 @@ int run_render(const RenderOptions& o) {
       j["gpu"] = {{"kernel_option", o.kernel}, {"kernel", last_kernel},
                   {"specialization", last_spec}, {"compaction", o.compaction},
                   {"sort", o.sort}, {"first_bounce_cache", o.cache}, {"fetch", o.fetch},
-                  {"slots", o.slots}, {"flat", o.flat}, {"specialize", o.specialize}, {"note", last_note}};
+                  {"slots", o.slots}, {"flat", o.flat}, {"specialize", o.specialize},
+                  {"note", last_note}};
     }
     j["spp"] = spp_done;
     j["wall_time_s"] = render_s;

@@ -113,7 +113,8 @@ std::string describe_flat_list(const FlatList& list, uint32_t sphere_count) {
   std::string solids;
   if (!list.solids.empty())
     solids = "; " + std::to_string(6 * list.solids.size()) + " the faces of " +
-             std::to_string(list.solids.size()) + (list.solids.size() == 1 ? " solid box" : " solid boxes");
+             std::to_string(list.solids.size()) +
+             (list.solids.size() == 1 ? " solid box" : " solid boxes");
   return std::to_string(entries) + " entries (" + std::to_string(list.quad_count) + " quads, " +
          std::to_string(entries - list.quad_count) + " triangles; " + std::to_string(hull) +
          " on the hull, " + std::to_string(list.box_faces) + " of them box faces" + solids +
@@ -236,26 +237,25 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
       }
     }
   }
-  // Solid boxes among the blockers: six quads that close a parallelepiped (faces_of below).
+  // Solid boxes: six quads (blockers or hull quads, not box faces) that close a parallelepiped,
+  // each face in the order of the solid's local axes (FlatList::solids).
   std::vector<std::array<uint32_t, 6>> solid_faces;
   std::vector<FlatPrim> solids;
   {
     std::vector<bool> in_solid(quads.size(), false);
     // Blockers and hull quads (a block's bottom lies in the floor's plane), not box faces.
     auto free_blocker = [&](size_t k) { return quad_class[k] != 2 && !in_solid[k]; };
-    // Whether two sets of four corners are the same points (within tol), in any order.
-    auto same = [&](const std::array<DVec, 4>& a, const std::array<DVec, 4>& b) {
+    // Whether every corner of a is one of b's (within tol); both ways: the same four points.
+    auto covered = [&](const std::array<DVec, 4>& a, const std::array<DVec, 4>& b) {
       for (const DVec& x : a) {
         bool found = false;
         for (const DVec& y : b) found = found || length(sub(x, y)) <= tol;
         if (!found) return false;
       }
-      for (const DVec& y : b) {
-        bool found = false;
-        for (const DVec& x : a) found = found || length(sub(x, y)) <= tol;
-        if (!found) return false;
-      }
       return true;
+    };
+    auto same = [&](const std::array<DVec, 4>& a, const std::array<DVec, 4>& b) {
+      return covered(a, b) && covered(b, a);
     };
     auto add = [](DVec a, DVec b) { return DVec{a.x + b.x, a.y + b.y, a.z + b.z}; };
     auto find_free = [&](const std::array<DVec, 4>& want, size_t not1, size_t not2) -> int {

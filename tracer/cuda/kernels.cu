@@ -359,7 +359,8 @@ __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, Wavefron
                                                            const uint32_t* count, bool walks) {
   const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x, total = queue_total(w, queue, count);
   // The ray's index: its slot, or its path's id.
-  const uint32_t ri = w.rays_at_slots ? (i < total ? i : kInvalid) : queued_path(w, queue, i, total);
+  const uint32_t ri =
+      w.rays_at_slots ? (i < total ? i : kInvalid) : queued_path(w, queue, i, total);
   if (ri == kInvalid) return;
   uint32_t skip;
   const Ray ray = extension_ray(s, w, ri, walks, &skip);
@@ -383,18 +384,18 @@ constexpr int flat_rays() {
 // kept the memory pipes 78% busy (Nsight, bounce 1 of the open box): shared by two rays, the
 // loads and the loop's own instructions are paid once per pair.
 // kWalks: the scene has random walks, whose rays skip the triangle they leave from.
-// KK rays of lane `lane`: queue slots lane + (j + k) * lanes, k < KK (coalesced over a warp);
-// id[k] below is the index of the ray and its hit (its slot, or its path's id).
+// The KK rays of a lane: queue slots first + k * kBlock, k < KK (coalesced over a warp); id[k]
+// below is the index of the ray and its hit (its slot, or its path's id).
 template <uint32_t F, int KK>
 __device__ __forceinline__ void intersect_rows(const SceneView& s, const WavefrontState& w,
                                                const uint32_t* queue, uint32_t total,
-                                               uint32_t lane, uint32_t lanes, uint32_t j) {
+                                               uint32_t first) {
   constexpr bool kWalks = (F & kFeatureSubsurface) != 0;
   uint32_t id[KK], skip[KK];
   Ray ray[KK];
 #pragma unroll
   for (int k = 0; k < KK; ++k) {
-    const uint32_t slot = lane + (j + k) * lanes;
+    const uint32_t slot = first + k * kBlock;
     id[k] = w.rays_at_slots ? (slot < total ? slot : kInvalid) : queued_path(w, queue, slot, total);
     if (id[k] != kInvalid) {
       ray[k] = extension_ray(s, w, id[k], kWalks, &skip[k]);
@@ -426,7 +427,7 @@ __global__ void __launch_bounds__(kBlock) intersect_flat_kernel(SceneView view,
   const uint32_t total = queue_total(w, queue, count);
   const uint32_t first = blockIdx.x * (kFlatRays * kBlock) + threadIdx.x;
   if (first >= total) return;
-  intersect_rows<F, kFlatRays>(s, w, queue, total, first, kBlock, 0);
+  intersect_rows<F, kFlatRays>(s, w, queue, total, first);
 }
 
 // Lanes of the dynamic-fetch kernel refill in batches of 8: measured on an H100 as fast as 16
@@ -930,10 +931,11 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
     TRACER_CUDA_CHECK_LAUNCH("intersect_fetch_kernel");
     return;
   }
-#define FLAT_GRID(S, W) (w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock)
   if (s.use_flat) {
 #define CALL(S, W)                                                                   \
-  intersect_flat_kernel<S, W><<<FLAT_GRID(S, W), kBlock, 0, stream>>>(s, flat, w, queue, count)
+  intersect_flat_kernel<S, W>                                                        \
+      <<<(w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock), kBlock, 0, stream>>>( \
+          s, flat, w, queue, count)
     switch ((spec & kSpecSpheres) | (walks ? 2 : 0)) {
       case 0: CALL(0, false); break;
       case 1: CALL(kSpecSpheres, false); break;
@@ -941,7 +943,6 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
       default: CALL(kSpecSpheres, true); break;
     }
 #undef CALL
-#undef FLAT_GRID
     TRACER_CUDA_CHECK_LAUNCH("intersect_flat_kernel");
     return;
   }

@@ -529,10 +529,11 @@ TRACER_HD TRACER_INLINE void flat_closest_multi(const SceneView& s, const Ray* r
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
-    for (int k = 0; k < K; ++k) flat_solid_hit(m, g, o[k], d[k], fa[k], kInvalid, tbest[k], best[k]);
+    for (int k = 0; k < K; ++k)
+      flat_solid_hit(m, g, o[k], d[k], fa[k], kInvalid, tbest[k], best[k]);
   }
-  flat_range_multi<true, K, kSkips>(s.flat_loop, flat_quads_begin(s), s.flat_quads - s.flat_box_faces,
-                                    o, d, fa, tbest, best);
+  flat_range_multi<true, K, kSkips>(s.flat_loop, flat_quads_begin(s),
+                                    s.flat_quads - s.flat_box_faces, o, d, fa, tbest, best);
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
