@@ -136,7 +136,7 @@ nlohmann::json bounce_json(const tracer::StageTimes& t) {
   nlohmann::json a = nlohmann::json::array();
   for (const tracer::BounceTimes& b : t.bounces)
     a.push_back({{"intersect", b.intersect}, {"sort", b.sort}, {"shade", b.shade},
-                 {"shadow", b.shadow}, {"compact", b.compact}});
+                 {"shadow", b.shadow}, {"trace", b.trace}, {"compact", b.compact}});
   return a;
 }
 
@@ -153,13 +153,15 @@ nlohmann::json to_json(const Result& r) {
           {"stage_ms", {{"generate", r.stages.generate}, {"intersect", r.stages.intersect},
                         {"intersect_camera_rays", r.stages.intersect_first},
                         {"sort", r.stages.sort}, {"shade", r.stages.shade},
-                        {"shadow", r.stages.shadow}, {"compact", r.stages.compact},
+                        {"shadow", r.stages.shadow}, {"trace", r.stages.trace},
+                        {"compact", r.stages.compact},
                         {"megakernel", r.stages.megakernel}}},
           {"alive_per_bounce", r.alive},
           {"shadow_rays_per_bounce", r.shadows},
           {"finished_without_shadow_ray_per_bounce", r.finished},
           {"tail_from_bounce", r.stages.tail_from},
           {"rays_at_slots", r.stages.rays_at_slots},
+          {"fused_trace", r.stages.fused_trace},
           {"tail_ms", r.stages.tail},
           {"bounce_stage_ms", bounce_json(r.stages)},
           {"note", r.note}};
@@ -243,6 +245,8 @@ int run_bench(const BenchOptions& o) {
     configs.back().gpu.dynamic_fetch = false;
     add("wavefront+compaction, rays at ids", K::kWavefront, true, false, true);
     configs.back().gpu.rays_at_slots = false;
+    add("wavefront+compaction, unfused", K::kWavefront, true, false, true);
+    configs.back().gpu.fused_trace = false;
     add("wavefront+compaction+sorting", K::kWavefront, true, true, true);
     add("wavefront+sorting", K::kWavefront, false, true, true);
     if (o.jitter_off_configs && !(cs.features() & tracer::kFeatureDepthOfField)) {
@@ -338,15 +342,39 @@ int run_bench(const BenchOptions& o) {
       const double shade_bytes = shade_bytes_of(processed, traced_shadows, traced_finished) + dead +
                                  (in_shade ? 4.0 * next_slots : 0.0);
       const double shadow_bytes = shadow_bytes_of(processed, traced_shadows, traced_finished) + dead;
+      // With the fused trace stage, bounce b's extension rays (b > 0) were traced in one launch
+      // with bounce b - 1's shadow stage: those bytes go to the trace row.
+      auto fused_at = [&](size_t b) {
+        return b < r.stages.bounces.size() && r.stages.bounces[b].trace > 0;
+      };
+      double trace_bytes = 0, trace_rays = 0, trace_shadows = 0;
+      for (size_t b = 1; b < staged; ++b) {
+        if (!fused_at(b)) continue;
+        trace_bytes += sb.intersect() * alive_at(b) +
+                       shadow_bytes_of(alive_at(b - 1), shadows_at(b - 1), finished_at(b - 1));
+        trace_rays += alive_at(b);
+        trace_shadows += shadows_at(b - 1);
+      }
+      const double intersect_bytes = sb.intersect() * (processed - trace_rays) + dead;
       row("generate", r.stages.generate, sb.generate * n);
-      row("intersect", r.stages.intersect, sb.intersect() * processed + dead);
+      row("intersect", r.stages.intersect, intersect_bytes);
       if (r.stages.sort > 0) row("sort", r.stages.sort, sb.sort * processed);
       row("shade", r.stages.shade, shade_bytes);
-      row("shadow", r.stages.shadow, shadow_bytes);
+      // (The shadow stages not fused: all less those in the trace stage.)
+      row("shadow", r.stages.shadow, shadow_bytes - (trace_bytes - sb.intersect() * trace_rays));
+      if (r.stages.trace > 0) row("trace", r.stages.trace, trace_bytes);
       const double bounce_ms = r.stages.intersect - r.stages.intersect_first;
-      std::printf("  intersect: camera rays %.0f Mrays/s, bounce rays %.0f Mrays/s\n",
-                  n / (r.stages.intersect_first * 1e-3) / 1e6,
-                  (processed - n) / (bounce_ms * 1e-3) / 1e6);
+      std::printf("  intersect: camera rays %.0f Mrays/s",
+                  n / (r.stages.intersect_first * 1e-3) / 1e6);
+      if (bounce_ms > 0)
+        std::printf(", bounce rays %.0f Mrays/s",
+                    (processed - n - trace_rays) / (bounce_ms * 1e-3) / 1e6);
+      std::printf("\n");
+      if (r.stages.trace > 0)
+        std::printf("  trace (a bounce's shadow stage with the next one's intersect stage): %.0f M "
+                    "bounce rays + %.0f M shadow rays, %.0f Mrays/s\n",
+                    trace_rays / 1e6, trace_shadows / 1e6,
+                    (trace_rays + trace_shadows) / (r.stages.trace * 1e-3) / 1e6);
       if (r.stages.tail_from) {
         // Its segments: the sample's extension rays less those the stages traced.
         const double tail_segments =
@@ -383,10 +411,18 @@ int run_bench(const BenchOptions& o) {
       if (!queued || r.stages.bounces.size() != staged) continue;
       // Per bounce: each stage's time and its bytes against the copy bandwidth; a short queue's
       // stage is bound by its launch and the GPU's fill and drain, not by its bytes.
-      std::printf("  per bounce (us, %% of copy bandwidth):\n  %6s %9s %16s %16s %16s%s\n",
+      // With the fused trace stage, bounce b's trace column is its extension rays with bounce
+      // b - 1's shadow stage (whose own shadow cell is then empty).
+      const bool fused = r.stages.trace > 0;
+      std::printf("  per bounce (us, %% of copy bandwidth):\n  %6s %9s %16s %16s %16s%s%s\n",
                   "bounce", "paths", "intersect", "shade", "shadow",
-                  r.stages.compact > 0 ? "          compact" : "");
+                  r.stages.compact > 0 ? "          compact" : "",
+                  fused ? "  trace (shadow b-1)" : "");
       auto cell = [&](double ms, double bytes) {
+        if (ms <= 0) {
+          std::printf(" %16s", "-");
+          return;
+        }
         std::printf(" %9.1f (%3.0f%%)", 1000.0 * ms, 100.0 * gbs(bytes, ms) / copy_gbs_measured);
       };
       for (size_t b = 0; b < staged; ++b) {
@@ -398,6 +434,11 @@ int run_bench(const BenchOptions& o) {
                           (in_shade ? 4.0 * next : 0.0));
         cell(t.shadow, shadow_bytes_of(paths, shadows_at(b), finished_at(b)));
         if (r.stages.compact > 0) cell(t.compact, n + 4.0 * next);
+        if (fused)
+          cell(t.trace, b > 0 ? sb.intersect() * paths + shadow_bytes_of(alive_at(b - 1),
+                                                                         shadows_at(b - 1),
+                                                                         finished_at(b - 1))
+                              : 0.0);
         std::printf("\n");
       }
     }

@@ -33,7 +33,7 @@ struct RenderOptions {
   // GPU switches (ignored by the CPU backend).
   std::string kernel = "auto";
   std::string compaction = "on", sort = "off", cache = "on", specialize = "on", fetch = "on";
-  std::string flat = "on", slots = "on";
+  std::string flat = "on", slots = "on", fuse = "on";
   float tail = tracer::GpuOptions().tail_fraction;
   std::string jitter;
   float clamp = -1.0f;  // < 0: the scene's setting
@@ -52,6 +52,7 @@ tracer::GpuOptions gpu_options(const RenderOptions& o) {
   g.specialize = o.specialize == "on";
   g.dynamic_fetch = o.fetch == "on";
   g.rays_at_slots = o.slots == "on";
+  g.fused_trace = o.fuse == "on";
   g.flat_list = o.flat == "on";
   g.tail_fraction = o.tail;
   return g;
@@ -204,7 +205,8 @@ int run_render(const RenderOptions& o) {
       j["gpu"] = {{"kernel_option", o.kernel}, {"kernel", last_kernel},
                   {"specialization", last_spec}, {"compaction", o.compaction},
                   {"sort", o.sort}, {"first_bounce_cache", o.cache}, {"fetch", o.fetch},
-                  {"slots", o.slots}, {"flat", o.flat}, {"specialize", o.specialize},
+                  {"slots", o.slots}, {"fuse", o.fuse}, {"flat", o.flat},
+                  {"specialize", o.specialize},
                   {"note", last_note}};
     }
     j["spp"] = spp_done;
@@ -316,6 +318,10 @@ Runner add_render_command(CLI::App& cmd) {
   cmd.add_option("--slots", o->slots,
                  "Wavefront with the shade kernel's queues: extension rays and hits stored at "
                  "their queue slots (off: at their paths' ids)")
+      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
+  cmd.add_option("--fuse", o->fuse,
+                 "Wavefront with rays at their queue slots and the flat list: each bounce's shadow "
+                 "stage and the next bounce's intersect stage as one launch (off: two)")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--flat", o->flat,
                  "Scenes of at most 64 primitives (quads count once, spheres twice): every lane "

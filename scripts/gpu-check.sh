@@ -110,14 +110,17 @@ if [ "$MODE" = all ] || [ "$MODE" = error ]; then
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction
-  # (its shared memory and barriers), CUB, sorting, the megakernel tail, random walks, the BVH.
+  # (its shared memory and barriers), CUB, sorting, the megakernel tail, random walks, the BVH,
+  # the fused trace stage (rays at their slots; with spheres, and with and without a tail).
   CS=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
   echo "== compute-sanitizer ($CS)"
   for tool in racecheck synccheck memcheck; do
     for cfg in "cornell_box --compaction shade --sort on --tail 0.6" \
                "subsurface --compaction shade --tail 0.3" \
                "subsurface --compaction cub --sort on --tail 0.3" \
-               "cornell_box --max-depth 2 --flat off --compaction cub"; do
+               "cornell_box --max-depth 2 --flat off --compaction cub" \
+               "cornell_box --compaction shade --tail 0" \
+               "cornell_spheres --compaction shade --tail 0.3"; do
       set -- $cfg
       sc=$1; shift
       echo "---- $tool: $sc $*"

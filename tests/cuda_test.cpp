@@ -154,6 +154,9 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
   GpuOptions at_ids = o;  // the rays and hits at their paths' ids instead of their queue slots
   at_ids.rays_at_slots = false;
   variants.push_back({"compaction, rays at their ids", at_ids});
+  GpuOptions unfused = o;  // the shadow and the next intersect stage as two launches
+  unfused.fused_trace = false;
+  variants.push_back({"compaction, trace stage unfused", unfused});
   GpuOptions cub = o;
   cub.compaction_by = GpuOptions::Compaction::kCub;
   variants.push_back({"compaction (CUB select)", cub});
@@ -303,6 +306,68 @@ TEST(Gpu, TailRunsTheSamePaths) {
                     what.c_str(), tail.stages.tail_from, tail.stages.tail,
                     identical_fraction(a, b));
       }
+    }
+  }
+}
+
+// The fused trace stage runs a bounce's shadow stage and the next bounce's intersect stage in
+// one launch: the same work, so the same image (each pixel's film sum is added once per sample,
+// whatever the order of launches), the same queues and the same ray counts as the two stages
+// apart; with a tail and without one, with and without spheres. Its time is reported per bounce.
+TEST(Gpu, FusedTraceStageIsTheTwoStages) {
+  REQUIRE_GPU(gpu);
+  for (const char* name : {"cornell_box.json", "cornell_spheres.json", "smallpt.json"}) {
+    const Scene s = load_scene(source_dir() + "/assets/scenes/" + name);
+    RenderSettings rs = s.settings;
+    rs.width = 96;
+    rs.height = 64;
+    rs.max_depth = 8;  // every bounce staged without a tail (no early stop before the last)
+    const CompiledScene cs(s, rs.width, rs.height);
+    ASSERT_TRUE(cs.flat_list().enabled) << name;
+    for (const float tail : {0.0f, 0.3f}) {
+      GpuOptions o;
+      o.kernel = KernelMode::kWavefront;
+      o.compaction_by = GpuOptions::Compaction::kShade;
+      o.tail_fraction = tail;
+      FrameStats fused, apart;
+      auto run = [&](bool fuse, FrameStats* st) {
+        o.fused_trace = fuse;
+        gpu->set_gpu_options(o);
+        gpu->set_scene(cs, make_integrator_settings(rs));
+        gpu->render(1);  // the tail's estimate
+        *st = gpu->render(31);
+        return gpu->image();
+      };
+      const ImageRGB a = run(true, &fused);
+      const ImageRGB b = run(false, &apart);
+      const std::string what = std::string(name) + (tail > 0 ? ", tail" : ", no tail");
+      EXPECT_TRUE(fused.stages.fused_trace) << what;
+      EXPECT_FALSE(apart.stages.fused_trace) << what;
+      EXPECT_EQ(apart.stages.trace, 0.0) << what;
+      // Bounce 0 is traced alone; each later staged bounce by the fused stage; the last staged
+      // bounce's shadow stage alone. (A tail from bounce 1 on would leave nothing to fuse.)
+      if (tail == 0.0f) EXPECT_EQ(fused.stages.bounces.size(), size_t(rs.max_depth)) << what;
+      ASSERT_GT(fused.stages.bounces.size(), 1u) << what;
+      EXPECT_GT(fused.stages.trace, 0.0) << what;
+      EXPECT_GT(fused.stages.bounces[0].intersect, 0.0) << what;
+      for (size_t k = 1; k < fused.stages.bounces.size(); ++k) {
+        EXPECT_EQ(fused.stages.bounces[k].intersect, 0.0) << what << " bounce " << k;
+        EXPECT_GT(fused.stages.bounces[k].trace, 0.0) << what << " bounce " << k;
+        EXPECT_EQ(fused.stages.bounces[k - 1].shadow, 0.0) << what << " bounce " << k - 1;
+      }
+      EXPECT_GT(fused.stages.bounces.back().shadow, 0.0) << what;
+      EXPECT_EQ(fused.stages.bounces.size(), apart.stages.bounces.size()) << what;
+      EXPECT_EQ(fused.stages.tail_from, apart.stages.tail_from) << what;
+      const double same = identical_fraction(a, b);
+      std::printf("%-28s fused trace against two stages: identical %.4f, trace %.3f ms\n",
+                  what.c_str(), same, fused.stages.trace);
+      EXPECT_EQ(same, 1.0) << what;
+      EXPECT_EQ(fused.rays.extension, apart.rays.extension) << what;
+      EXPECT_EQ(fused.rays.shadow, apart.rays.shadow) << what;
+      EXPECT_EQ(fused.nonfinite, apart.nonfinite) << what;
+      EXPECT_EQ(fused.alive_per_bounce, apart.alive_per_bounce) << what;
+      EXPECT_EQ(fused.shadow_per_bounce, apart.shadow_per_bounce) << what;
+      EXPECT_EQ(fused.finished_per_bounce, apart.finished_per_bounce) << what;
     }
   }
 }

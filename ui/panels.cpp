@@ -278,6 +278,10 @@ void render_panel(Workbench& wb, PanelState& ps) {
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("Wavefront with the shade kernel's queues: each extension ray and its hit "
                         "are stored at the path's queue slot, read in whole sectors");
+    gc |= ImGui::Checkbox("fused trace stage", &g.fused_trace);
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("Wavefront with rays at queue slots and the flat list: each bounce's "
+                        "shadow rays and the next bounce's extension rays in one launch");
     gc |= ImGui::Checkbox("flat list (small scenes)", &g.flat_list);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("Scenes of at most 64 primitives: every lane tests every primitive in one "
@@ -369,6 +373,8 @@ void stats_panel(Workbench& wb, PanelState& ps) {
     ImGui::Text("ms per sample: gen %.3f  isect %.3f  sort %.3f", t.generate, t.intersect, t.sort);
     ImGui::Text("  shade %.3f  shadow %.3f  compact %.3f  mega %.3f", t.shade, t.shadow, t.compact,
                 t.megakernel);
+    if (t.trace > 0)
+      ImGui::Text("  trace %.3f (shadow rays with the next bounce's rays)", t.trace);
     if (t.tail_from > 0)
       ImGui::Text("  tail %.3f (the megakernel from bounce %u on)", t.tail, t.tail_from);
   }

@@ -350,7 +350,8 @@ std::vector<std::string> Workbench::settable_keys() {
           "render.rr_start_depth", "render.seed", "render.jitter", "render.samples_per_frame",
           "render.clamp", "render.sampler",
           "display.exposure", "display.tonemap", "gpu.kernel", "gpu.compaction", "gpu.tail", "gpu.sort",
-          "gpu.cache", "gpu.specialize", "gpu.fetch", "gpu.slots", "gpu.flat", "backend", "materials.NAME.type",
+          "gpu.cache", "gpu.specialize", "gpu.fetch", "gpu.slots", "gpu.fuse", "gpu.flat",
+          "backend", "materials.NAME.type",
           "materials.NAME.albedo", "materials.NAME.emission", "materials.NAME.emission_strength",
           "materials.NAME.ior", "materials.NAME.fresnel", "materials.NAME.absorption",
           "materials.NAME.two_sided", "materials.NAME.roughness", "materials.NAME.scattering",
@@ -458,11 +459,11 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
     changed(Edit::kGpuOptions);
   } else if (key == "gpu.sort" || key == "gpu.cache" ||
              key == "gpu.specialize" || key == "gpu.fetch" || key == "gpu.slots" ||
-             key == "gpu.flat") {
+             key == "gpu.fuse" || key == "gpu.flat") {
     if (!parse_bool(value, &b)) return fail("expected on or off");
     (key == "gpu.sort" ? gpu_.sort_materials
      : key == "gpu.cache" ? gpu_.first_bounce_cache : key == "gpu.fetch" ? gpu_.dynamic_fetch
-     : key == "gpu.slots" ? gpu_.rays_at_slots
+     : key == "gpu.slots" ? gpu_.rays_at_slots : key == "gpu.fuse" ? gpu_.fused_trace
      : key == "gpu.flat" ? gpu_.flat_list : gpu_.specialize) = b;
     changed(Edit::kGpuOptions);
   } else if (key == "backend") {

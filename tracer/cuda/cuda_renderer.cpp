@@ -13,7 +13,7 @@ namespace tracer {
 namespace {
 enum Stage {
   kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kIntersectFirst, kTail,
-  kStageCount
+  kTrace, kStageCount
 };
 }
 
@@ -107,6 +107,8 @@ struct CudaRenderer::Impl {
     return opts.rays_at_slots && queues_in_shade() && !opts.sort_materials &&
            !(features & kFeatureSubsurface);
   }
+  // A bounce's shadow stage and the next bounce's intersect stage as one launch (launch_trace).
+  bool fused_trace() const { return opts.fused_trace && rays_at_slots() && view.use_flat; }
   void choose_accel() { view.use_flat = flat_available && opts.flat_list ? 1u : 0u; }
   std::string accel_name() const {
     return view.use_flat ? "flat list of " + flat_text : "4-wide BVH";
@@ -208,18 +210,21 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaEventSynchronize(marks.back().first));
     double* slot[kStageCount] = {&t.generate, &t.intersect,  &t.sort,      &t.shade,
                                  &t.shadow,   &t.compact,    &t.megakernel, &t.intersect_first,
-                                 &t.tail};
+                                 &t.tail,     &t.trace};
     for (size_t i = 1; i < marks.size(); ++i) {
       float ms = 0.0f;
       TRACER_CUDA_CHECK(cudaEventElapsedTime(&ms, marks[i - 1].first, marks[i].first));
       const int stage = marks[i].second;
       *slot[stage] += ms;
       if (stage == kIntersectFirst) t.intersect += ms;
-      // Each bounce starts with its intersect mark (the cache copy's for a cached first one).
-      if (stage == kIntersect || stage == kIntersectFirst) t.bounces.emplace_back();
+      // Each bounce starts with its intersect mark (the cache copy's for a cached first one), or
+      // the fused trace stage's that traced its rays.
+      if (stage == kIntersect || stage == kIntersectFirst || stage == kTrace)
+        t.bounces.emplace_back();
       if (t.bounces.empty()) continue;
       BounceTimes& b = t.bounces.back();
       if (stage == kIntersect || stage == kIntersectFirst) b.intersect += ms;
+      if (stage == kTrace) b.trace += ms;
       if (stage == kSort) b.sort += ms;
       if (stage == kShade) b.shade += ms;
       if (stage == kShadow) b.shadow += ms;
@@ -278,6 +283,8 @@ struct CudaRenderer::Impl {
     bool tail_ran = false;
     const bool at_slots = rays_at_slots();
     w.rays_at_slots = at_slots;
+    const bool fuse = fused_trace();
+    bool traced = false;  // this bounce's rays were traced with the last bounce's shadow rays
     for (uint32_t b = 0; b < iterations; ++b) {
       if (at_slots) {  // bounce b's rays in one buffer, the next bounce's in the other
         w.ray_o = (b & 1) ? ray_o_odd.get() : ray_o.get();
@@ -296,16 +303,18 @@ struct CudaRenderer::Impl {
         tail_ran = true;
         break;
       }
-      if (b == 0 && use_cache && cache_valid) {
-        launch_copy_hits(cached_hits.get(), w.hit, n(), stream);
-      } else {
-        launch_intersect(sp, view, flat_params, w, q, c, opts.dynamic_fetch, stream);
-        if (b == 0 && use_cache) {
-          launch_copy_hits(w.hit, cached_hits.get(), n(), stream);
-          cache_valid = true;
+      if (!traced) {  // (else the last bounce's trace stage put its hits in place)
+        if (b == 0 && use_cache && cache_valid) {
+          launch_copy_hits(cached_hits.get(), w.hit, n(), stream);
+        } else {
+          launch_intersect(sp, view, flat_params, w, q, c, opts.dynamic_fetch, stream);
+          if (b == 0 && use_cache) {
+            launch_copy_hits(w.hit, cached_hits.get(), n(), stream);
+            cache_valid = true;
+          }
         }
+        mark(timed, b == 0 ? kIntersectFirst : kIntersect);
       }
-      mark(timed, b == 0 ? kIntersectFirst : kIntersect);
       if (opts.sort_materials) {
         launch_sort_by_material(view, w, q, c, sorted.get(), stream);
         q = sorted.get();
@@ -316,8 +325,20 @@ struct CudaRenderer::Impl {
                    queue_in_shade && b + 1 < iterations ? bounce_queue(b + 1) : nullptr, shadows,
                    stream);
       mark(timed, kShade);
-      launch_shadow(sp, view, flat_params, w, q, c, shadows, b, first, film_view(sample), stream);
-      mark(timed, kShadow);
+      // Fused: this bounce's shadow rays with the next bounce's extension rays, unless the next
+      // bounce is the tail's or there is none.
+      traced = fuse && b + 1 < iterations && b + 1 != tail_from;
+      if (traced) {
+        WavefrontState next = w;  // the next bounce's rays (at their slots)
+        next.ray_o = w.next_ray_o;
+        next.ray_d = w.next_ray_d;
+        launch_trace(sp, view, flat_params, next, shadows, b, first, film_view(sample), stream);
+        mark(timed, kTrace);
+      } else {
+        launch_shadow(sp, view, flat_params, w, q, c, shadows, b, first, film_view(sample),
+                      stream);
+        mark(timed, kShadow);
+      }
       if (b + 1 == iterations) {
         if (walks) launch_flush(w, first, film_view(sample), stream);
         break;
@@ -497,6 +518,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
         if (k == 0) {
           st.stages.tail_from = m.tail_from;
           st.stages.rays_at_slots = m.rays_at_slots();
+          st.stages.fused_trace = m.fused_trace();
           std::vector<uint32_t> alive = m.tail_estimate;
           while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
           st.alive_per_bounce = alive;

@@ -667,15 +667,13 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
 #else
 #define TRACER_SHADOW_BOUNDS __launch_bounds__(kBlock)
 #endif
+// Lane i of the queued shadow stage of bounce `bounce`: the i-th shadow ray of the shade
+// kernel's shadow queue, or (past them) the next path to finish from the queue's far end.
 template <uint32_t Spec>
-__global__ void TRACER_SHADOW_BOUNDS shadow_queued_kernel(SceneView view,
-                                                               const __grid_constant__ FlatParams flat,
-                                                               WavefrontState w,
-                                                               const uint32_t* shadow_queue,
-                                                               uint32_t bounce, bool first,
-                                                               FilmView film, bool walks) {
-  const SceneView s = with_flat_params(view, flat);
-  const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+__device__ __forceinline__ void shadow_queued_lane(const SceneView& s, const WavefrontState& w,
+                                                   const uint32_t* shadow_queue, uint32_t bounce,
+                                                   bool first, const FilmView& film, bool walks,
+                                                   uint32_t i) {
   const uint32_t rays = w.shadow_counts[bounce];
   if (i >= rays) {
     const uint32_t k = i - rays;
@@ -698,6 +696,49 @@ __global__ void TRACER_SHADOW_BOUNDS shadow_queued_kernel(SceneView view,
   }
   if (state == 2)
     finish_path(w, id, vec3(r.x, r.y, r.z), path_flags(w, id), first, film);
+}
+
+template <uint32_t Spec>
+__global__ void TRACER_SHADOW_BOUNDS shadow_queued_kernel(SceneView view,
+                                                               const __grid_constant__ FlatParams flat,
+                                                               WavefrontState w,
+                                                               const uint32_t* shadow_queue,
+                                                               uint32_t bounce, bool first,
+                                                               FilmView film, bool walks) {
+  const SceneView s = with_flat_params(view, flat);
+  shadow_queued_lane<Spec>(s, w, shadow_queue, bounce, first, film, walks,
+                           blockIdx.x * blockDim.x + threadIdx.x);
+}
+
+// The fused trace stage: the queued shadow stage of bounce `bounce` and the flat intersect stage
+// of bounce + 1 in one launch (both read only what bounce's shade kernel wrote, and neither
+// reads what the other writes). A stage over a short queue runs in one or two waves of blocks
+// that all wait for memory, then all compute, then all store; its time is about 11 us + 13 us
+// per million rays (PERFORMANCE.md). One grid holds both stages' blocks, so that the shadow
+// rays' loads overlap the extension rays' arithmetic, and one launch, fill and drain is saved.
+// The first blocks trace the extension rays (w's rays: bounce + 1's, at their slots; the longer
+// blocks first), the rest are the shadow stage's; blocks past both have nothing to do.
+// Only with rays at their slots (hence no random walks) and the flat list.
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) trace_kernel(SceneView view,
+                                                       const __grid_constant__ FlatParams flat,
+                                                       WavefrontState w,
+                                                       const uint32_t* shadow_queue,
+                                                       uint32_t bounce, bool first,
+                                                       FilmView film) {
+  constexpr int kFlatRays = flat_rays<Spec>();
+  constexpr uint32_t kRaysPerBlock = kFlatRays * kBlock;
+  constexpr uint32_t F = features_of<Spec>() | kFeatureFlatList;
+  const SceneView s = with_flat_params(view, flat);
+  const uint32_t rays = w.alive_counts[bounce + 1];
+  const uint32_t ray_blocks = (rays + kRaysPerBlock - 1) / kRaysPerBlock;
+  if (blockIdx.x < ray_blocks) {
+    const uint32_t slot = blockIdx.x * kRaysPerBlock + threadIdx.x;
+    if (slot < rays) intersect_rows<F, kFlatRays>(s, w, nullptr, rays, slot);
+    return;
+  }
+  shadow_queued_lane<Spec>(s, w, shadow_queue, bounce, first, film, false,
+                           (blockIdx.x - ray_blocks) * kBlock + threadIdx.x);
 }
 
 // The sample's extension rays, the paths that entered a bounce after the first (alive_counts[1..
@@ -1008,6 +1049,23 @@ void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
   }
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("shadow_kernel");
+}
+
+void launch_trace(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                  const WavefrontState& w, const uint32_t* shadow_queue, uint32_t bounce,
+                  bool first, FilmView film, cudaStream_t stream) {
+  if (!s.use_flat || !w.rays_at_slots || (s.features & kFeatureSubsurface))
+    throw std::logic_error("launch_trace: needs the flat list and rays at their queue slots");
+  // Enough blocks for every path of the pool as an extension ray and as a shadow-stage lane.
+#define CALL(S)                                                                                \
+  trace_kernel<S><<<(w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock) + blocks(w.n), \
+                    kBlock, 0, stream>>>(s, flat, w, shadow_queue, bounce, first, film)
+  switch (spec & kSpecSpheres) {
+    case 0: CALL(0); break;
+    default: CALL(kSpecSpheres); break;
+  }
+#undef CALL
+  TRACER_CUDA_CHECK_LAUNCH("trace_kernel");
 }
 
 void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,

@@ -106,6 +106,13 @@ void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
                    const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
                    const uint32_t* shadow_queue, uint32_t bounce, bool first, FilmView film,
                    cudaStream_t stream);
+// The fused trace stage: launch_shadow of bounce `bounce` over its shadow queue and
+// launch_intersect of bounce + 1 (w's rays: that bounce's, at their queue slots; its length
+// alive_counts[bounce + 1]) in one launch. Needs the flat list, rays at their slots and the
+// shadow queue (throws std::logic_error otherwise).
+void launch_trace(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                  const WavefrontState& w, const uint32_t* shadow_queue, uint32_t bounce,
+                  bool first, FilmView film, cudaStream_t stream);
 // Counting sort of the queue by the material type at each path's hit (Cycles-style); the live
 // paths come first, and their number goes to w.sort_bins[16] (the sorted queue's length).
 void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,

@@ -35,6 +35,9 @@ struct GpuOptions {
   // ray and its hit are stored at the path's slot in its bounce's queue, not at its id, so the
   // intersect and shade kernels read and write them in whole sectors however few paths are left.
   bool rays_at_slots = true;
+  // With rays at their slots and the flat list: each bounce's shadow stage and the next bounce's
+  // intersect stage run as one launch (the trace stage), as one grid of both stages' blocks.
+  bool fused_trace = true;
   bool flat_list = true;          // small scenes: every lane tests every primitive, no BVH
 };
 
@@ -48,20 +51,27 @@ uint32_t wavefront_tail_bounce(const std::vector<uint32_t>& estimate, float frac
 // Milliseconds per stage of one wavefront bounce.
 struct BounceTimes {
   double intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
+  // The fused trace stage that traced this bounce's extension rays together with the previous
+  // bounce's shadow rays (GpuOptions::fused_trace; then intersect is 0 here and the previous
+  // bounce's shadow is 0).
+  double trace = 0;
 };
 
 // Milliseconds spent per wavefront stage in one call of render() (zero for the megakernel).
 struct StageTimes {
   double generate = 0, intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
   double intersect_first = 0;  // the camera rays' share of `intersect`
+  // Fused trace stages (a bounce's shadow rays with the next bounce's extension rays).
+  double trace = 0;
   std::vector<BounceTimes> bounces;  // the same per bounce (wavefront only)
   double tail = 0;         // the wavefront's tail kernel
   uint32_t tail_from = 0;  // the bounce its tail began at (0: none)
   bool rays_at_slots = false;  // its rays and hits were stored at their queue slots
+  bool fused_trace = false;    // its shadow and next intersect stages ran fused (trace)
   double megakernel = 0;
   // The whole sample (intersect includes intersect_first).
   double total() const {
-    return generate + intersect + sort + shade + shadow + compact + tail + megakernel;
+    return generate + intersect + sort + shade + shadow + trace + compact + tail + megakernel;
   }
 };
 
