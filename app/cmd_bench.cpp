@@ -247,6 +247,8 @@ int run_bench(const BenchOptions& o) {
     configs.back().gpu.rays_at_slots = false;
     add("wavefront+compaction, unfused", K::kWavefront, true, false, true);
     configs.back().gpu.fused_trace = false;
+    add("wavefront+compaction, fused but not the tail's", K::kWavefront, true, false, true);
+    configs.back().gpu.fused_tail = false;
     add("wavefront+compaction+sorting", K::kWavefront, true, true, true);
     add("wavefront+sorting", K::kWavefront, false, true, true);
     if (o.jitter_off_configs && !(cs.features() & tracer::kFeatureDepthOfField)) {
@@ -343,32 +345,42 @@ int run_bench(const BenchOptions& o) {
                                  (in_shade ? 4.0 * next_slots : 0.0);
       const double shadow_bytes = shadow_bytes_of(processed, traced_shadows, traced_finished) + dead;
       // With the fused trace stage, bounce b's extension rays (b > 0) were traced in one launch
-      // with bounce b - 1's shadow stage: those bytes go to the trace row.
+      // with bounce b - 1's shadow stage: those bytes go to the trace row. The tail's bounce
+      // too (then one bounce more has times than the stages shaded: the tail shades its hits).
       auto fused_at = [&](size_t b) {
         return b < r.stages.bounces.size() && r.stages.bounces[b].trace > 0;
       };
+      const size_t timed_bounces = fused_at(staged) ? staged + 1 : staged;
       double trace_bytes = 0, trace_rays = 0, trace_shadows = 0;
-      for (size_t b = 1; b < staged; ++b) {
+      for (size_t b = 1; b < timed_bounces; ++b) {
         if (!fused_at(b)) continue;
         trace_bytes += sb.intersect() * alive_at(b) +
                        shadow_bytes_of(alive_at(b - 1), shadows_at(b - 1), finished_at(b - 1));
         trace_rays += alive_at(b);
         trace_shadows += shadows_at(b - 1);
       }
-      const double intersect_bytes = sb.intersect() * (processed - trace_rays) + dead;
+      // Extension rays (camera rays included) the stages traced.
+      const double traced_rays = processed + (timed_bounces > staged ? alive_at(staged) : 0.0);
+      const double intersect_bytes = sb.intersect() * (traced_rays - trace_rays) + dead;
       row("generate", r.stages.generate, sb.generate * n);
       row("intersect", r.stages.intersect, intersect_bytes);
       if (r.stages.sort > 0) row("sort", r.stages.sort, sb.sort * processed);
       row("shade", r.stages.shade, shade_bytes);
-      // (The shadow stages not fused: all less those in the trace stage.)
-      row("shadow", r.stages.shadow, shadow_bytes - (trace_bytes - sb.intersect() * trace_rays));
+      // (The shadow stages not fused: all less those in the trace stage; none when the fused
+      // stage also traced the tail's first rays.)
+      if (r.stages.shadow > 0 || r.stages.trace == 0)
+        row("shadow", r.stages.shadow, shadow_bytes - (trace_bytes - sb.intersect() * trace_rays));
       if (r.stages.trace > 0) row("trace", r.stages.trace, trace_bytes);
+      // The intersect, shadow and trace stages together: all extension and shadow rays, the
+      // same bytes with and without the fused stage.
+      row("all rays", r.stages.intersect + r.stages.shadow + r.stages.trace,
+          sb.intersect() * traced_rays + dead + shadow_bytes);
       const double bounce_ms = r.stages.intersect - r.stages.intersect_first;
       std::printf("  intersect: camera rays %.0f Mrays/s",
                   n / (r.stages.intersect_first * 1e-3) / 1e6);
       if (bounce_ms > 0)
         std::printf(", bounce rays %.0f Mrays/s",
-                    (processed - n - trace_rays) / (bounce_ms * 1e-3) / 1e6);
+                    (traced_rays - n - trace_rays) / (bounce_ms * 1e-3) / 1e6);
       std::printf("\n");
       if (r.stages.trace > 0)
         std::printf("  trace (a bounce's shadow stage with the next one's intersect stage): %.0f M "
@@ -376,7 +388,8 @@ int run_bench(const BenchOptions& o) {
                     trace_rays / 1e6, trace_shadows / 1e6,
                     (trace_rays + trace_shadows) / (r.stages.trace * 1e-3) / 1e6);
       if (r.stages.tail_from) {
-        // Its segments: the sample's extension rays less those the stages traced.
+        // Its segments: the sample's extension rays less those the stages shaded (after a fused
+        // trace stage the tail's first rays were traced by it, and the tail shades them).
         const double tail_segments =
             double(r.rays.camera + r.rays.extension) - processed;
         std::printf("  %-10s %8.3f ms %5.1f%%  bounces %u on of %.0f paths: about %.2f M "
@@ -408,7 +421,7 @@ int run_bench(const BenchOptions& o) {
         for (uint32_t a : r.finished) std::printf(" %u", a);
         std::printf("\n");
       }
-      if (!queued || r.stages.bounces.size() != staged) continue;
+      if (!queued || r.stages.bounces.size() != timed_bounces) continue;
       // Per bounce: each stage's time and its bytes against the copy bandwidth; a short queue's
       // stage is bound by its launch and the GPU's fill and drain, not by its bytes.
       // With the fused trace stage, bounce b's trace column is its extension rays with bounce
@@ -425,7 +438,7 @@ int run_bench(const BenchOptions& o) {
         }
         std::printf(" %9.1f (%3.0f%%)", 1000.0 * ms, 100.0 * gbs(bytes, ms) / copy_gbs_measured);
       };
-      for (size_t b = 0; b < staged; ++b) {
+      for (size_t b = 0; b < timed_bounces; ++b) {
         const tracer::BounceTimes& t = r.stages.bounces[b];
         const double paths = alive_at(b), next = alive_at(b + 1);
         std::printf("  %6zu %9.0f", b, paths);

@@ -55,7 +55,7 @@ struct Config {
 
 const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
 const std::vector<std::string> kModifiers = {
-    "no-compaction", "cub-compaction", "shade-compaction", "no-tail", "sorting", "general", "no-fetch", "no-rr",
+    "no-compaction", "cub-compaction", "shade-compaction", "no-tail", "unfused", "sorting", "general", "no-fetch", "no-rr",
     "no-nee",        "no-mis",         "schlick", "depth=N", "clamp=X",  "random",
     "sobol",         "sobol-pairs",    "scalar-bvh", "no-flat", "flat"};
 
@@ -107,6 +107,8 @@ Config parse_config(const std::string& text) {
       c.gpu.compaction_by = tracer::GpuOptions::Compaction::kShade;
     else if (m == "no-tail")
       c.gpu.tail_fraction = 0.0f;
+    else if (m == "unfused")
+      c.gpu.fused_trace = false;
     else if (m == "sorting")
       c.gpu.sort_materials = true;
     else if (m == "general")
@@ -154,7 +156,7 @@ Config parse_config(const std::string& text) {
       const std::string guess = tracer::did_you_mean(m, kModifiers);
       throw std::invalid_argument("unknown modifier \"" + m + "\" in \"" + text + "\"" +
                                   (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") +
-                                  "; modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, sorting, general, no-fetch, no-rr, no-nee, "
+                                  "; modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, unfused, sorting, general, no-fetch, no-rr, no-nee, "
                                   "no-mis, schlick, depth=N, clamp=X, random, sobol, sobol-pairs, "
                                   "scalar-bvh, no-flat, flat");
     }
@@ -444,7 +446,7 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
       ->group(g);
   cmd.add_option("--configs", o->configs,
                  "Comma-separated configurations: cpu|megakernel|wavefront|auto, each with "
-                 "+modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, sorting, general, no-fetch, no-rr, no-nee, no-mis, schlick, "
+                 "+modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, unfused, sorting, general, no-fetch, no-rr, no-nee, no-mis, schlick, "
                  "depth=N, clamp=X, random, sobol, sobol-pairs (the sampler), scalar-bvh (CPU: "
                  "the GPU's "
                  "scalar traversal instead of SSE), no-flat (GPU: the BVH also for small "

@@ -5,6 +5,7 @@
 // Every test skips, saying why, when no CUDA device is present.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 
 #include "cuda/cuda_renderer.h"
@@ -311,9 +312,11 @@ TEST(Gpu, TailRunsTheSamePaths) {
 }
 
 // The fused trace stage runs a bounce's shadow stage and the next bounce's intersect stage in
-// one launch: the same work, so the same image (each pixel's film sum is added once per sample,
-// whatever the order of launches), the same queues and the same ray counts as the two stages
-// apart; with a tail and without one, with and without spheres. Its time is reported per bounce.
+// one launch (also when the tail takes the next bounce: the tail then starts by shading the
+// traced hits): the same work, so the same image (each pixel's film sum is added once per
+// sample, whatever the order of launches), the same queues and the same ray counts as the two
+// stages apart; with a tail and without one, with and without spheres. Its time is reported
+// per bounce.
 TEST(Gpu, FusedTraceStageIsTheTwoStages) {
   REQUIRE_GPU(gpu);
   for (const char* name : {"cornell_box.json", "cornell_spheres.json", "smallpt.json"}) {
@@ -324,11 +327,12 @@ TEST(Gpu, FusedTraceStageIsTheTwoStages) {
     rs.max_depth = 8;  // every bounce staged without a tail (no early stop before the last)
     const CompiledScene cs(s, rs.width, rs.height);
     ASSERT_TRUE(cs.flat_list().enabled) << name;
-    for (const float tail : {0.0f, 0.3f}) {
+    for (const float tail : {0.0f, 0.3f, -0.3f}) {  // -0.3: a tail, fused_tail off
       GpuOptions o;
       o.kernel = KernelMode::kWavefront;
       o.compaction_by = GpuOptions::Compaction::kShade;
-      o.tail_fraction = tail;
+      o.tail_fraction = std::abs(tail);
+      o.fused_tail = tail >= 0.0f;
       FrameStats fused, apart;
       auto run = [&](bool fuse, FrameStats* st) {
         o.fused_trace = fuse;
@@ -340,24 +344,37 @@ TEST(Gpu, FusedTraceStageIsTheTwoStages) {
       };
       const ImageRGB a = run(true, &fused);
       const ImageRGB b = run(false, &apart);
-      const std::string what = std::string(name) + (tail > 0 ? ", tail" : ", no tail");
+      const std::string what =
+          std::string(name) + (tail > 0 ? ", tail" : tail < 0 ? ", tail not fused" : ", no tail");
       EXPECT_TRUE(fused.stages.fused_trace) << what;
       EXPECT_FALSE(apart.stages.fused_trace) << what;
       EXPECT_EQ(apart.stages.trace, 0.0) << what;
-      // Bounce 0 is traced alone; each later staged bounce by the fused stage; the last staged
-      // bounce's shadow stage alone. (A tail from bounce 1 on would leave nothing to fuse.)
-      if (tail == 0.0f) EXPECT_EQ(fused.stages.bounces.size(), size_t(rs.max_depth)) << what;
-      ASSERT_GT(fused.stages.bounces.size(), 1u) << what;
-      EXPECT_GT(fused.stages.trace, 0.0) << what;
-      EXPECT_GT(fused.stages.bounces[0].intersect, 0.0) << what;
-      for (size_t k = 1; k < fused.stages.bounces.size(); ++k) {
-        EXPECT_EQ(fused.stages.bounces[k].intersect, 0.0) << what << " bounce " << k;
-        EXPECT_GT(fused.stages.bounces[k].trace, 0.0) << what << " bounce " << k;
-        EXPECT_EQ(fused.stages.bounces[k - 1].shadow, 0.0) << what << " bounce " << k - 1;
-      }
-      EXPECT_GT(fused.stages.bounces.back().shadow, 0.0) << what;
-      EXPECT_EQ(fused.stages.bounces.size(), apart.stages.bounces.size()) << what;
+      // Bounce 0 is traced alone; each later bounce by the fused stage, with fused_tail the
+      // tail's too (which then only shades), so that no shadow stage runs alone but the last
+      // bounce's without a tail.
+      const std::vector<BounceTimes>& t = fused.stages.bounces;
       EXPECT_EQ(fused.stages.tail_from, apart.stages.tail_from) << what;
+      if (tail <= 0.0f) {
+        if (tail == 0.0f) EXPECT_EQ(fused.stages.tail_from, 0u) << what;
+        else ASSERT_GT(fused.stages.tail_from, 0u) << what;
+        EXPECT_EQ(t.size(), tail == 0.0f ? size_t(rs.max_depth) : fused.stages.tail_from) << what;
+        EXPECT_EQ(apart.stages.bounces.size(), t.size()) << what;
+        EXPECT_GT(t.back().shadow, 0.0) << what;
+      } else {
+        ASSERT_GT(fused.stages.tail_from, 0u) << what;
+        EXPECT_GT(fused.stages.tail, 0.0) << what;
+        EXPECT_EQ(t.size(), size_t(fused.stages.tail_from) + 1) << what;
+        EXPECT_EQ(apart.stages.bounces.size(), size_t(fused.stages.tail_from)) << what;
+        EXPECT_EQ(t.back().shade, 0.0) << what << ": the tail shades its bounce";
+      }
+      ASSERT_GT(t.size(), 1u) << what;
+      EXPECT_GT(fused.stages.trace, 0.0) << what;
+      EXPECT_GT(t[0].intersect, 0.0) << what;
+      for (size_t k = 1; k < t.size(); ++k) {
+        EXPECT_EQ(t[k].intersect, 0.0) << what << " bounce " << k;
+        EXPECT_GT(t[k].trace, 0.0) << what << " bounce " << k;
+        EXPECT_EQ(t[k - 1].shadow, 0.0) << what << " bounce " << k - 1;
+      }
       const double same = identical_fraction(a, b);
       std::printf("%-28s fused trace against two stages: identical %.4f, trace %.3f ms\n",
                   what.c_str(), same, fused.stages.trace);

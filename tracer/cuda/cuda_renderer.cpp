@@ -297,7 +297,7 @@ struct CudaRenderer::Impl {
       const uint32_t* c =
           compacted ? (queue_in_shade ? w.alive_counts + b : count.get()) : nullptr;
       if (b == tail_from && b > 0) {
-        launch_tail(sp, view, flat_params, cfg, sample, first, film_view(sample), w, q, c,
+        launch_tail(sp, view, flat_params, cfg, sample, first, film_view(sample), w, q, c, traced,
                     stream);
         mark(timed, kTail);
         tail_ran = true;
@@ -325,9 +325,9 @@ struct CudaRenderer::Impl {
                    queue_in_shade && b + 1 < iterations ? bounce_queue(b + 1) : nullptr, shadows,
                    stream);
       mark(timed, kShade);
-      // Fused: this bounce's shadow rays with the next bounce's extension rays, unless the next
-      // bounce is the tail's or there is none.
-      traced = fuse && b + 1 < iterations && b + 1 != tail_from;
+      // Fused: this bounce's shadow rays with the next bounce's extension rays, if there is a
+      // next bounce (also the tail's, with fused_tail: it then starts by shading their hits).
+      traced = fuse && b + 1 < iterations && (opts.fused_tail || b + 1 != tail_from);
       if (traced) {
         WavefrontState next = w;  // the next bounce's rays (at their slots)
         next.ray_o = w.next_ray_o;

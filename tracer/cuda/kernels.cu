@@ -155,6 +155,9 @@ struct TailSource {
   WavefrontState w;
   const uint32_t* queue = nullptr;
   const uint32_t* count = nullptr;
+  // The first bounce's rays were traced by the stages (a fused trace stage): each path's hit is
+  // at its queue slot in w.hit, and its first pass only shades (megakernel_flat only).
+  bool hits_ready = false;
 };
 
 template <bool FromQueue>
@@ -250,6 +253,9 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
   uint32_t done_pixel = kInvalid;  // a finished path whose shadow ray is in flight
   vec3 done_L(0.0f);
   uint32_t segments = 0, shadows = 0;
+  // The tail after a fused trace stage: the queue slot whose hit the stages traced for the
+  // lane's new path (kInvalid: none), taken instead of tracing its first ray.
+  uint32_t ready = kInvalid;
   for (;;) {
     const unsigned active = __activemask();
     const bool want = !alive && !exhausted;
@@ -259,6 +265,7 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
       if (k < paths) {
         start_path<F, FromQueue>(s, cfg, k, sample, src, st);
         alive = true;
+        if (FromQueue && src.hits_ready) ready = k;
       } else {
         exhausted = true;
       }
@@ -268,11 +275,22 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
     // not a choice between references: a reference to either of two structs would put both in
     // local memory.)
     Ray ext = st.ray, sh = sr.ray;
-    ext.tmax = alive ? ext.tmax : 0.0f;
+    ext.tmax = alive && (!FromQueue || ready == kInvalid) ? ext.tmax : 0.0f;
     sh.tmax = sr.valid ? sh.tmax : 0.0f;
-    bool blocked;
-    const Hit hit = flat_closest_and_any<F>(s, ext, st.origin_prim, sh, sr.target_prim,
-                                            sr.origin_prim, blocked);
+    bool blocked = true;
+    Hit hit;
+    // (A tail's first pass, whose lanes all start from traced hits, has no ray to trace.)
+    if (!FromQueue || !src.hits_ready || __any_sync(__activemask(), ext.tmax > 0.0f || sr.valid))
+      hit = flat_closest_and_any<F>(s, ext, st.origin_prim, sh, sr.target_prim, sr.origin_prim,
+                                    blocked);
+    if (FromQueue && ready != kInvalid) {
+      const float4 h4 = src.w.hit[ready];
+      hit.t = h4.x;
+      hit.prim = __float_as_uint(h4.y);
+      hit.u = h4.z;
+      hit.v = h4.w;
+      ready = kInvalid;
+    }
     if (sr.valid) {
       ++shadows;
       if (!blocked) {
@@ -933,11 +951,14 @@ void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat
 void launch_tail(uint32_t spec, const SceneView& s, const FlatParams& flat,
                  const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
                  const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
-                 cudaStream_t stream) {
+                 bool hits_ready, cudaStream_t stream) {
+  if (hits_ready && (!s.use_flat || !w.rays_at_slots))
+    throw std::logic_error("launch_tail: traced hits need the flat list and rays at their slots");
   TailSource src;
   src.w = w;
   src.queue = queue;
   src.count = count;
+  src.hits_ready = hits_ready;
   launch_mega<true>(spec, s, flat, cfg, sample, first, film, w.counters, w.fetch, src, stream);
 }
 

@@ -78,10 +78,12 @@ void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat
 
 // The wavefront's tail: the megakernel over the paths of a queue (count: its device length),
 // each taken from the pool's state and run to its end (its segments go to counters[6]).
+// hits_ready: a fused trace stage traced the queue's rays (hits at their slots in w.hit), so the
+// tail starts by shading them (flat list and rays at their slots only; throws otherwise).
 void launch_tail(uint32_t spec, const SceneView& s, const FlatParams& flat,
                  const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
                  const WavefrontState& w, const uint32_t* queue, const uint32_t* count,
-                 cudaStream_t stream);
+                 bool hits_ready, cudaStream_t stream);
 
 void launch_generate(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
                      uint32_t sample, const WavefrontState& w, cudaStream_t stream);
@@ -108,7 +110,7 @@ void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
                    cudaStream_t stream);
 // The fused trace stage: launch_shadow of bounce `bounce` over its shadow queue and
 // launch_intersect of bounce + 1 (w's rays: that bounce's, at their queue slots; its length
-// alive_counts[bounce + 1]) in one launch. Needs the flat list, rays at their slots and the
+// alive_counts[bounce + 1]; also when the tail takes that bounce) in one launch. Needs the flat list, rays at their slots and the
 // shadow queue (throws std::logic_error otherwise).
 void launch_trace(uint32_t spec, const SceneView& s, const FlatParams& flat,
                   const WavefrontState& w, const uint32_t* shadow_queue, uint32_t bounce,

@@ -38,6 +38,9 @@ struct GpuOptions {
   // With rays at their slots and the flat list: each bounce's shadow stage and the next bounce's
   // intersect stage run as one launch (the trace stage), as one grid of both stages' blocks.
   bool fused_trace = true;
+  // ... also the tail's first bounce: its rays are traced with the last staged bounce's shadow
+  // rays, and the tail starts by shading their hits (no shadow stage runs alone before it).
+  bool fused_tail = true;
   bool flat_list = true;          // small scenes: every lane tests every primitive, no BVH
 };
 
