@@ -110,8 +110,8 @@ void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
                    cudaStream_t stream);
 // The fused trace stage: launch_shadow of bounce `bounce` over its shadow queue and
 // launch_intersect of bounce + 1 (w's rays: that bounce's, at their queue slots; its length
-// alive_counts[bounce + 1]; also when the tail takes that bounce) in one launch. Needs the flat list, rays at their slots and the
-// shadow queue (throws std::logic_error otherwise).
+// alive_counts[bounce + 1]; also when the tail takes that bounce) in one launch. Needs the flat
+// list, rays at their slots and the shadow queue (throws std::logic_error otherwise).
 void launch_trace(uint32_t spec, const SceneView& s, const FlatParams& flat,
                   const WavefrontState& w, const uint32_t* shadow_queue, uint32_t bounce,
                   bool first, FilmView film, cudaStream_t stream);
