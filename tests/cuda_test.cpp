@@ -87,6 +87,15 @@ ImageRGB render_gpu(Renderer& r, const Scene& s, const RenderSettings& rs, uint3
   return r.image();
 }
 
+// An asset scene, and its settings at 96x64: the size of the tests that compare GPU switches.
+Scene small_asset(const char* name, RenderSettings* rs) {
+  Scene s = load_scene(source_dir() + "/assets/scenes/" + name);
+  *rs = s.settings;
+  rs->width = 96;
+  rs->height = 64;
+  return s;
+}
+
 const char* kScenes[] = {"cornell_box.json",    "cornell_spheres.json", "depth_of_field.json",
                          "obj_scene.json",      "gltf_scene.gltf",      "cornell_closed.json",
                          "rough_materials.json", "subsurface.json",      "textured.gltf"};
@@ -127,10 +136,8 @@ TEST(Gpu, MatchesCpuOnEveryAsset) {
 
 TEST(Gpu, SwitchesNeverChangeTheImage) {
   REQUIRE_GPU(gpu);
-  const Scene s = load_scene(source_dir() + "/assets/scenes/cornell_spheres.json");
-  RenderSettings rs = s.settings;
-  rs.width = 96;
-  rs.height = 64;
+  RenderSettings rs;
+  const Scene s = small_asset("cornell_spheres.json", &rs);
   GpuOptions plain;
   plain.kernel = KernelMode::kWavefront;
   plain.compaction = false;
@@ -218,10 +225,8 @@ TEST(Gpu, SwitchesNeverChangeTheImage) {
 TEST(Gpu, ShadowQueueHoldsEveryShadowRay) {
   REQUIRE_GPU(gpu);
   for (const char* name : {"cornell_box.json", "cornell_spheres.json", "subsurface.json"}) {
-    const Scene s = load_scene(source_dir() + "/assets/scenes/" + name);
-    RenderSettings rs = s.settings;
-    rs.width = 96;
-    rs.height = 64;
+    RenderSettings rs;
+    const Scene s = small_asset(name, &rs);
     const CompiledScene cs(s, rs.width, rs.height);
     GpuOptions o;
     o.kernel = KernelMode::kWavefront;
@@ -267,10 +272,8 @@ TEST(Gpu, ShadowQueueHoldsEveryShadowRay) {
 TEST(Gpu, TailRunsTheSamePaths) {
   REQUIRE_GPU(gpu);
   for (const char* name : {"cornell_box.json", "subsurface.json"}) {
-    const Scene s = load_scene(source_dir() + "/assets/scenes/" + name);
-    RenderSettings rs = s.settings;
-    rs.width = 96;
-    rs.height = 64;
+    RenderSettings rs;
+    const Scene s = small_asset(name, &rs);
     const CompiledScene cs(s, rs.width, rs.height);
     for (const bool flat : {true, false}) {
       for (const bool cub : {false, true}) {
@@ -320,10 +323,8 @@ TEST(Gpu, TailRunsTheSamePaths) {
 TEST(Gpu, FusedTraceStageIsTheTwoStages) {
   REQUIRE_GPU(gpu);
   for (const char* name : {"cornell_box.json", "cornell_spheres.json", "smallpt.json"}) {
-    const Scene s = load_scene(source_dir() + "/assets/scenes/" + name);
-    RenderSettings rs = s.settings;
-    rs.width = 96;
-    rs.height = 64;
+    RenderSettings rs;
+    const Scene s = small_asset(name, &rs);
     rs.max_depth = 8;  // every bounce staged without a tail (no early stop before the last)
     const CompiledScene cs(s, rs.width, rs.height);
     ASSERT_TRUE(cs.flat_list().enabled) << name;

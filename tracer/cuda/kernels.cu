@@ -124,6 +124,17 @@ __device__ __forceinline__ void store_state(const WavefrontState& w, uint32_t id
   store_path(w, id, st);
 }
 
+// The hit stored at index i of w.hit (its queue slot with rays_at_slots, else its path's id).
+__device__ __forceinline__ Hit load_hit(const WavefrontState& w, uint32_t i) {
+  const float4 h4 = w.hit[i];
+  Hit hit;
+  hit.t = h4.x;
+  hit.prim = __float_as_uint(h4.y);
+  hit.u = h4.z;
+  hit.v = h4.w;
+  return hit;
+}
+
 // Path id's state; its ray at index ri of the ray arrays (its queue slot with rays_at_slots,
 // else its id).
 __device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_t id, uint32_t ri,
@@ -284,11 +295,7 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
       hit = flat_closest_and_any<F>(s, ext, st.origin_prim, sh, sr.target_prim, sr.origin_prim,
                                     blocked);
     if (FromQueue && ready != kInvalid) {
-      const float4 h4 = src.w.hit[ready];
-      hit.t = h4.x;
-      hit.prim = __float_as_uint(h4.y);
-      hit.u = h4.z;
-      hit.v = h4.w;
+      hit = load_hit(src.w, ready);
       ready = kInvalid;
     }
     if (sr.valid) {
@@ -544,12 +551,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   PathState st;
   if (id != kInvalid) {
     st = load_state(w, id, ri, sample);
-    const float4 h4 = w.hit[ri];
-    Hit hit;
-    hit.t = h4.x;
-    hit.prim = __float_as_uint(h4.y);
-    hit.u = h4.z;
-    hit.v = h4.w;
+    const Hit hit = load_hit(w, ri);
     go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
     store_path(w, id, st);
     // With rays at their slots the next ray goes to its slot in the next queue, below.
@@ -1078,8 +1080,9 @@ void launch_trace(uint32_t spec, const SceneView& s, const FlatParams& flat,
   if (!s.use_flat || !w.rays_at_slots || (s.features & kFeatureSubsurface))
     throw std::logic_error("launch_trace: needs the flat list and rays at their queue slots");
   // Enough blocks for every path of the pool as an extension ray and as a shadow-stage lane.
-#define CALL(S)                                                                                \
-  trace_kernel<S><<<(w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock) + blocks(w.n), \
+#define CALL(S)                                                                     \
+  trace_kernel<S><<<(w.n + flat_rays<S>() * kBlock - 1) / (flat_rays<S>() * kBlock) + \
+                        blocks(w.n),                                                 \
                     kBlock, 0, stream>>>(s, flat, w, shadow_queue, bounce, first, film)
   switch (spec & kSpecSpheres) {
     case 0: CALL(0); break;
