@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "settings_cli.h"
 #include "gui_platform.h"
 #include "image/image.h"
 #include "scene/loader.h"
@@ -28,14 +29,12 @@ namespace {
 
 struct GuiOptions {
   std::string scene;
-  std::string backend = "auto";
   int width = 1600, height = 900;
   int frames = 0;  // 0: run until closed
-  std::vector<std::string> sets;
+  SettingArgs settings;  // the table's flags and --set, applied to the scene before the window opens
   std::string script, screenshot, export_path, stats_json;
   bool egl = false;
   bool vsync = true;
-  int threads = 0;
 };
 
 // One scripted step: runs when its frame is reached, or (frame < 0) once the image has converged
@@ -170,6 +169,10 @@ int run_gui(const GuiOptions& o) {
     std::cerr << "error: " << e.what() << "\n";
     scene = tracer::builtin_default_scene();
   }
+  if (!apply_setting_args(o.settings, &scene, &error)) {
+    std::cerr << "error: " << error << "\n";
+    return kExitUsage;
+  }
 
   std::unique_ptr<GuiPlatform> platform =
       o.egl ? make_egl_platform(o.width, o.height, &error)
@@ -178,17 +181,10 @@ int run_gui(const GuiOptions& o) {
     std::cerr << "error: " << error << "; use `pathtracer render` for a headless image\n";
     return kExitInputError;
   }
-  const tracer::BackendChoice backend = o.backend == "cpu"    ? tracer::BackendChoice::kCpu
-                                        : o.backend == "cuda" ? tracer::BackendChoice::kCuda
-                                                              : tracer::BackendChoice::kAuto;
-  ui::Workbench wb(std::move(scene), backend, o.threads);
+  const tracer::BackendChoice backend = scene.settings.backend;
+  const int threads = scene.settings.threads;
+  ui::Workbench wb(std::move(scene), backend, threads);
   for (auto& m : startup_messages) wb.messages.insert(wb.messages.begin(), m);
-  for (const std::string& s : o.sets) {
-    if (!wb.apply(s, &error)) {
-      std::cerr << "error: --set " << error << "\n";
-      return kExitUsage;
-    }
-  }
   ui::PanelState ps;
   if (!o.export_path.empty()) snprintf(ps.export_path, sizeof ps.export_path, "%s", o.export_path.c_str());
   std::ofstream stats_out;
@@ -336,20 +332,18 @@ int run_gui(const GuiOptions& o) {
 Runner add_gui_command(CLI::App& cmd) {
   auto o = std::make_shared<GuiOptions>();
   cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in Cornell box");
-  cmd.add_option("--backend", o->backend, "auto, cpu or cuda")->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   cmd.add_option("--window", o->width, "Window width")->check(CLI::Range(320, 16384));
   cmd.add_option("--window-height", o->height, "Window height")->check(CLI::Range(240, 16384));
   cmd.add_option("--frames", o->frames, "Quit after this many frames (for scripts and tests)")
       ->check(CLI::Range(1, 100000000));
-  cmd.add_option("--set", o->sets, "Edit at start, e.g. materials.white.albedo=0.5,0.5,0.5 (repeatable)");
   cmd.add_option("--script", o->script, "Script of timed edits: lines \"FRAME: COMMAND\" or \"converged: COMMAND\"")
       ->check(CLI::ExistingFile);
   cmd.add_option("--screenshot", o->screenshot, "Save the window as PNG at the last frame");
   cmd.add_option("--export", o->export_path, "Export the image (.png/.exr + .json) at the last frame");
   cmd.add_option("--stats-json", o->stats_json, "Write one JSON line of statistics per frame");
-  cmd.add_option("--threads", o->threads, "CPU backend threads (0: all cores)")->check(CLI::Range(0, 1024));
   cmd.add_flag("--egl", o->egl, "Draw into an off-screen EGL pbuffer instead of a window");
   cmd.add_flag("!--no-vsync", o->vsync, "Do not wait for the display's refresh");
+  add_setting_options(cmd, &o->settings, {"render", "gpu", "display"});
   return [o] { return run_gui(*o); };
 }
 

@@ -10,6 +10,8 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "integrator/sidecar.h"
+#include "settings_cli.h"
 #include "image/image.h"
 #include "integrator/renderer.h"
 #include "scene/compiled_scene.h"
@@ -21,53 +23,15 @@ namespace {
 struct RenderOptions {
   std::string scene;
   std::string out = "out/render.png";
-  std::string backend = "auto";
-  int spp = 0, width = 0, height = 0, max_depth = 0, threads = 0, rr_start = 0;
-  double time = 0.0;
-  long long seed = -1;
-  std::string nee, mis, rr;  // "on"/"off" or empty: keep the scene's setting
-  std::string sampler;       // "random"/"sobol" or empty: keep the scene's setting
-  float exposure = 0.0f;
-  std::string tonemap = "none";
   bool quiet = false;
-  // GPU switches (ignored by the CPU backend).
-  std::string kernel = "auto";
-  std::string compaction = "on", sort = "off", cache = "on", specialize = "on", fetch = "on";
-  std::string flat = "on", slots = "on", fuse = "on";
-  float tail = tracer::GpuOptions().tail_fraction;
-  std::string jitter;
-  float clamp = -1.0f;  // < 0: the scene's setting
+  SettingArgs settings;  // the table's flags and --set
 };
-
-tracer::GpuOptions gpu_options(const RenderOptions& o) {
-  tracer::GpuOptions g;
-  g.kernel = o.kernel == "wavefront"    ? tracer::KernelMode::kWavefront
-             : o.kernel == "megakernel" ? tracer::KernelMode::kMegakernel
-                                        : tracer::KernelMode::kAuto;
-  using C = tracer::GpuOptions::Compaction;
-  g.compaction = o.compaction != "off";
-  g.compaction_by = o.compaction == "cub" ? C::kCub : o.compaction == "shade" ? C::kShade : C::kAuto;
-  g.sort_materials = o.sort == "on";
-  g.first_bounce_cache = o.cache == "on";
-  g.specialize = o.specialize == "on";
-  g.dynamic_fetch = o.fetch == "on";
-  g.rays_at_slots = o.slots == "on";
-  g.fused_trace = o.fuse == "on";
-  g.flat_list = o.flat == "on";
-  g.tail_fraction = o.tail;
-  return g;
-}
 
 std::string fmt_seconds(double s) {
   char buf[32];
   if (s < 60) snprintf(buf, sizeof buf, "%.1f s", s);
   else snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
   return buf;
-}
-
-void apply_switch(const std::string& v, bool& target) {
-  if (v == "on") target = true;
-  if (v == "off") target = false;
 }
 
 int run_render(const RenderOptions& o) {
@@ -77,21 +41,21 @@ int run_render(const RenderOptions& o) {
   if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
   for (const auto& w : scene.diagnostics.warnings) std::cerr << "warning: " << w << "\n";
 
-  tracer::RenderSettings rs = scene.settings;
-  if (o.width > 0) rs.width = o.width;
-  if (o.height > 0) rs.height = o.height;
-  if (o.spp > 0) rs.spp = o.spp;
-  if (o.time > 0) rs.time_limit_s = o.time;
-  if (o.max_depth > 0) rs.max_depth = o.max_depth;
-  if (o.rr_start > 0) rs.rr_start_depth = o.rr_start;
-  if (o.seed >= 0) rs.seed = uint32_t(o.seed);
-  apply_switch(o.nee, rs.nee);
-  apply_switch(o.mis, rs.mis);
-  apply_switch(o.rr, rs.russian_roulette);
-  apply_switch(o.jitter, rs.jitter);
-  if (o.clamp >= 0.0f) rs.clamp = o.clamp;
-  if (!o.sampler.empty()) tracer::parse_sampler(o.sampler, &rs.sampler);
-  scene.settings = rs;
+  std::string problem;
+  if (o.settings.flags.count("render.spp") && o.settings.flags.count("render.time_limit_s")) {
+    std::cerr << "error: --spp and --time exclude each other (a render stops at one of them)\n";
+    return kExitUsage;
+  }
+  if (!apply_setting_args(o.settings, &scene, &problem)) {
+    std::cerr << "error: " << problem << "\n";
+    return kExitUsage;
+  }
+  const tracer::RenderSettings& rs = scene.settings;
+  if (rs.spp == 0 && rs.time_limit_s <= 0.0) {
+    std::cerr << "error: render.spp is 0 (no limit) and there is no time limit: give --spp or "
+                 "--time; nothing was rendered\n";
+    return kExitUsage;
+  }
   try {
     tracer::validate_scene(scene);  // the command line may have made the image too large
   } catch (const tracer::InputError& e) {
@@ -108,19 +72,12 @@ int run_render(const RenderOptions& o) {
       return kExitUsage;
     }
   }
-  tracer::ToneMap op;
-  if (!tracer::parse_tone_map(o.tonemap, &op)) {
-    std::cerr << "error: --tonemap " << o.tonemap << ": expected none, reinhard or aces\n";
-    return kExitUsage;
-  }
-
-  const tracer::BackendChoice choice = o.backend == "cpu"    ? tracer::BackendChoice::kCpu
-                                       : o.backend == "cuda" ? tracer::BackendChoice::kCuda
-                                                             : tracer::BackendChoice::kAuto;
+  const tracer::ToneMap op = scene.display.tone_map;
+  const tracer::BackendChoice choice = rs.backend;
   std::unique_ptr<tracer::Renderer> renderer;
   std::string note;
   try {
-    renderer = tracer::make_renderer(choice, o.threads, &note);
+    renderer = tracer::make_renderer(choice, rs.threads, &note);
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInputError;
@@ -129,7 +86,7 @@ int run_render(const RenderOptions& o) {
 
   const tracer::CompiledScene compiled(scene, rs.width, rs.height);
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(rs);
-  renderer->set_gpu_options(gpu_options(o));
+  renderer->set_gpu_options(scene.gpu);
   renderer->set_scene(compiled, cfg);
   const double setup_s = std::chrono::duration<double>(clock::now() - t_start).count();
 
@@ -142,7 +99,8 @@ int run_render(const RenderOptions& o) {
   uint32_t pass = 1;
   tracer::RayCounts rays;
   double render_s = 0.0;
-  std::string last_note, last_kernel, last_spec;
+  std::string last_note;
+  tracer::FrameStats last_stats;
   uint64_t clamped = 0;
   double clamped_luminance = 0.0;
   for (;;) {
@@ -155,8 +113,7 @@ int run_render(const RenderOptions& o) {
       std::cerr << (tty ? "\n" : "") << "note: " << fs.note << "\n";
       last_note = fs.note;
     }
-    last_kernel = fs.kernel;
-    last_spec = fs.specialization;
+    last_stats = fs;
     rays.camera += fs.rays.camera;
     rays.extension += fs.rays.extension;
     rays.shadow += fs.rays.shadow;
@@ -182,64 +139,38 @@ int run_render(const RenderOptions& o) {
   }
   if (!o.quiet && tty) std::cerr << "\n";
   const uint32_t spp_done = renderer->samples_done();
-  std::string clamp_report;
   const uint64_t nonfinite = renderer->nonfinite_total();
   const tracer::ImageRGB img = renderer->image();
+  tracer::SidecarRun run;
+  run.output = o.out;
+  run.backend = renderer->backend_name();
+  run.device = renderer->device_name();
+  run.spp = spp_done;
+  run.wall_time_s = render_s;
+  run.setup_time_s = setup_s;
+  run.rays = rays;
+  run.nonfinite = nonfinite;
+  run.clamped = clamped;
+  run.clamped_luminance = clamped_luminance;
+  for (size_t i = 0; i < img.pixels.size(); i += 3)
+    run.kept_luminance += tracer::luminance(
+        tracer::vec3(img.pixels[i], img.pixels[i + 1], img.pixels[i + 2]));
+  run.kept_luminance *= double(spp_done);
+  run.features = tracer::describe_features(compiled.features());
+  run.last = last_stats;
   try {
-    tracer::write_image(o.out, img, o.exposure, op);
-    nlohmann::json j;
-    j["scene"] = o.scene.empty() ? "<built-in>" : o.scene;
-    j["output"] = o.out;
-    j["version"] = TRACER_VERSION;
-    j["backend"] = renderer->backend_name();
-    j["device"] = renderer->device_name();
-    j["settings"] = {{"width", rs.width},         {"height", rs.height},
-                     {"spp", rs.spp},             {"time_limit_s", rs.time_limit_s},
-                     {"max_depth", rs.max_depth}, {"nee", rs.nee},
-                     {"mis", rs.mis},             {"russian_roulette", rs.russian_roulette},
-                     {"rr_start_depth", rs.rr_start_depth}, {"seed", rs.seed},
-                     {"exposure", o.exposure},    {"tonemap", tracer::tone_map_name(op)},
-                     {"jitter", rs.jitter}};
-    j["settings"]["sampler"] = tracer::sampler_name(rs.sampler);
-    if (renderer->backend_name() == "cuda") {
-      j["gpu"] = {{"kernel_option", o.kernel}, {"kernel", last_kernel},
-                  {"specialization", last_spec}, {"compaction", o.compaction},
-                  {"sort", o.sort}, {"first_bounce_cache", o.cache}, {"fetch", o.fetch},
-                  {"slots", o.slots}, {"fuse", o.fuse}, {"flat", o.flat},
-                  {"specialize", o.specialize},
-                  {"note", last_note}};
-    }
-    j["spp"] = spp_done;
-    j["wall_time_s"] = render_s;
-    j["setup_time_s"] = setup_s;
-    j["rays"] = {{"camera", rays.camera}, {"extension", rays.extension}, {"shadow", rays.shadow}};
-    j["mrays_per_s"] = double(rays.camera + rays.extension + rays.shadow) / render_s / 1e6;
-    j["nonfinite_samples"] = nonfinite;
-    j["random_walks_capped"] = rays.walk_capped;
-    if (rs.clamp > 0.0f) {
-      // The bias the clamp introduced: the share of the image's luminance it removed.
-      double kept = 0.0;
-      for (size_t i = 0; i < img.pixels.size(); i += 3)
-        kept += tracer::luminance(tracer::vec3(img.pixels[i], img.pixels[i + 1], img.pixels[i + 2]));
-      kept *= double(spp_done);
-      j["clamp"] = {{"value", rs.clamp},
-                    {"samples_clamped", clamped},
-                    {"luminance_removed_fraction",
-                     clamped_luminance / std::max(1e-30, kept + clamped_luminance)}};
-      clamp_report = "clamp " + std::to_string(rs.clamp) + ": " + std::to_string(clamped) +
-                     " samples scaled down, removing " +
-                     std::to_string(100.0 * clamped_luminance /
-                                    std::max(1e-30, kept + clamped_luminance)) +
-                     "% of the image's luminance (bias)";
-    }
-    j["medium_leaks"] = rays.medium_leaks;
-    j["features"] = tracer::describe_features(compiled.features());
-    j["warnings"] = scene.diagnostics.warnings;
-    const std::string cmd_seed = std::to_string(rs.seed);
-    tracer::write_text_atomic(o.out + ".json", j.dump(2) + "\n");
+    tracer::write_image(o.out, img, scene.display.exposure, op);
+    tracer::write_sidecar(scene, run);
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInputError;
+  }
+  std::string clamp_report;
+  if (rs.clamp > 0.0f) {
+    clamp_report = "clamp " + std::to_string(rs.clamp) + ": " + std::to_string(clamped) +
+                   " samples scaled down, removing " +
+                   std::to_string(100.0 * tracer::clamp_removed_fraction(run)) +
+                   "% of the image's luminance (bias)";
   }
   if (!o.quiet) {
     std::cerr << "wrote " << o.out << " (" << rs.width << "x" << rs.height << ", " << spp_done
@@ -263,74 +194,11 @@ Runner add_render_command(CLI::App& cmd) {
   auto o = std::make_shared<RenderOptions>();
   cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in Cornell box")
       ->check(CLI::ExistingFile);
-  auto* spp = cmd.add_option("--spp", o->spp, "Samples per pixel")->check(CLI::Range(1, 1 << 24));
-  auto* time = cmd.add_option("--time", o->time, "Render for this many seconds instead of --spp")
-                   ->check(CLI::Range(1e-3, 1e7));
-  spp->excludes(time);
-  cmd.add_option("--width", o->width, "Image width in pixels")->check(CLI::Range(1, 16384));
-  cmd.add_option("--height", o->height, "Image height in pixels")->check(CLI::Range(1, 16384));
-  cmd.add_option("--max-depth", o->max_depth, "Maximum path segments (camera ray included)")
-      ->check(CLI::Range(1, 1024));
-  cmd.add_option("--backend", o->backend, "auto, cpu or cuda")
-      ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
-  cmd.add_option("--seed", o->seed, "Random seed")->check(CLI::Range(0LL, 4294967295LL));
   cmd.add_option("--out", o->out, "Output file: .png (tone-mapped sRGB) or .exr (linear float)")
       ->capture_default_str();
-  cmd.add_option("--threads", o->threads, "CPU threads (0: all cores)")->check(CLI::Range(0, 1024));
-  cmd.add_option("--nee", o->nee, "Next-event estimation: on or off")->check(CLI::IsMember({"on", "off"}));
-  cmd.add_option("--mis", o->mis, "Multiple importance sampling: on or off")
-      ->check(CLI::IsMember({"on", "off"}));
-  cmd.add_option("--rr", o->rr, "Russian roulette: on or off")->check(CLI::IsMember({"on", "off"}));
-  cmd.add_option("--rr-start", o->rr_start, "Path depth at which Russian roulette starts")
-      ->check(CLI::Range(1, 1024));
-  cmd.add_option("--exposure", o->exposure, "Exposure in stops for the PNG")
-      ->check(CLI::Range(-20.0, 20.0));
-  cmd.add_option("--tonemap", o->tonemap, "PNG tone mapping: none, reinhard or aces")
-      ->check(CLI::IsMember({"none", "reinhard", "aces"}));
-  cmd.add_option("--clamp", o->clamp,
-                 "Clamp each sample's radiance to this per channel (0: off); reports the bias")
-      ->check(CLI::Range(0.0, 1e30));
-  cmd.add_option("--jitter", o->jitter, "Jitter samples inside pixels: on or off")
-      ->check(CLI::IsMember({"on", "off"}));
-  cmd.add_option("--sampler", o->sampler,
-                 "Sample points: sobol (Owen-scrambled Sobol, stratified), sobol-pairs (two "
-                 "independent Sobol halves: exact half-buffer noise) or random (PCG32)")
-      ->check(CLI::IsMember({"random", "sobol", "sobol-pairs"}));
   cmd.add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
-  const char* gpu = "GPU (CUDA backend)";
-  cmd.add_option("--kernel", o->kernel, "auto (time both, keep the faster), wavefront or megakernel")
-      ->check(CLI::IsMember({"auto", "wavefront", "megakernel"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--compaction", o->compaction,
-                 "Compact live path indices after each bounce: shade (the shade kernel appends "
-                 "the paths that go on to the next bounce's queue, and the shadow rays to the "
-                 "shadow stage's), cub (a CUB select over the alive flags after each bounce), on "
-                 "(shade, but cub for textured scenes) or off")
-      ->check(CLI::IsMember({"on", "shade", "cub", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--sort", o->sort, "Sort paths by material before shading")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--cache", o->cache, "First-bounce cache (needs --jitter off and no depth of field)")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--specialize", o->specialize, "Kernels compiled for the scene's features only")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--fetch", o->fetch,
-                 "Wavefront intersect with dynamic fetch: a lane whose ray is done takes the next")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--slots", o->slots,
-                 "Wavefront with the shade kernel's queues: extension rays and hits stored at "
-                 "their queue slots (off: at their paths' ids)")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--fuse", o->fuse,
-                 "Wavefront with rays at their queue slots and the flat list: each bounce's shadow "
-                 "stage and the next bounce's intersect stage as one launch (off: two)")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--flat", o->flat,
-                 "Scenes of at most 64 primitives (quads count once, spheres twice): every lane "
-                 "tests every primitive in one uniform loop instead of walking the BVH")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--tail", o->tail,
-                 "Wavefront with compaction: once fewer than this fraction of the pixels' paths "
-                 "remain, one megakernel launch runs their remaining bounces (0: off)")
-      ->check(CLI::Range(0.0f, 1.0f))->group(gpu)->capture_default_str();
+  add_setting_options(cmd, &o->settings, {"render", "gpu", "display"},
+                      {"render.samples_per_frame"});
   return [o] { return run_render(*o); };
 }
 

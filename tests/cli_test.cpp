@@ -32,9 +32,9 @@ TEST(Cli, RenderWritesPngAndReproducibleSidecar) {
   ASSERT_TRUE(f.good());
   const auto j = nlohmann::json::parse(f);
   EXPECT_EQ(j["spp"], 4);
-  EXPECT_EQ(j["settings"]["width"], 24);
-  EXPECT_EQ(j["settings"]["seed"], 3);
-  EXPECT_EQ(j["settings"]["sampler"], "sobol");  // the default
+  EXPECT_EQ(j["render"]["width"], 24);
+  EXPECT_EQ(j["render"]["seed"], 3);
+  EXPECT_EQ(j["render"]["sampler"], "sobol");  // the default
   EXPECT_EQ(j["backend"], "cpu");
   EXPECT_TRUE(j.contains("device"));
   EXPECT_TRUE(j.contains("version"));
@@ -50,7 +50,7 @@ TEST(Cli, SamplerOptionIsRecordedAndChecked) {
                                       "--sampler random --out " + out, &log), 0) << log;
   std::ifstream f(out + ".json");
   ASSERT_TRUE(f.good());
-  EXPECT_EQ(nlohmann::json::parse(f)["settings"]["sampler"], "random");
+  EXPECT_EQ(nlohmann::json::parse(f)["render"]["sampler"], "random");
   EXPECT_NE(test::run_command(exe() + " render -q --spp 2 --sampler halton --out " + out, &log),
             0);
 }

@@ -65,16 +65,6 @@ TEST(Workbench, ApplyRejectsBadEditsWithReasons) {
   EXPECT_TRUE(wb->gpu_options().flat_list);
   EXPECT_TRUE(wb->apply("gpu.flat=off", &err)) << err;
   EXPECT_FALSE(wb->gpu_options().flat_list);
-  EXPECT_TRUE(wb->gpu_options().rays_at_slots);
-  EXPECT_TRUE(wb->apply("gpu.slots=off", &err)) << err;
-  EXPECT_FALSE(wb->gpu_options().rays_at_slots);
-  EXPECT_TRUE(wb->gpu_options().dynamic_fetch) << "gpu.slots sets only its own switch";
-  EXPECT_TRUE(wb->gpu_options().fused_trace);
-  EXPECT_TRUE(wb->apply("gpu.fuse=off", &err)) << err;
-  EXPECT_FALSE(wb->gpu_options().fused_trace);
-  EXPECT_FALSE(wb->gpu_options().rays_at_slots) << "gpu.fuse sets only its own switch";
-  EXPECT_TRUE(wb->apply("gpu.fuse=on", &err)) << err;
-  EXPECT_TRUE(wb->gpu_options().fused_trace);
   EXPECT_FALSE(wb->apply("gpu.flat=sometimes", &err));
   EXPECT_NE(err.find("on or off"), std::string::npos) << err;
   // Compaction: on (auto), shade (in the shade kernel), cub (a CUB select) or off.

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 
 namespace ui {
 namespace {
@@ -12,8 +13,77 @@ namespace {
 constexpr float kColumnWidth = 460.0f;
 // Letter keys: ImGui 1.86's key indices are the platform's, and GLFW's are upper-case ASCII.
 
-bool edit_vec3(const char* label, vec3& v, float speed) {
-  return ImGui::DragFloat3(label, &v.x, speed, 0.0f, 0.0f, "%.3f");
+// One setting of the settings table as a widget of its type, with the table's help, range and
+// key as its tooltip; an edit goes through Workbench::set (the table's check, then the reset the
+// setting's effect asks for). `speed` (drags) 0: a hundredth of the range or of the value;
+// `view_hi` narrows a slider's range for the hand (typed values may go up to the table's).
+bool setting_widget(Workbench& wb, PanelState& ps, const char* key, const char* label,
+                    float speed = 0.0f, const char* format = nullptr, double view_hi = 0.0) {
+  using T = tracer::SettingType;
+  const tracer::Setting* s = tracer::find_setting(key);
+  if (!s) return false;
+  const nlohmann::json v = s->get(wb.scene());
+  nlohmann::json next = v;
+  bool edited = false;
+  const double hi = view_hi > 0.0 ? std::min(view_hi, s->hi) : s->hi;
+  switch (s->type) {
+    case T::kBool: {
+      bool b = v.get<bool>();
+      edited = ImGui::Checkbox(label, &b);
+      next = b;
+      break;
+    }
+    case T::kChoice: {
+      std::string items;
+      int current = 0;
+      for (size_t i = 0; i < s->choices.size(); ++i) {
+        items += s->choices[i] + '\0';
+        if (s->choices[i] == v.get<std::string>()) current = int(i);
+      }
+      edited = ImGui::Combo(label, &current, items.c_str());
+      next = s->choices[size_t(current)];
+      break;
+    }
+    case T::kInt: {
+      int i = int(v.get<double>());
+      if (s->effect == tracer::SettingEffect::kResize || s->hi - s->lo > 1e6)
+        edited = ImGui::InputInt(label, &i, 1, 100, ImGuiInputTextFlags_EnterReturnsTrue);
+      else
+        edited = ImGui::SliderInt(label, &i, int(s->lo), int(hi));
+      next = i;
+      break;
+    }
+    case T::kFloat: {
+      float f = float(v.get<double>());
+      const float step = speed > 0.0f ? speed
+                         : hi < 1e30   ? float(hi - s->lo) / 200.0f
+                                       : 0.01f * std::max(1.0f, std::fabs(f));
+      edited = ImGui::DragFloat(label, &f, step, float(s->lo), float(hi), format ? format : "%.3f",
+                                ImGuiSliderFlags_AlwaysClamp);
+      next = f;
+      break;
+    }
+    case T::kVec3: {
+      float f[3] = {float(v[0].get<double>()), float(v[1].get<double>()), float(v[2].get<double>())};
+      edited = ImGui::DragFloat3(label, f, speed > 0.0f ? speed : 0.01f, 0.0f, 0.0f,
+                                 format ? format : "%.3f");
+      next = nlohmann::json::array({f[0], f[1], f[2]});
+      break;
+    }
+  }
+  if (ImGui::IsItemHovered()) {
+    ImGui::SetTooltip("%s\n%s (--set %s%s%s)", s->help.c_str(),
+                      s->unit.empty() ? "" : ("unit: " + s->unit).c_str(), s->key.c_str(),
+                      s->flag.empty() ? "" : ", ", s->flag.c_str());
+  }
+  if (!edited || next == v) return false;
+  std::string err;
+  if (!wb.set(*s, next, &err)) {
+    ps.status = "error: " + err;
+    wb.messages.push_back("error: " + err);
+    return false;
+  }
+  return true;
 }
 
 void viewport(Workbench& wb, PanelState& ps, ImVec2 pos, ImVec2 size) {
@@ -177,18 +247,15 @@ void material_panel(Workbench& wb) {
   if (changed) wb.changed(Edit::kMaterial);
 }
 
-void camera_panel(Workbench& wb) {
+void camera_panel(Workbench& wb, PanelState& ps) {
   if (!ImGui::CollapsingHeader("Camera")) return;
-  tracer::CameraDesc& c = wb.scene().camera;
-  bool changed = false;
-  changed |= edit_vec3("position", c.position, 0.01f * glm::length(c.look_at - c.position));
-  changed |= edit_vec3("look at", c.look_at, 0.01f * glm::length(c.look_at - c.position));
-  changed |= ImGui::SliderFloat("vertical FOV", &c.vfov_deg, 5.0f, 120.0f, "%.1f deg");
-  changed |= ImGui::DragFloat("aperture radius", &c.aperture_radius, 0.001f *
-                              glm::length(c.look_at - c.position), 0.0f, 1e6f, "%.4f");
-  changed |= ImGui::DragFloat("focus distance", &c.focus_distance,
-                              0.005f * glm::length(c.look_at - c.position), 0.0f, 1e9f, "%.3f");
-  if (changed) wb.changed(Edit::kCamera);
+  const tracer::CameraDesc& c = wb.scene().camera;
+  const float dist = std::max(1e-6f, glm::length(c.look_at - c.position));
+  setting_widget(wb, ps, "camera.position", "position", 0.01f * dist);
+  setting_widget(wb, ps, "camera.look_at", "look at", 0.01f * dist);
+  setting_widget(wb, ps, "camera.vfov", "vertical FOV", 0.2f, "%.1f deg");
+  setting_widget(wb, ps, "camera.aperture", "aperture radius", 0.001f * dist, "%.4f");
+  setting_widget(wb, ps, "camera.focus_distance", "focus distance", 0.005f * dist, "%.3f");
   if (ImGui::Button("Reset view (F)")) wb.reset_view();
   ImGui::TextWrapped(
       "Viewport: left drag orbits, right drag pans, wheel zooms, W/A/S/D/Q/E fly, click selects, "
@@ -197,97 +264,34 @@ void camera_panel(Workbench& wb) {
 
 void render_panel(Workbench& wb, PanelState& ps) {
   if (!ImGui::CollapsingHeader("Render", ImGuiTreeNodeFlags_DefaultOpen)) return;
-  int backend = wb.backend_name() == "cuda" ? 2 : 1;
-  if (ImGui::Combo("backend", &backend, "auto\0cpu\0cuda\0")) {
-    std::string err;
-    const tracer::BackendChoice b = backend == 0 ? tracer::BackendChoice::kAuto
-                                    : backend == 1 ? tracer::BackendChoice::kCpu
-                                                   : tracer::BackendChoice::kCuda;
-    if (!wb.set_backend(b, &err)) {
-      ps.status = "error: " + err;
-      wb.messages.push_back("error: " + err);
-    }
-  }
-  ImGui::TextDisabled("%s", wb.device_name().c_str());
-  tracer::RenderSettings& rs = wb.settings();
-  bool changed = false;
-  changed |= ImGui::SliderInt("max depth", &rs.max_depth, 1, 64);
-  changed |= ImGui::Checkbox("next-event estimation", &rs.nee);
+  setting_widget(wb, ps, "render.backend", "backend");
+  ImGui::TextDisabled("%s: %s", wb.backend_name().c_str(), wb.device_name().c_str());
+  setting_widget(wb, ps, "render.max_depth", "max depth", 0.0f, nullptr, 64);
+  setting_widget(wb, ps, "render.nee", "next-event estimation");
   ImGui::SameLine();
-  changed |= ImGui::Checkbox("MIS", &rs.mis);
-  changed |= ImGui::Checkbox("Russian roulette", &rs.russian_roulette);
+  setting_widget(wb, ps, "render.mis", "MIS");
+  setting_widget(wb, ps, "render.russian_roulette", "Russian roulette");
   ImGui::SameLine();
   ImGui::SetNextItemWidth(100);
-  changed |= ImGui::SliderInt("from depth", &rs.rr_start_depth, 1, 16);
-  changed |= ImGui::Checkbox("pixel jitter", &rs.jitter);
-  int sampler = int(rs.sampler);
-  // Indices are the kSampler* values (core/sobol.h).
-  if (ImGui::Combo("sampler", &sampler,
-                   "random (PCG32)\0sobol (Owen-scrambled)\0sobol-pairs (exact half noise)\0")) {
-    rs.sampler = uint32_t(sampler);
-    changed = true;
-  }
-  changed |= ImGui::DragFloat("radiance clamp (0: off)", &rs.clamp, 0.1f, 0.0f, 1e6f, "%.2f");
-  int size[2] = {rs.width, rs.height};
-  if (ImGui::InputInt2("image size", size, ImGuiInputTextFlags_EnterReturnsTrue)) {
-    rs.width = std::clamp(size[0], 16, 8192);
-    rs.height = std::clamp(size[1], 16, 8192);
-    wb.changed(Edit::kResize);
-  }
-  if (changed) wb.changed(Edit::kSettings);
-  int target = int(wb.target_spp);
-  if (ImGui::InputInt("stop at spp", &target)) wb.target_spp = uint32_t(std::max(0, target));
-  float secs = float(wb.target_seconds);
-  if (ImGui::InputFloat("stop after s", &secs)) wb.target_seconds = std::max(0.0f, secs);
-  ImGui::TextDisabled("(0: no limit)");
-  ImGui::Checkbox("auto samples per frame", &wb.auto_samples_per_frame);
-  if (!wb.auto_samples_per_frame) ImGui::SliderInt("samples per frame", &wb.samples_per_frame, 1, 256);
+  setting_widget(wb, ps, "render.rr_start_depth", "from depth", 0.0f, nullptr, 16);
+  setting_widget(wb, ps, "render.jitter", "pixel jitter");
+  setting_widget(wb, ps, "render.sampler", "sampler");
+  setting_widget(wb, ps, "render.clamp", "clamp (0: off)", 0.1f, "%.2f");
+  setting_widget(wb, ps, "render.width", "width");
+  setting_widget(wb, ps, "render.height", "height");
+  setting_widget(wb, ps, "render.spp", "stop at spp (0: never)");
+  setting_widget(wb, ps, "render.time_limit_s", "stop after s (0: never)", 1.0f, "%.1f");
+  setting_widget(wb, ps, "render.samples_per_frame", "samples/frame (0: auto)", 0.0f, nullptr, 256);
   ImGui::Checkbox("pause", &wb.paused);
   ImGui::SameLine();
   if (ImGui::Button("Reset accumulator (R)")) wb.changed(Edit::kSettings);
   if (ImGui::TreeNode("GPU")) {
-    tracer::GpuOptions& g = wb.gpu_options();
-    bool gc = false;
-    int kernel = int(g.kernel);
-    if (ImGui::Combo("kernel", &kernel, "auto\0wavefront\0megakernel\0")) {
-      g.kernel = tracer::KernelMode(kernel);
-      gc = true;
-    }
-    gc |= ImGui::Checkbox("stream compaction", &g.compaction);
-    if (g.compaction) {
-      int by = int(g.compaction_by);
-      if (ImGui::Combo("compaction by", &by, "auto\0shade kernel\0CUB select\0")) {
-        g.compaction_by = tracer::GpuOptions::Compaction(by);
-        gc = true;
-      }
-      if (ImGui::IsItemHovered())
-        ImGui::SetTooltip("shade kernel: it appends the paths that go on to the next bounce's "
-                          "queue, and queues the shadow rays; CUB select: over the alive flags "
-                          "after each bounce; auto: the shade kernel, CUB on textured scenes");
-    }
-    if (g.compaction) {
-      gc |= ImGui::SliderFloat("tail below", &g.tail_fraction, 0.0f, 1.0f, "%.2f of the pixels");
-      if (ImGui::IsItemHovered())
-        ImGui::SetTooltip("Wavefront: once fewer paths than this fraction of the pixels remain, "
-                          "one megakernel launch runs all their remaining bounces (0: off)");
-    }
-    gc |= ImGui::Checkbox("material sorting", &g.sort_materials);
-    gc |= ImGui::Checkbox("first-bounce cache", &g.first_bounce_cache);
-    gc |= ImGui::Checkbox("dynamic ray fetch", &g.dynamic_fetch);
-    gc |= ImGui::Checkbox("rays at queue slots", &g.rays_at_slots);
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("Wavefront with the shade kernel's queues: each extension ray and its hit "
-                        "are stored at the path's queue slot, read in whole sectors");
-    gc |= ImGui::Checkbox("fused trace stage", &g.fused_trace);
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("Wavefront with rays at queue slots and the flat list: each bounce's "
-                        "shadow rays and the next bounce's extension rays in one launch");
-    gc |= ImGui::Checkbox("flat list (small scenes)", &g.flat_list);
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("Scenes of at most 64 primitives: every lane tests every primitive in one "
-                        "uniform loop instead of walking the BVH");
-    gc |= ImGui::Checkbox("specialised kernels", &g.specialize);
-    if (gc) wb.changed(Edit::kGpuOptions);
+    setting_widget(wb, ps, "gpu.kernel", "kernel");
+    setting_widget(wb, ps, "gpu.compaction", "compaction");
+    setting_widget(wb, ps, "gpu.tail", "tail below", 0.01f, "%.2f of the pixels");
+    setting_widget(wb, ps, "gpu.sort", "material sorting");
+    setting_widget(wb, ps, "gpu.cache", "first-bounce cache");
+    setting_widget(wb, ps, "gpu.flat", "flat list (small scenes)");
     ImGui::TreePop();
   }
 }
@@ -399,16 +403,10 @@ void stats_panel(Workbench& wb, PanelState& ps) {
   }
 }
 
-void display_panel(Workbench& wb) {
+void display_panel(Workbench& wb, PanelState& ps) {
   if (!ImGui::CollapsingHeader("Display", ImGuiTreeNodeFlags_DefaultOpen)) return;
-  DisplaySettings& d = wb.display();
-  bool changed = ImGui::SliderFloat("exposure (stops)", &d.exposure, -8.0f, 8.0f, "%.2f");
-  int op = int(d.tone_map);
-  if (ImGui::Combo("tone map", &op, "none\0Reinhard\0ACES\0")) {
-    d.tone_map = tracer::ToneMap(op);
-    changed = true;
-  }
-  if (changed) wb.changed(Edit::kDisplay);  // never resets the accumulator
+  setting_widget(wb, ps, "display.exposure", "exposure (stops)", 0.05f, "%.2f", 8.0);
+  setting_widget(wb, ps, "display.tonemap", "tone map");
 }
 
 void export_panel(Workbench& wb, PanelState& ps) {
@@ -449,10 +447,10 @@ bool draw_workbench(Workbench& wb, PanelState& ps) {
   ImGui::Begin("Workbench", nullptr, ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoMove);
   scene_panel(wb, ps);
   material_panel(wb);
-  camera_panel(wb);
+  camera_panel(wb, ps);
   render_panel(wb, ps);
   stats_panel(wb, ps);
-  display_panel(wb);
+  display_panel(wb, ps);
   export_panel(wb, ps);
   if (!ps.status.empty()) ImGui::TextWrapped("%s", ps.status.c_str());
   if (!wb.messages.empty() && ImGui::CollapsingHeader("Messages", ImGuiTreeNodeFlags_DefaultOpen)) {

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "cpu/cpu_backend.h"
+#include "integrator/sidecar.h"
 #include "image/image.h"
 #include "scene/loader.h"
 
@@ -26,59 +27,14 @@ double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
-bool parse_floats(const std::string& s, float* out, int n) {
-  std::stringstream ss(s);
-  for (int i = 0; i < n; ++i) {
-    if (!(ss >> out[i])) return false;
-    if (!std::isfinite(out[i])) return false;
-    char comma;
-    if (i + 1 < n && ss.peek() == ',') ss >> comma;
-  }
-  std::string rest;
-  ss >> rest;
-  return rest.empty();
-}
-
-bool parse_bool(const std::string& s, bool* out) {
-  if (s == "on" || s == "true" || s == "1") return *out = true, true;
-  if (s == "off" || s == "false" || s == "0") return *out = false, true;
-  return false;
-}
-
-nlohmann::json vec_json(vec3 v) { return {v.x, v.y, v.z}; }
-
-nlohmann::json material_json(const tracer::Material& m) {
-  nlohmann::json j;
-  j["type"] = tracer::material_type_name(m.type);
-  j["albedo"] = vec_json(m.albedo);
-  const float strength = tracer::max_component(m.emission);
-  if (strength > 0.0f) {
-    j["emission"] = vec_json(m.emission / strength);
-    j["emission_strength"] = strength;
-    if (m.flags & tracer::kMaterialTwoSidedEmission) j["two_sided"] = true;
-  }
-  if (m.type == tracer::MaterialType::kDielectric || m.type == tracer::MaterialType::kSubsurface) {
-    j["ior"] = m.ior;
-    j["fresnel"] = (m.flags & tracer::kMaterialSchlickFresnel) ? "schlick" : "exact";
-    if (tracer::max_component(m.absorption) > 0.0f) j["absorption"] = vec_json(m.absorption);
-  }
-  if (m.type == tracer::MaterialType::kSubsurface) {
-    j.erase("albedo");
-    j["scattering"] = vec_json(m.scattering);
-    j["absorption"] = vec_json(m.absorption);
-    j["g"] = m.g;
-  }
-  if (m.roughness > 0.0f) j["roughness"] = m.roughness;
-  return j;
-}
-
 }  // namespace
 
 Workbench::Workbench(tracer::Scene scene, tracer::BackendChoice backend, int cpu_threads)
-    : scene_(std::move(scene)), backend_choice_(backend), cpu_threads_(cpu_threads) {
+    : scene_(std::move(scene)) {
+  scene_.settings.backend = backend;
+  scene_.settings.threads = cpu_threads;
   initial_camera_ = scene_.camera;
-  target_spp = uint32_t(std::max(0, scene_.settings.spp));
-  target_seconds = scene_.settings.time_limit_s;
+  if (scene_.settings.samples_per_frame > 0) samples_per_frame = scene_.settings.samples_per_frame;
   for (const auto& w : scene_.diagnostics.warnings) messages.push_back("warning: " + w);
   std::string error;
   if (!set_backend(backend, &error)) {
@@ -100,14 +56,14 @@ bool Workbench::set_backend(tracer::BackendChoice b, std::string* error) {
   std::unique_ptr<tracer::Renderer> r;
   std::string note;
   try {
-    r = tracer::make_renderer(b, cpu_threads_, &note);
+    r = tracer::make_renderer(b, scene_.settings.threads, &note);
   } catch (const std::exception& e) {
     if (error) *error = e.what();
     return false;
   }
   stop_worker();
   renderer_ = std::move(r);
-  backend_choice_ = b;
+  scene_.settings.backend = b;
   if (!note.empty()) messages.push_back("note: " + note);
   async_ = renderer_->backend_name() == "cpu";
   if (async_) {
@@ -124,8 +80,16 @@ void Workbench::changed(Edit e) {
     display_dirty_ = true;
     return;
   }
+  if (e == Edit::kStop) {  // the accumulator stays; the CPU worker sees the new target
+    if (scene_.settings.samples_per_frame > 0) samples_per_frame = scene_.settings.samples_per_frame;
+    std::lock_guard<std::mutex> lk(mutex_);
+    worker_target_spp_ = target_spp();
+    worker_target_s_ = target_seconds();
+    wake_.notify_all();
+    return;
+  }
   if (e == Edit::kGpuOptions) {  // speed only: the accumulator stays
-    if (renderer_) renderer_->set_gpu_options(gpu_);
+    if (renderer_) renderer_->set_gpu_options(scene_.gpu);
     return;
   }
   dirty_ = true;
@@ -160,7 +124,7 @@ void Workbench::rebuild(bool /*geometry*/) {
     worker_nonfinite_ = 0;
     wake_.notify_all();
   } else {
-    renderer_->set_gpu_options(gpu_);
+    renderer_->set_gpu_options(scene_.gpu);
     renderer_->set_scene(*compiled_, cfg);
   }
   reset_stats();
@@ -168,8 +132,8 @@ void Workbench::rebuild(bool /*geometry*/) {
 
 bool Workbench::converged() const {
   if (dirty_) return false;  // an edit is waiting to reset the accumulator
-  if (target_spp > 0 && stats_.spp >= target_spp) return true;
-  if (target_seconds > 0.0 && stats_.elapsed_s >= target_seconds) return true;
+  if (target_spp() > 0 && stats_.spp >= target_spp()) return true;
+  if (target_seconds() > 0.0 && stats_.elapsed_s >= target_seconds()) return true;
   return false;
 }
 
@@ -193,8 +157,8 @@ void Workbench::update() {
     stats_.nonfinite = worker_nonfinite_;
     stats_.relmse_halves = worker_relmse_;
     worker_paused_ = paused;
-    worker_target_spp_ = target_spp;
-    worker_target_s_ = target_seconds;
+    worker_target_spp_ = target_spp();
+    worker_target_s_ = target_seconds();
     wake_.notify_all();  // targets or pause may have changed
     if (reference_ && (++frames_since_estimate_ >= 30 || stats_.spp >= next_curve_spp_) &&
         !published_mean_.empty() && stats_.spp > 0) {
@@ -209,7 +173,7 @@ void Workbench::update() {
   }
   if (paused || converged()) return;
   uint32_t spp = uint32_t(std::max(1, samples_per_frame));
-  if (target_spp > 0) spp = std::min(spp, target_spp - stats_.spp);
+  if (target_spp() > 0) spp = std::min(spp, target_spp() - stats_.spp);
   const auto start = Clock::now();
   const tracer::FrameStats fs = renderer_->render(spp);
   const double s = seconds_since(start);
@@ -222,7 +186,7 @@ void Workbench::update() {
   stats_.mrays_per_s = double(fs.rays.camera + fs.rays.extension + fs.rays.shadow) / s / 1e6;
   stats_.nonfinite = renderer_->nonfinite_total();
   display_dirty_ = true;
-  if (auto_samples_per_frame) {
+  if (auto_samples_per_frame()) {
     // Keep the GPU's share of a UI frame near 10 ms so the window stays above 60 frames/s.
     const double per_sample_ms = std::max(1e-3, s * 1e3 / spp);
     samples_per_frame = std::clamp(int(10.0 / per_sample_ms), 1, 1024);
@@ -272,23 +236,23 @@ bool Workbench::fetch_display(std::vector<uint32_t>& rgba, int& width, int& heig
       return true;
     }
     rgba.resize(size_t(w) * h);
-    const float scale = display_.scale();
+    const float scale = scene_.display.scale();
     for (size_t i = 0; i < rgba.size(); ++i)
       rgba[i] = tracer::display_rgba8(vec3(mean[3 * i], mean[3 * i + 1], mean[3 * i + 2]), scale,
-                                      display_.tone_map);
+                                      scene_.display.tone_map);
     return true;
   }
   if (!display_dirty_) return false;
   display_dirty_ = false;
-  renderer_->display_rgba8(rgba, display_.scale(), display_.tone_map);
+  renderer_->display_rgba8(rgba, scene_.display.scale(), scene_.display.tone_map);
   return true;
 }
 
 void Workbench::start_worker() {
   quit_ = false;
   worker_paused_ = paused;
-  worker_target_spp_ = target_spp;
-  worker_target_s_ = target_seconds;
+  worker_target_spp_ = target_spp();
+  worker_target_s_ = target_seconds();
   worker_ = std::thread([this] { worker_loop(); });
 }
 
@@ -343,19 +307,42 @@ void Workbench::worker_loop() {
 // ---------------------------------------------------------------------------------------------
 // Edits by name, for --set, the script file and tests.
 
-std::vector<std::string> Workbench::settable_keys() {
-  return {"camera.position", "camera.look_at", "camera.up", "camera.vfov", "camera.aperture",
-          "camera.focus_distance", "render.max_depth", "render.spp", "render.time",
-          "render.width", "render.height", "render.nee", "render.mis", "render.russian_roulette",
-          "render.rr_start_depth", "render.seed", "render.jitter", "render.samples_per_frame",
-          "render.clamp", "render.sampler",
-          "display.exposure", "display.tonemap", "gpu.kernel", "gpu.compaction", "gpu.tail", "gpu.sort",
-          "gpu.cache", "gpu.specialize", "gpu.fetch", "gpu.slots", "gpu.fuse", "gpu.flat",
-          "backend", "materials.NAME.type",
-          "materials.NAME.albedo", "materials.NAME.emission", "materials.NAME.emission_strength",
-          "materials.NAME.ior", "materials.NAME.fresnel", "materials.NAME.absorption",
-          "materials.NAME.two_sided", "materials.NAME.roughness", "materials.NAME.scattering",
-          "materials.NAME.g"};
+Edit edit_of(tracer::SettingEffect e) {
+  using E = tracer::SettingEffect;
+  switch (e) {
+    case E::kDisplay: return Edit::kDisplay;
+    case E::kCamera: return Edit::kCamera;
+    case E::kImage: return Edit::kSettings;
+    case E::kResize: return Edit::kResize;
+    case E::kGpu: return Edit::kGpuOptions;
+    case E::kStop: return Edit::kStop;
+    case E::kBackend: return Edit::kSettings;
+  }
+  return Edit::kSettings;
+}
+
+bool Workbench::set(const tracer::Setting& s, const nlohmann::json& value, std::string* error) {
+  std::string problem = tracer::check_setting(s, value);
+  if (problem.empty() && s.effect == tracer::SettingEffect::kBackend) {
+    // A new renderer: when it cannot be made, the old one and the old setting stay.
+    const tracer::RenderSettings old = scene_.settings;
+    s.put(scene_, value);
+    if (!set_backend(scene_.settings.backend, &problem)) scene_.settings = old;
+    else return true;
+  } else if (problem.empty()) {
+    const tracer::CameraDesc old_camera = scene_.camera;
+    s.put(scene_, value);
+    if (s.section() == "camera") {  // the camera's settings are checked together
+      problem = tracer::check_camera(scene_);
+      if (!problem.empty()) scene_.camera = old_camera;
+    }
+  }
+  if (!problem.empty()) {
+    if (error) *error = problem;
+    return false;
+  }
+  changed(edit_of(s.effect));
+  return true;
 }
 
 bool Workbench::apply(const std::string& assignment, std::string* error) {
@@ -365,177 +352,19 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
   };
   const size_t eq = assignment.find('=');
   if (eq == std::string::npos) return fail("expected KEY=VALUE");
-  const std::string key = assignment.substr(0, eq), value = assignment.substr(eq + 1);
-  float f[3];
-  bool b;
-  auto number = [&](float lo, float hi) {
-    if (!parse_floats(value, f, 1)) return false;
-    return f[0] >= lo && f[0] <= hi;
-  };
-  tracer::CameraDesc& cam = scene_.camera;
-  tracer::RenderSettings& rs = scene_.settings;
-  if (key == "camera.position" || key == "camera.look_at" || key == "camera.up") {
-    if (!parse_floats(value, f, 3)) return fail("expected three numbers x,y,z");
-    vec3& v = key == "camera.position" ? cam.position : key == "camera.look_at" ? cam.look_at : cam.up;
-    v = vec3(f[0], f[1], f[2]);
-    changed(Edit::kCamera);
-  } else if (key == "camera.vfov") {
-    if (!number(1.0f, 179.0f)) return fail("expected degrees in [1, 179]");
-    cam.vfov_deg = f[0];
-    changed(Edit::kCamera);
-  } else if (key == "camera.aperture") {
-    if (!number(0.0f, 1e6f)) return fail("expected a lens radius >= 0");
-    cam.aperture_radius = f[0];
-    changed(Edit::kCamera);
-  } else if (key == "camera.focus_distance") {
-    if (!number(0.0f, 1e9f)) return fail("expected a distance >= 0 (0: distance to look_at)");
-    cam.focus_distance = f[0];
-    changed(Edit::kCamera);
-  } else if (key == "render.max_depth" || key == "render.rr_start_depth") {
-    if (!number(1.0f, 1024.0f) || f[0] != std::floor(f[0]))
-      return fail("expected a whole number from 1 to 1024");
-    (key == "render.max_depth" ? rs.max_depth : rs.rr_start_depth) = int(f[0]);
-    changed(Edit::kSettings);
-  } else if (key == "render.seed") {
-    if (!number(0.0f, 4294967295.0f) || f[0] != std::floor(f[0]))
-      return fail("expected a whole number >= 0");
-    rs.seed = uint32_t(f[0]);
-    changed(Edit::kSettings);
-  } else if (key == "render.nee" || key == "render.mis" || key == "render.russian_roulette" ||
-             key == "render.jitter") {
-    if (!parse_bool(value, &b)) return fail("expected on or off");
-    (key == "render.nee" ? rs.nee : key == "render.mis" ? rs.mis
-     : key == "render.jitter" ? rs.jitter : rs.russian_roulette) = b;
-    changed(Edit::kSettings);
-  } else if (key == "render.sampler") {
-    if (!tracer::parse_sampler(value, &rs.sampler)) return fail("expected random, sobol or sobol-pairs");
-    changed(Edit::kSettings);
-  } else if (key == "render.clamp") {
-    if (!number(0.0f, 1e30f)) return fail("expected a radiance >= 0 (0: off)");
-    rs.clamp = f[0];
-    changed(Edit::kSettings);
-  } else if (key == "render.spp") {
-    if (!number(0.0f, 1e9f)) return fail("expected a sample count (0: no limit)");
-    target_spp = uint32_t(f[0]);
-  } else if (key == "render.time") {
-    if (!number(0.0f, 1e7f)) return fail("expected seconds (0: no limit)");
-    target_seconds = f[0];
-  } else if (key == "render.samples_per_frame") {
-    if (!number(0.0f, 1024.0f)) return fail("expected 0 (automatic) to 1024");
-    auto_samples_per_frame = f[0] == 0.0f;
-    if (f[0] > 0) samples_per_frame = int(f[0]);
-  } else if (key == "render.width" || key == "render.height") {
-    if (!number(1.0f, 16384.0f)) return fail("expected 1 to 16384 pixels");
-    (key == "render.width" ? rs.width : rs.height) = int(f[0]);
-    changed(Edit::kResize);
-  } else if (key == "display.exposure") {
-    if (!number(-20.0f, 20.0f)) return fail("expected stops in [-20, 20]");
-    display_.exposure = f[0];
-    changed(Edit::kDisplay);
-  } else if (key == "display.tonemap") {
-    if (!tracer::parse_tone_map(value, &display_.tone_map))
-      return fail("expected none, reinhard or aces");
-    changed(Edit::kDisplay);
-  } else if (key == "gpu.kernel") {
-    if (value == "auto") gpu_.kernel = tracer::KernelMode::kAuto;
-    else if (value == "wavefront") gpu_.kernel = tracer::KernelMode::kWavefront;
-    else if (value == "megakernel") gpu_.kernel = tracer::KernelMode::kMegakernel;
-    else return fail("expected auto, wavefront or megakernel");
-    changed(Edit::kGpuOptions);
-  } else if (key == "gpu.compaction") {
-    using C = tracer::GpuOptions::Compaction;
-    if (value == "cub" || value == "shade" || value == "auto") {
-      gpu_.compaction = true;
-      gpu_.compaction_by = value == "cub" ? C::kCub : value == "shade" ? C::kShade : C::kAuto;
-    } else {
-      if (!parse_bool(value, &b)) return fail("expected on (auto), shade, cub or off");
-      gpu_.compaction = b;
-      gpu_.compaction_by = C::kAuto;
-    }
-    changed(Edit::kGpuOptions);
-  } else if (key == "gpu.tail") {
-    if (!number(0.0f, 1.0f)) return fail("expected a fraction of the pixels in [0, 1] (0: off)");
-    gpu_.tail_fraction = f[0];
-    changed(Edit::kGpuOptions);
-  } else if (key == "gpu.sort" || key == "gpu.cache" ||
-             key == "gpu.specialize" || key == "gpu.fetch" || key == "gpu.slots" ||
-             key == "gpu.fuse" || key == "gpu.flat") {
-    if (!parse_bool(value, &b)) return fail("expected on or off");
-    (key == "gpu.sort" ? gpu_.sort_materials
-     : key == "gpu.cache" ? gpu_.first_bounce_cache : key == "gpu.fetch" ? gpu_.dynamic_fetch
-     : key == "gpu.slots" ? gpu_.rays_at_slots : key == "gpu.fuse" ? gpu_.fused_trace
-     : key == "gpu.flat" ? gpu_.flat_list : gpu_.specialize) = b;
-    changed(Edit::kGpuOptions);
-  } else if (key == "backend") {
-    tracer::BackendChoice c;
-    if (value == "cpu") c = tracer::BackendChoice::kCpu;
-    else if (value == "cuda") c = tracer::BackendChoice::kCuda;
-    else if (value == "auto") c = tracer::BackendChoice::kAuto;
-    else return fail("expected auto, cpu or cuda");
-    std::string why;
-    if (!set_backend(c, &why)) return fail(why);
-  } else if (key.rfind("materials.", 0) == 0) {
-    const size_t dot = key.rfind('.');
-    const std::string name = key.substr(10, dot - 10), field = key.substr(dot + 1);
-    const uint32_t idx = scene_.find_material(name);
-    if (idx == tracer::kInvalid) {
-      std::vector<std::string> names;
-      for (const auto& m : scene_.materials) names.push_back(m.name);
-      const std::string guess = tracer::did_you_mean(name, names);
-      return fail("no material \"" + name + "\"" +
-                  (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)"));
-    }
-    tracer::Material& m = scene_.materials[idx].material;
-    const float strength = tracer::max_component(m.emission);
-    if (field == "type") {
-      if (value == "diffuse") m.type = tracer::MaterialType::kDiffuse;
-      else if (value == "mirror") m.type = tracer::MaterialType::kMirror;
-      else if (value == "dielectric") m.type = tracer::MaterialType::kDielectric;
-      else if (value == "conductor") m.type = tracer::MaterialType::kConductor;
-      else if (value == "subsurface") m.type = tracer::MaterialType::kSubsurface;
-      else return fail("expected diffuse, mirror, dielectric, conductor or subsurface");
-    } else if (field == "roughness" || field == "g") {
-      if (!number(field == "g" ? -0.99f : 0.0f, field == "g" ? 0.99f : 1.0f))
-        return fail(field == "g" ? "expected g in (-1, 1)" : "expected roughness in [0, 1]");
-      (field == "g" ? m.g : m.roughness) = f[0];
-    } else if (field == "albedo" || field == "absorption" || field == "emission" ||
-               field == "scattering") {
-      if (!parse_floats(value, f, 3)) return fail("expected three numbers r,g,b");
-      const vec3 v(f[0], f[1], f[2]);
-      if (tracer::max_component(-v) > 0.0f) return fail("components must be >= 0");
-      if (field == "albedo") {
-        if (tracer::max_component(v) > 1.0f) return fail("albedo components must be <= 1");
-        m.albedo = v;
-      } else if (field == "absorption") {
-        m.absorption = v;
-      } else if (field == "scattering") {
-        m.scattering = v;
-      } else {
-        m.emission = v * (strength > 0.0f ? strength : 1.0f);
-      }
-    } else if (field == "emission_strength") {
-      if (!number(0.0f, 1e9f)) return fail("expected a strength >= 0");
-      const vec3 colour = strength > 0.0f ? m.emission / strength : vec3(1.0f);
-      m.emission = colour * f[0];
-    } else if (field == "ior") {
-      if (!number(1.0f, 4.0f)) return fail("expected an index of refraction in [1, 4]");
-      m.ior = f[0];
-    } else if (field == "fresnel") {
-      if (value == "exact") m.flags &= ~tracer::kMaterialSchlickFresnel;
-      else if (value == "schlick") m.flags |= tracer::kMaterialSchlickFresnel;
-      else return fail("expected exact or schlick");
-    } else if (field == "two_sided") {
-      if (!parse_bool(value, &b)) return fail("expected on or off");
-      m.flags = b ? (m.flags | tracer::kMaterialTwoSidedEmission)
-                  : (m.flags & ~tracer::kMaterialTwoSidedEmission);
-    } else {
-      return fail("unknown material field \"" + field + "\"");
-    }
+  const std::string key = assignment.substr(0, eq);
+  if (key.rfind("materials.", 0) == 0) {
+    const std::string problem = tracer::set_material_assignment(scene_, assignment);
+    if (!problem.empty()) return fail(problem);
     changed(Edit::kMaterial);
-  } else {
-    const std::string guess = tracer::did_you_mean(key, settable_keys());
-    return fail("unknown key" + (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)"));
+    return true;
   }
+  const tracer::Setting* s = tracer::find_setting(key);
+  if (!s) return fail(tracer::unknown_setting_message(key));
+  nlohmann::json value;
+  std::string problem = tracer::parse_setting_text(*s, assignment.substr(eq + 1), &value);
+  if (problem.empty() && !set(*s, value, &problem)) return fail(problem);
+  if (!problem.empty()) return fail(problem);
   return true;
 }
 
@@ -544,13 +373,15 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
 bool Workbench::load_scene(const std::string& path, std::string* error) {
   try {
     tracer::Scene s = tracer::load_scene(path);
+    // The renderer running now stays: its settings are the window's, not the file's.
+    s.settings.backend = scene_.settings.backend;
+    s.settings.threads = scene_.settings.threads;
     scene_ = std::move(s);
   } catch (const std::exception& e) {
     if (error) *error = e.what();
     return false;
   }
   initial_camera_ = scene_.camera;
-  target_spp = uint32_t(std::max(0, scene_.settings.spp));
   selected_object = -1;
   selected_material = 0;
   for (const auto& w : scene_.diagnostics.warnings) messages.push_back("warning: " + w);
@@ -604,34 +435,17 @@ std::string Workbench::export_image(const std::string& path) {
       img = renderer_->image();
       spp = renderer_->samples_done();
     }
-    tracer::write_image(path, img, display_.exposure, display_.tone_map);
-    nlohmann::json j;
-    j["scene"] = scene_.source;
-    j["output"] = path;
-    j["version"] = TRACER_VERSION;
-    j["backend"] = renderer_->backend_name();
-    j["device"] = renderer_->device_name();
-    const auto& rs = scene_.settings;
-    j["settings"] = {{"width", rs.width},         {"height", rs.height},
-                     {"max_depth", rs.max_depth}, {"nee", rs.nee},
-                     {"mis", rs.mis},             {"russian_roulette", rs.russian_roulette},
-                     {"rr_start_depth", rs.rr_start_depth}, {"seed", rs.seed},
-                     {"jitter", rs.jitter},       {"sampler", tracer::sampler_name(rs.sampler)},
-                     {"exposure", display_.exposure},
-                     {"tonemap", tracer::tone_map_name(display_.tone_map)}};
-    j["camera"] = {{"position", vec_json(scene_.camera.position)},
-                   {"look_at", vec_json(scene_.camera.look_at)},
-                   {"up", vec_json(scene_.camera.up)},
-                   {"vfov", scene_.camera.vfov_deg},
-                   {"aperture", scene_.camera.aperture_radius},
-                   {"focus_distance", scene_.camera.focus_distance}};
-    nlohmann::json mats;
-    for (const auto& m : scene_.materials) mats[m.name] = material_json(m.material);
-    j["materials"] = mats;
-    j["spp"] = spp;
-    j["wall_time_s"] = stats_.elapsed_s;
-    j["nonfinite_samples"] = stats_.nonfinite;
-    tracer::write_text_atomic(path + ".json", j.dump(2) + "\n");
+    tracer::write_image(path, img, scene_.display.exposure, scene_.display.tone_map);
+    tracer::SidecarRun run;
+    run.output = path;
+    run.backend = renderer_->backend_name();
+    run.device = renderer_->device_name();
+    run.spp = spp;
+    run.wall_time_s = stats_.elapsed_s;
+    run.nonfinite = stats_.nonfinite;
+    run.last = stats_.last;
+    if (compiled_) run.features = tracer::describe_features(compiled_->features());
+    tracer::write_sidecar(scene_, run);
   } catch (const std::exception& e) {
     return e.what();
   }
@@ -668,22 +482,16 @@ std::string Workbench::save_scene(const std::string& path) {
                          " are not saved (the JSON format cannot override a mesh file's own "
                          "materials)");
     }
-    const auto& c = scene_.camera;
-    j["camera"] = {{"position", vec_json(c.position)}, {"look_at", vec_json(c.look_at)},
-                   {"up", vec_json(c.up)},             {"vfov", c.vfov_deg},
-                   {"aperture", c.aperture_radius},    {"focus_distance", c.focus_distance}};
-    const auto& rs = scene_.settings;
-    j["render"] = {{"width", rs.width},         {"height", rs.height},
-                   {"spp", std::max<uint32_t>(1, target_spp)},
-                   {"max_depth", rs.max_depth}, {"nee", rs.nee},
-                   {"mis", rs.mis},             {"russian_roulette", rs.russian_roulette},
-                   {"rr_start_depth", rs.rr_start_depth}, {"seed", rs.seed},
-                   {"jitter", rs.jitter}, {"clamp", rs.clamp},
-                   {"sampler", tracer::sampler_name(rs.sampler)}};
+    // Every setting of the table but the machine's choices (backend, threads), so that the
+    // file opens the same way anywhere.
+    nlohmann::json settings = tracer::settings_to_json(scene_);
+    settings["render"].erase("backend");
+    settings["render"].erase("threads");
+    for (auto it = settings.begin(); it != settings.end(); ++it) j[it.key()] = it.value();
     if (json_source && j.contains("materials")) {
       for (auto it = j["materials"].begin(); it != j["materials"].end(); ++it) {
         const uint32_t idx = scene_.find_material(it.key());
-        if (idx != tracer::kInvalid) it.value() = material_json(scene_.materials[idx].material);
+        if (idx != tracer::kInvalid) it.value() = tracer::material_to_json(scene_.materials[idx].material);
       }
     }
     tracer::write_text_atomic(path, j.dump(2) + "\n");

@@ -3,6 +3,7 @@
 // saving. No GL and no ImGui here, so it is tested without a window.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <condition_variable>
@@ -11,6 +12,7 @@
 #include <string>
 #include <thread>
 #include <vector>
+#include <nlohmann/json_fwd.hpp>
 
 #include "image/convergence.h"
 #include "integrator/renderer.h"
@@ -23,13 +25,12 @@ using tracer::vec3;
 
 // What an edit touched. Everything but kDisplay changes the expected image and so resets the
 // accumulator in the same frame; kDisplay (exposure, tone map) only changes how it is shown.
-enum class Edit { kDisplay, kCamera, kMaterial, kSettings, kGpuOptions, kResize, kScene };
+// kStop (the stop condition and samples per frame) neither.
+enum class Edit { kDisplay, kCamera, kMaterial, kSettings, kGpuOptions, kResize, kScene, kStop };
+// The edit a setting of the settings table makes (its SettingEffect).
+Edit edit_of(tracer::SettingEffect e);
 
-struct DisplaySettings {
-  float exposure = 0.0f;  // stops
-  tracer::ToneMap tone_map = tracer::ToneMap::kNone;
-  float scale() const { return std::exp2(exposure); }
-};
+using tracer::DisplaySettings;
 
 struct WorkbenchStats {
   uint32_t spp = 0;
@@ -55,12 +56,15 @@ class Workbench {
   // --- state the panels edit directly; call changed() afterwards ---------------------------
   tracer::Scene& scene() { return scene_; }
   tracer::RenderSettings& settings() { return scene_.settings; }
-  tracer::GpuOptions& gpu_options() { return gpu_; }
-  DisplaySettings& display() { return display_; }
-  int samples_per_frame = 1;      // GPU: samples added per UI frame (adapted when auto)
-  bool auto_samples_per_frame = true;
-  uint32_t target_spp = 0;        // stop here (0: no limit); from the scene's render.spp
-  double target_seconds = 0.0;    // stop after this long (0: no limit)
+  tracer::GpuOptions& gpu_options() { return scene_.gpu; }
+  DisplaySettings& display() { return scene_.display; }
+  // GPU: samples added per UI frame; adapted to the frame rate when render.samples_per_frame
+  // is 0, else that.
+  int samples_per_frame = 1;
+  bool auto_samples_per_frame() const { return scene_.settings.samples_per_frame == 0; }
+  // The stop condition: render.spp and render.time_limit_s (0: no limit).
+  uint32_t target_spp() const { return uint32_t(std::max(0, scene_.settings.spp)); }
+  double target_seconds() const { return scene_.settings.time_limit_s; }
   bool paused = false;
   int selected_object = -1;
   int selected_material = 0;
@@ -81,9 +85,11 @@ class Workbench {
   std::string device_name() const;
 
   // --- actions -----------------------------------------------------------------------------
+  // Any key of the settings table or a material field, in the --set language:
   // "materials.glass.ior=1.7", "camera.vfov=50", "display.exposure=1", "render.nee=off", ...
   bool apply(const std::string& assignment, std::string* error);
-  static std::vector<std::string> settable_keys();
+  // Sets one setting of the table to a value of its type (as the panels do), then changed().
+  bool set(const tracer::Setting& s, const nlohmann::json& value, std::string* error);
   bool set_backend(tracer::BackendChoice b, std::string* error);
   bool load_scene(const std::string& path, std::string* error);
   // Writes the current image (PNG tone-mapped with the display settings, or EXR linear) and its
@@ -117,10 +123,6 @@ class Workbench {
 
   tracer::Scene scene_;
   tracer::CameraDesc initial_camera_;
-  tracer::GpuOptions gpu_;
-  DisplaySettings display_;
-  tracer::BackendChoice backend_choice_;
-  int cpu_threads_;
   std::unique_ptr<tracer::Renderer> renderer_;
   std::shared_ptr<tracer::CompiledScene> compiled_;
   bool dirty_ = true, geometry_dirty_ = true, display_dirty_ = true;

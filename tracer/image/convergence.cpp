@@ -187,6 +187,9 @@ std::string reference_independence_warning(const std::string& reference_path, ui
   if (j.is_discarded() || !j.is_object()) return "";
   auto field = [&](const char* key) -> const nlohmann::json* {
     if (j.contains(key)) return &j[key];
+    // The sidecar's "render" section (settings table), or "settings" in older sidecars.
+    if (j.contains("render") && j["render"].is_object() && j["render"].contains(key))
+      return &j["render"][key];
     if (j.contains("settings") && j["settings"].is_object() && j["settings"].contains(key))
       return &j["settings"][key];
     return nullptr;

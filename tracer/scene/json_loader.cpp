@@ -41,9 +41,14 @@ class JsonSceneReader {
     const json& root = doc_.root;
     if (!root.is_object())
       fail("", std::string("a scene file must be a JSON object, not ") + json_type_name(root));
-    check_keys(root, "", {"camera", "render", "materials", "objects"}, "the scene");
-    if (root.contains("camera")) read_camera(root["camera"], "/camera");
-    if (root.contains("render")) read_render(root["render"], "/render");
+    check_keys(root, "", {"camera", "render", "gpu", "display", "materials", "objects"},
+               "the scene");
+    for (const char* section : {"camera", "render", "gpu", "display"})
+      if (root.contains(section)) read_settings(root[section], section);
+    if (root.contains("camera")) {
+      const std::string problem = check_camera(scene_);
+      if (!problem.empty()) fail("/camera", problem);
+    }
     if (root.contains("materials")) read_materials(root["materials"], "/materials");
     if (!root.contains("objects")) fail("", "the scene has no \"objects\"");
     read_objects(root["objects"], "/objects");
@@ -148,60 +153,19 @@ class JsonSceneReader {
     return vec3_value(obj[key], json_pointer_child(ptr, key), in_quotes(key) + " in " + where);
   }
 
-  void read_camera(const json& c, const std::string& ptr) {
-    const std::string where = "\"camera\"";
-    require_object(c, ptr, where);
-    check_keys(c, ptr, {"position", "look_at", "up", "vfov", "aperture", "focus_distance"}, where);
-    CameraDesc& cam = scene_.camera;
-    cam.position = get_vec3(c, ptr, "position", cam.position, where);
-    cam.look_at = get_vec3(c, ptr, "look_at", cam.look_at, where);
-    cam.up = get_vec3(c, ptr, "up", cam.up, where);
-    cam.vfov_deg = get_float(c, ptr, "vfov", cam.vfov_deg, where);
-    cam.aperture_radius = get_float(c, ptr, "aperture", cam.aperture_radius, where);
-    cam.focus_distance = get_float(c, ptr, "focus_distance", cam.focus_distance, where);
-    if (!(cam.vfov_deg > 0.0f && cam.vfov_deg < 180.0f))
-      fail(json_pointer_child(ptr, "vfov"), "\"vfov\" must be between 0 and 180 degrees");
-    if (cam.aperture_radius < 0.0f)
-      fail(json_pointer_child(ptr, "aperture"), "\"aperture\" (lens radius) must be >= 0");
-    if (cam.focus_distance < 0.0f)
-      fail(json_pointer_child(ptr, "focus_distance"), "\"focus_distance\" must be >= 0");
-    const vec3 dir = cam.look_at - cam.position;
-    if (glm::length(dir) == 0.0f)
-      fail(ptr, "camera \"position\" and \"look_at\" are the same point");
-    if (glm::length(glm::cross(glm::normalize(dir), cam.up)) < 1e-6f)
-      fail(ptr, "camera \"up\" is zero or parallel to the viewing direction");
-  }
-
-  void read_render(const json& r, const std::string& ptr) {
-    const std::string where = "\"render\"";
-    require_object(r, ptr, where);
-    check_keys(r, ptr,
-               {"width", "height", "spp", "time_limit_s", "max_depth", "nee", "mis",
-                "russian_roulette", "rr_start_depth", "seed", "jitter", "clamp", "sampler"},
-               where);
-    RenderSettings& s = scene_.settings;
-    s.width = int(get_int(r, ptr, "width", s.width, 1, 16384, where));
-    s.height = int(get_int(r, ptr, "height", s.height, 1, 16384, where));
-    s.spp = int(get_int(r, ptr, "spp", s.spp, 1, int64_t(1) << 30, where));
-    s.time_limit_s = get_float(r, ptr, "time_limit_s", float(s.time_limit_s), where);
-    if (s.time_limit_s < 0.0)
-      fail(json_pointer_child(ptr, "time_limit_s"), "\"time_limit_s\" must be >= 0");
-    s.max_depth = int(get_int(r, ptr, "max_depth", s.max_depth, 1, 1024, where));
-    s.nee = get_bool(r, ptr, "nee", s.nee, where);
-    s.mis = get_bool(r, ptr, "mis", s.mis, where);
-    s.russian_roulette = get_bool(r, ptr, "russian_roulette", s.russian_roulette, where);
-    s.rr_start_depth = int(get_int(r, ptr, "rr_start_depth", s.rr_start_depth, 1, 1 << 20, where));
-    s.seed = uint32_t(get_int(r, ptr, "seed", s.seed, 0, 0xffffffffll, where));
-    s.jitter = get_bool(r, ptr, "jitter", s.jitter, where);
-    s.clamp = get_float(r, ptr, "clamp", s.clamp, where);
-    if (!(s.clamp >= 0.0f)) fail(json_pointer_child(ptr, "clamp"), "\"clamp\" must be >= 0");
-    const std::string sampler = get_string(r, ptr, "sampler", sampler_name(s.sampler), where);
-    if (!parse_sampler(sampler, &s.sampler)) {
-      const std::string guess = did_you_mean(sampler, {"random", "sobol", "sobol-pairs"});
-      fail(json_pointer_child(ptr, "sampler"),
-           "unknown sampler " + in_quotes(sampler) + " in " + where +
-               (guess.empty() ? " (expected random, sobol or sobol-pairs)"
-                              : " (did you mean " + in_quotes(guess) + "?)"));
+  // A section of the settings table ("camera", "render", "gpu", "display"): every key must be
+  // a setting of that section, every value valid for it (settings_table() says what that is).
+  void read_settings(const json& obj, const std::string& section) {
+    const std::string ptr = "/" + section;
+    require_object(obj, ptr, in_quotes(section));
+    for (auto it = obj.begin(); it != obj.end(); ++it) {
+      const Setting* s = find_setting(section + "." + it.key());
+      if (!s) {
+        throw InputError({path_, doc_.key_line(json_pointer_child(ptr, it.key()))},
+                         unknown_setting_message(it.key(), section));
+      }
+      const std::string problem = set_setting(scene_, *s, it.value());
+      if (!problem.empty()) fail(json_pointer_child(ptr, it.key()), problem);
     }
   }
 

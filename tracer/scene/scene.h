@@ -9,6 +9,7 @@
 #include "materials/material.h"
 #include "materials/texture.h"
 #include "scene/diagnostics.h"
+#include "scene/settings.h"
 
 namespace tracer {
 
@@ -35,6 +36,9 @@ struct RenderSettings {
   bool jitter = true;  // jitter samples inside each pixel (antialiasing)
   float clamp = 0.0f;  // > 0: clamp each sample's radiance to this (removes fireflies; biased)
   uint32_t sampler = kSamplerSobol;  // kSamplerRandom, kSamplerSobol, kSamplerSobolPairs
+  BackendChoice backend = BackendChoice::kAuto;
+  int threads = 0;            // CPU backend threads (0: all cores)
+  int samples_per_frame = 0;  // workbench on the GPU: samples per window frame (0: adapted)
 };
 
 // "random" / "sobol" / "sobol-pairs", as the scene format, the CLI and the workbench spell
@@ -102,6 +106,8 @@ struct Scene {
   std::string source;  // path it was loaded from, or "<built-in>"
   CameraDesc camera;
   RenderSettings settings;
+  GpuOptions gpu;
+  DisplaySettings display;
   std::vector<NamedMaterial> materials;
   std::vector<SphereDesc> spheres;
   std::vector<TextureImage> textures;  // Material::*_tex index into this

@@ -1,0 +1,58 @@
+// The one sidecar writer (see sidecar.h).
+#include "integrator/sidecar.h"
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+
+#include "image/image.h"
+
+namespace tracer {
+
+double clamp_removed_fraction(const SidecarRun& run) {
+  return run.clamped_luminance / std::max(1e-30, run.kept_luminance + run.clamped_luminance);
+}
+
+nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
+  nlohmann::json j;
+  j["scene"] = scene.source.empty() ? "<built-in>" : scene.source;
+  j["output"] = run.output;
+  j["version"] = TRACER_VERSION;
+  j["backend"] = run.backend;
+  j["device"] = run.device;
+  // Every setting, in the scene format: these sections load back as a scene file's.
+  const nlohmann::json settings = settings_to_json(scene);
+  for (auto it = settings.begin(); it != settings.end(); ++it) j[it.key()] = it.value();
+  nlohmann::json mats = nlohmann::json::object();
+  for (const auto& m : scene.materials) mats[m.name] = material_to_json(m.material);
+  j["materials"] = mats;
+  j["spp"] = run.spp;
+  j["wall_time_s"] = run.wall_time_s;
+  if (run.setup_time_s >= 0) j["setup_time_s"] = run.setup_time_s;
+  j["rays"] = {{"camera", run.rays.camera},
+               {"extension", run.rays.extension},
+               {"shadow", run.rays.shadow}};
+  const double total = double(run.rays.camera + run.rays.extension + run.rays.shadow);
+  j["mrays_per_s"] = run.wall_time_s > 0 ? total / run.wall_time_s / 1e6 : 0.0;
+  j["nonfinite_samples"] = run.nonfinite;
+  j["random_walks_capped"] = run.rays.walk_capped;
+  j["medium_leaks"] = run.rays.medium_leaks;
+  if (scene.settings.clamp > 0.0f) {
+    j["clamp"] = {{"value", scene.settings.clamp},
+                  {"samples_clamped", run.clamped},
+                  {"luminance_removed_fraction", clamp_removed_fraction(run)}};
+  }
+  if (run.backend == "cuda") {
+    j["gpu_run"] = {{"kernel", run.last.kernel},
+                    {"specialization", run.last.specialization},
+                    {"note", run.last.note}};
+  }
+  j["features"] = run.features;
+  j["warnings"] = scene.diagnostics.warnings;
+  return j;
+}
+
+void write_sidecar(const Scene& scene, const SidecarRun& run) {
+  write_text_atomic(run.output + ".json", make_sidecar(scene, run).dump(2) + "\n");
+}
+
+}  // namespace tracer
