@@ -48,7 +48,7 @@ constexpr float kFlatEdgeTolerance = 1e-5f;
 // Scenes whose entries cost at most this many triangle tests get a flat list (a sphere counts
 // as two: its test is in double precision). Chosen from the instruction counts: a uniform test
 // costs about 40 instructions per lane, and the BVH's closest-hit query on the Cornell box
-// about 77 warp instructions per ray (PERFORMANCE.md, "Flat primitive list").
+// about 77 warp instructions per ray (docs/PERFORMANCE.md, decision log, row 33).
 constexpr uint32_t kFlatMaxCost = 64;
 // Solid boxes a list finds at most (FlatList::solids; further boxes stay six quads each).
 constexpr uint32_t kFlatMaxSolids = 8;
