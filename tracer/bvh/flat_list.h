@@ -1,8 +1,8 @@
 // The flat primitive list: for scenes of a few dozen primitives, every lane of a warp tests every
-// primitive in the same order, instead of walking a BVH on its own path. A BVH step keeps 12 of
-// 32 lanes busy on the Cornell box (docs/PERFORMANCE.md); a uniform loop keeps all 32, and loads
-// each primitive once per warp (one address for all lanes). The loop is linear in the number of
-// primitives, so it is only built for small scenes (kFlatMaxCost).
+// primitive in the same order, instead of walking a BVH on its own path. Rays end their BVH walks
+// at different steps, which leaves most lanes of a warp idle (docs/PERFORMANCE.md); a uniform
+// loop keeps all 32 busy and loads each primitive once per warp (one address for all lanes). The
+// loop is linear in the number of primitives, so only small scenes get one (kFlatMaxCost).
 //
 // Each entry is an affine map of world space onto a unit triangle or a unit square, the test of
 // Woop ("A Ray Tracing Hardware Architecture for Dynamic Scenes", 2004) that Aila & Laine (2009)
