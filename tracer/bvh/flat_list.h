@@ -1,8 +1,8 @@
 // The flat primitive list: for scenes of a few dozen primitives, every lane of a warp tests every
-// primitive in the same order, instead of walking a BVH on its own path. A BVH step keeps 12 of
-// 32 lanes busy on the Cornell box (docs/PERFORMANCE.md); a uniform loop keeps all 32, and loads
-// each primitive once per warp (one address for all lanes). The loop is linear in the number of
-// primitives, so it is only built for small scenes (kFlatMaxCost).
+// primitive in the same order, instead of walking a BVH on its own path. Rays end their BVH walks
+// at different steps, which leaves most lanes of a warp idle (docs/PERFORMANCE.md); a uniform
+// loop keeps all 32 busy and loads each primitive once per warp (one address for all lanes). The
+// loop is linear in the number of primitives, so only small scenes get one (kFlatMaxCost).
 //
 // Each entry is an affine map of world space onto a unit triangle or a unit square, the test of
 // Woop ("A Ray Tracing Hardware Architecture for Dynamic Scenes", 2004) that Aila & Laine (2009)
@@ -48,7 +48,7 @@ constexpr float kFlatEdgeTolerance = 1e-5f;
 // Scenes whose entries cost at most this many triangle tests get a flat list (a sphere counts
 // as two: its test is in double precision). Chosen from the instruction counts: a uniform test
 // costs about 40 instructions per lane, and the BVH's closest-hit query on the Cornell box
-// about 77 warp instructions per ray (PERFORMANCE.md, "Flat primitive list").
+// about 77 warp instructions per ray (docs/PERFORMANCE.md, decision log, row 33).
 constexpr uint32_t kFlatMaxCost = 64;
 // Solid boxes a list finds at most (FlatList::solids; further boxes stay six quads each).
 constexpr uint32_t kFlatMaxSolids = 8;

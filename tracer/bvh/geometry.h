@@ -71,8 +71,8 @@ TRACER_HD TRACER_INLINE Sphere load_sphere(const Sphere* spheres, uint32_t i) {
 }
 
 // v[k] for a run-time k in {0, 1, 2}, as two selects. GLM's operator[] is a switch, which nvcc
-// compiles to branches: in the triangle test below they were over half of its warp instructions,
-// at 6 of 32 lanes (Nsight source counters, docs/PERFORMANCE.md).
+// compiles to branches, and a warp whose rays have different dominant axes splits on them; the
+// selects keep its lanes together (docs/PERFORMANCE.md, decision log).
 TRACER_HD TRACER_INLINE float pick(vec3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
 
 // Per-ray constants of the watertight test: the axis permutation and shear that map the ray

@@ -41,9 +41,9 @@ TRACER_HD TRACER_INLINE float luminance(vec3 c) {
 }
 // Square roots, normalisations and sines in the shading and sampling code: on the GPU the
 // hardware's approximations (one MUFU instruction each, relative error below 2^-21) instead of
-// the correctly rounded library versions, whose refinements and slow-path branches took a tenth
-// of the flat megakernel's time (PERFORMANCE.md). The CPU keeps the exact functions. Not used
-// where a bound depends on correct rounding (ray-box and ray-triangle tests, ray offsets).
+// the correctly rounded library versions, whose Newton refinements and slow-path branches are
+// many instructions each (docs/PERFORMANCE.md, decision log). The CPU keeps the exact functions.
+// Not used where a bound depends on correct rounding (ray-box and ray-triangle tests, offsets).
 TRACER_HD TRACER_INLINE float fast_sqrt(float x) {  // x >= 0
 #if defined(__CUDA_ARCH__)
   float r;

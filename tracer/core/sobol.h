@@ -175,9 +175,9 @@ struct SobolVertex {
   // One hash per pair, hash32(vertex seed + (pair + 1) * golden ratio); its three scrambles
   // (k = 0, 1, 2: the index shuffle, x and y) take it rotated by 0, 11 and 22 bits. A scramble's
   // leading digits depend most on its seed's low bits, which the rotations take from different
-  // bits of the hash: independent bits for the first 10 or 11 digits of each, for one
-  // instruction where a hash per scramble cost eight (Sobol was 13% of the flat megakernel's
-  // instructions; tests/sobol_test.cpp checks nets, uniformity and the absence of correlation).
+  // bits of the hash: independent bits for the first 10 or 11 digits of each, at one
+  // instruction per scramble instead of a hash's eight (tests/sobol_test.cpp checks nets,
+  // uniformity and the absence of correlation).
   TRACER_HD uint32_t pair_seed(uint32_t pair) const { return hash32(seed + (pair + 1u) * kGolden32); }
   TRACER_HD static uint32_t sub_seed(uint32_t h, uint32_t k) {
     const uint32_t r = 11u * k;

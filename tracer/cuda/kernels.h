@@ -51,8 +51,8 @@ struct WavefrontState {
 // The flat primitive list's entries (SceneView::flat_loop) passed by value to the kernels that
 // loop over them, at most kFlatMaxCost entries of 48 bytes (3 KiB of the 4 KiB of parameters).
 // Every lane of a warp reads the same entry at once; from the L1 cache each such 16-byte load
-// still writes 512 bytes of registers through its data pipe, which limited the wavefront's
-// intersect kernel (88% busy), while a parameter comes from the constant bank.
+// still writes 512 bytes of registers through its data pipe, which makes that pipe the limit of
+// the loops over the list, while a parameter comes from the constant bank.
 struct FlatParams {
   float4 rows[3 * kFlatMaxCost];  // row_u, row_v, row_w of each entry (FlatPrim)
   float4 solids[3 * kFlatMaxSolids];  // the solid boxes' maps (FlatList::solids), likewise

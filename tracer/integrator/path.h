@@ -26,14 +26,14 @@ struct IntegratorSettings {
 // The dimension pairs of the Sobol sampler: each draw of a vertex has its own (a 1D draw takes
 // the first coordinate of its pair). The camera vertex is bounce 0, surface vertex k bounce k.
 enum CameraDims : uint32_t { kDimJitter = 0, kDimLens = 1 };
-// (Pair 0 once chose the light; the light point's first coordinate does that now, see
-// sample_light_2d.)
+// (Pair 0 of a surface vertex is unused: the light point's first coordinate also chooses the
+// light, see sample_light_2d.)
 enum VertexDims : uint32_t { kDimLightPoint = 1, kDimBsdf = 2, kDimLobe = 3, kDimRoulette = 4 };
 
 // The random numbers of one surface vertex, from either sampler. The random sampler draws them
-// all at once, in this order, from the vertex's PCG32 stream (as before the Sobol sampler
-// existed); the Sobol sampler computes each only where it is used (a point costs about as much
-// as a ray-box test, and the light, lobe and roulette draws are often not needed).
+// all at once, in this order, from the vertex's PCG32 stream; the Sobol sampler computes each
+// only where it is used (a point costs about as much as a ray-box test, and the light, lobe and
+// roulette draws are often not needed).
 struct VertexSampler {
   bool sobol;
   SobolVertex q;
@@ -46,7 +46,7 @@ struct VertexSampler {
         q(pixel, sample, bounce, cfg.seed, cfg.sampler == kSamplerSobolPairs) {
     if (!sobol) {
       Pcg32 rng = make_path_rng(pixel, sample, bounce, cfg.seed);
-      rng.next_float();  // was the light choice: the later draws keep their place in the stream
+      rng.next_float();  // unused, so that each later draw keeps its place in the stream
       pcg_light = rng.next_2d();
       pcg_bsdf = rng.next_2d();
       pcg_lobe = rng.next_float();
@@ -322,7 +322,8 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
 
   // Russian roulette survives with probability sqrt(max throughput), as Cycles does
   // (path_state_continuation_probability): paths end later than with the throughput itself,
-  // which on the Cornell box costs 20% more time per sample for 30% less error.
+  // which costs time per sample but removes more error than that time would (the variants
+  // compared: docs/PERFORMANCE.md, decision log).
   if (cfg.russian_roulette && st.depth >= cfg.rr_start_depth) {
     const float q = glm::min(1.0f, fast_sqrt(max_component(st.throughput)));
     if (u.rr() >= q) return false;
