@@ -258,7 +258,10 @@ std::string choice_list(const Setting& s) {
   return out;
 }
 
-std::string check_number(const Setting& s, double d, const std::string& shown) {
+// `shown` is the value as the message names it: the number itself, printed the same way whether
+// it came from a scene file or a command line, so that both get the same message.
+std::string check_number(const Setting& s, double d) {
+  const std::string shown = number_text(d);
   if (!std::isfinite(d)) return quoted(s.key) + " is " + shown + ", not a finite number";
   if (s.type == T::kInt && d != std::floor(d))
     return quoted(s.key) + " is " + shown + ", not a whole number";
@@ -308,13 +311,13 @@ std::string check_setting(const Setting& s, const json& v) {
     case T::kInt:
     case T::kFloat:
       if (!v.is_number()) return quoted(s.key) + " must be " + type_words(s) + ", not " + shown;
-      return check_number(s, v.get<double>(), shown);
+      return check_number(s, v.get<double>());
     case T::kVec3: {
       if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() ||
           !v[2].is_number())
         return quoted(s.key) + " must be three numbers, not " + shown;
       for (int i = 0; i < 3; ++i) {
-        const std::string p = check_number(s, v[size_t(i)].get<double>(), shown);
+        const std::string p = check_number(s, v[size_t(i)].get<double>());
         if (!p.empty()) return p;
       }
       return "";
@@ -352,7 +355,7 @@ std::string parse_setting_text(const Setting& s, const std::string& text, json* 
       double d;
       if (!parse_number(text, &d))
         return quoted(s.key) + " must be " + type_words(s) + ", not " + quoted(text);
-      const std::string p = check_number(s, d, text);
+      const std::string p = check_number(s, d);
       if (!p.empty()) return p;
       *value = d;
       return "";
@@ -437,6 +440,14 @@ std::string check_camera(const Scene& scene) {
   if (glm::length(glm::cross(glm::normalize(dir), cam.up)) < 1e-6f)
     return "camera \"up\" is zero or parallel to the viewing direction";
   return "";
+}
+
+std::string check_settings(const Scene& scene) {
+  for (const Setting& s : settings_table()) {
+    const std::string problem = check_setting(s, s.get(scene));
+    if (!problem.empty()) return problem;
+  }
+  return check_camera(scene);
 }
 
 const std::vector<std::string> kMaterialSetKeys = {

@@ -109,6 +109,9 @@ nlohmann::json settings_to_json(const Scene& scene);
 // The check that needs several camera settings together: "" or the problem.
 std::string check_camera(const Scene& scene);
 
+// Every setting of the scene against the table, then check_camera(): "" or the first problem.
+std::string check_settings(const Scene& scene);
+
 // The docs' tables (docs/CLI.md, docs/SCENE_FORMAT.md), one Markdown table per section.
 std::string settings_markdown();
 

@@ -40,27 +40,11 @@ std::string object_name(const ObjectInfo* o) {
 
 void validate_camera_and_settings(const Scene& scene) {
   const SourceLoc loc{scene.source, 0};
-  const CameraDesc& c = scene.camera;
-  if (!is_finite(c.position) || !is_finite(c.look_at) || !is_finite(c.up) ||
-      !is_finite(c.vfov_deg) || !is_finite(c.aperture_radius) || !is_finite(c.focus_distance))
-    throw InputError(loc, "the camera has a non-finite value");
-  if (c.position == c.look_at) throw InputError(loc, "camera position and look_at are the same");
-  if (glm::length(glm::cross(glm::normalize(c.look_at - c.position), c.up)) < 1e-6f)
-    throw InputError(loc, "camera up is zero or parallel to the viewing direction");
-  if (!(c.vfov_deg > 0.0f && c.vfov_deg < 180.0f))
-    throw InputError(loc, "camera vfov " + std::to_string(c.vfov_deg) + " is not in (0, 180)");
-  if (c.aperture_radius < 0.0f || c.focus_distance < 0.0f)
-    throw InputError(loc, "camera aperture and focus distance must be >= 0");
-
+  // Whatever made the scene (a loader, a glTF camera, an API caller), its settings pass the
+  // settings table's checks, with the table's messages.
+  const std::string problem = check_settings(scene);
+  if (!problem.empty()) throw InputError(loc, problem);
   const RenderSettings& s = scene.settings;
-  if (s.width < 1 || s.height < 1 || s.width > 16384 || s.height > 16384)
-    throw InputError(loc, "image size " + std::to_string(s.width) + "x" + std::to_string(s.height) +
-                              " is outside 1..16384");
-  if (s.spp < 1) throw InputError(loc, "spp must be at least 1");
-  if (s.max_depth < 1 || s.max_depth > 1024) throw InputError(loc, "max_depth must be in 1..1024");
-  if (s.rr_start_depth < 1) throw InputError(loc, "rr_start_depth must be at least 1");
-  if (!(s.time_limit_s >= 0.0) || !std::isfinite(s.time_limit_s))
-    throw InputError(loc, "time limit must be a finite number >= 0");
   // Film, variance and display buffers together take about 64 bytes a pixel.
   const double bytes = double(s.width) * double(s.height) * 64.0;
   const double memory = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGESIZE));

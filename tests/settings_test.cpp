@@ -1,0 +1,318 @@
+// The settings table (scene/settings.h): every setting round-trips through the scene format, the
+// sidecar and --set with the same value; a bad value gets the same message from every entry point
+// (scene file, flag, --set, workbench); unknown keys list the valid ones; the docs' tables are
+// the table's.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "integrator/sidecar.h"
+#include "scene/loader.h"
+#include "scene/settings.h"
+#include "test_util.h"
+#include "ui/workbench.h"
+
+namespace {
+
+using nlohmann::json;
+using tracer::Setting;
+using tracer::SettingType;
+
+const char* kObjects =
+    R"("materials": {"m": {}}, "objects": [{"type": "sphere", "radius": 1, "material": "m"}])";
+
+// A valid value of `s` that differs from its default, in the scene format. Vectors differ per
+// key so that the camera stays valid (position, look_at and up not parallel).
+json other_value(const Setting& s, int index) {
+  const json def = s.get(tracer::Scene());
+  switch (s.type) {
+    case SettingType::kBool: return !def.get<bool>();
+    case SettingType::kChoice:
+      for (const std::string& c : s.choices)
+        if (c != def.get<std::string>()) return c;
+      return def;
+    case SettingType::kInt: {
+      const double v = def.get<double>() == s.lo ? s.lo + 1 : s.lo;
+      return v;
+    }
+    case SettingType::kFloat: {
+      const double hi = std::min(s.hi, s.lo + 10.0);
+      double v = s.lo + 0.375 * (hi - s.lo);
+      if (v == def.get<double>()) v = s.lo + 0.625 * (hi - s.lo);
+      return v;
+    }
+    case SettingType::kVec3: return json::array({0.5, 1.25, 3.0 + index});
+  }
+  return def;
+}
+
+// The value as --set spells it.
+std::string as_text(const Setting& s, const json& v) {
+  switch (s.type) {
+    case SettingType::kBool: return v.get<bool>() ? "on" : "off";
+    case SettingType::kChoice: return v.get<std::string>();
+    case SettingType::kVec3: {
+      std::ostringstream o;
+      o << v[0].get<double>() << "," << v[1].get<double>() << "," << v[2].get<double>();
+      return o.str();
+    }
+    default: {
+      std::ostringstream o;
+      o << v.get<double>();
+      return o.str();
+    }
+  }
+}
+
+// The expected values: every setting at other_value(), as the scene format's sections.
+json all_changed() {
+  json sections = json::object();
+  int i = 0;
+  for (const Setting& s : tracer::settings_table()) sections[s.section()][s.name()] = other_value(s, i++);
+  return sections;
+}
+
+tracer::Scene load_sections(const json& sections) {
+  std::string text = "{";
+  for (auto it = sections.begin(); it != sections.end(); ++it)
+    text += "\"" + it.key() + "\": " + it.value().dump() + ", ";
+  text += std::string(kObjects) + "}";
+  return tracer::load_scene_from_json(text, "settings_test.json");
+}
+
+// Compares two scenes setting by setting (floats as floats: the scene holds 32-bit values).
+void expect_same_settings(const tracer::Scene& a, const json& expected, const std::string& via) {
+  for (const Setting& s : tracer::settings_table()) {
+    const json got = s.get(a), want = expected[s.section()][s.name()];
+    if (s.type == SettingType::kFloat) {
+      EXPECT_EQ(float(got.get<double>()), float(want.get<double>())) << s.key << " via " << via;
+    } else if (s.type == SettingType::kVec3) {
+      for (size_t i = 0; i < 3; ++i)
+        EXPECT_EQ(float(got[i].get<double>()), float(want[i].get<double>())) << s.key << " via " << via;
+    } else if (s.type == SettingType::kInt) {
+      EXPECT_EQ(got.get<double>(), want.get<double>()) << s.key << " via " << via;
+    } else {
+      EXPECT_EQ(got, want) << s.key << " via " << via;
+    }
+  }
+}
+
+TEST(Settings, TableIsWellFormed) {
+  std::vector<std::string> keys, flags;
+  for (const Setting& s : tracer::settings_table()) {
+    EXPECT_EQ(std::count(keys.begin(), keys.end(), s.key), 0) << "duplicate key " << s.key;
+    keys.push_back(s.key);
+    if (!s.flag.empty()) {
+      EXPECT_EQ(std::count(flags.begin(), flags.end(), s.flag), 0) << "duplicate flag " << s.flag;
+      EXPECT_EQ(s.flag.rfind("--", 0), 0u) << s.flag;
+      flags.push_back(s.flag);
+    }
+    EXPECT_FALSE(s.help.empty()) << s.key;
+    // The default is valid and prints in the --set language, which reads back.
+    const json def = s.get(tracer::Scene());
+    EXPECT_EQ(tracer::check_setting(s, def), "") << s.key;
+    json parsed;
+    EXPECT_EQ(tracer::parse_setting_text(s, tracer::setting_default_text(s), &parsed), "") << s.key;
+    EXPECT_NE(other_value(s, 0), def) << s.key << ": the test needs a second valid value";
+  }
+  EXPECT_GE(keys.size(), 30u);
+}
+
+TEST(Settings, EverySettingRoundTripsSceneFileToSidecarToSceneFile) {
+  const json expected = all_changed();
+  const tracer::Scene loaded = load_sections(expected);
+  expect_same_settings(loaded, expected, "scene file");
+  // The sidecar's sections are scene-file sections: they load back to the same values.
+  tracer::SidecarRun run;
+  run.output = "x.png";
+  const json side = tracer::make_sidecar(loaded, run);
+  json sections = json::object();
+  for (const char* sec : {"camera", "render", "gpu", "display"}) {
+    ASSERT_TRUE(side.contains(sec)) << sec;
+    sections[sec] = side[sec];
+  }
+  expect_same_settings(load_sections(sections), expected, "scene file -> sidecar -> scene file");
+}
+
+TEST(Settings, EverySettingRoundTripsSetToSidecar) {
+  const json expected = all_changed();
+  tracer::Scene scene = tracer::builtin_default_scene();
+  for (const Setting& s : tracer::settings_table()) {
+    const std::string a = s.key + "=" + as_text(s, expected[s.section()][s.name()]);
+    EXPECT_EQ(tracer::set_setting_assignment(scene, a), "") << a;
+  }
+  expect_same_settings(scene, expected, "--set");
+  tracer::SidecarRun run;
+  const json side = tracer::make_sidecar(scene, run);
+  json sections;
+  for (const char* sec : {"camera", "render", "gpu", "display"}) sections[sec] = side[sec];
+  expect_same_settings(load_sections(sections), expected, "--set -> sidecar -> scene file");
+}
+
+// The same through the executable: every flag and --set of `render`, then its sidecar.
+TEST(Settings, RenderCommandRecordsEverySettingItWasGiven) {
+  json expected = all_changed();
+  // What this run needs to be quick and to run here.
+  expected["render"]["width"] = 8;
+  expected["render"]["height"] = 6;
+  expected["render"]["spp"] = 2;
+  expected["render"]["time_limit_s"] = 0.0;
+  expected["render"]["backend"] = "cpu";
+  expected["render"]["threads"] = 1;
+  expected["render"]["max_depth"] = 3;
+  const std::string out = testing::TempDir() + "/settings_cli.png";
+  std::string cmd = test::pathtracer_exe() + " render -q --out " + out;
+  bool use_flag = true;
+  for (const Setting& s : tracer::settings_table()) {
+    if (s.key == "render.samples_per_frame") continue;  // the workbench's only
+    if (s.key == "render.time_limit_s") continue;       // --spp and --time exclude each other
+    const std::string v = as_text(s, expected[s.section()][s.name()]);
+    // Alternate between the flag and --set where a setting has both.
+    if (!s.flag.empty() && use_flag) cmd += " " + s.flag + " '" + v + "'";
+    else cmd += " --set '" + s.key + "=" + v + "'";
+    use_flag = !use_flag;
+  }
+  std::string log;
+  ASSERT_EQ(test::run_command(cmd, &log), 0) << cmd << "\n" << log;
+  std::ifstream f(out + ".json");
+  const json side = json::parse(f);
+  expected["render"]["samples_per_frame"] = 0;  // not given: the default
+  for (const char* sec : {"camera", "render", "gpu", "display"}) {
+    for (auto it = expected[sec].begin(); it != expected[sec].end(); ++it) {
+      const json got = side[sec][it.key()];
+      if (it.value().is_number()) {
+        EXPECT_FLOAT_EQ(float(got.get<double>()), float(it.value().get<double>())) << sec << "." << it.key();
+      } else if (it.value().is_array()) {
+        for (size_t i = 0; i < 3; ++i)
+          EXPECT_FLOAT_EQ(float(got[i].get<double>()), float(it.value()[i].get<double>())) << sec << "." << it.key();
+      } else {
+        EXPECT_EQ(got, it.value()) << sec << "." << it.key();
+      }
+    }
+  }
+}
+
+// Values each numeric setting refuses, as the user types them.
+std::vector<std::string> bad_texts(const Setting& s) {
+  std::vector<std::string> out = {"nan", "inf", "-inf"};
+  auto text = [](double d) {
+    std::ostringstream o;
+    o.precision(12);
+    o << d;
+    return o.str();
+  };
+  if (s.hi < 1e30) out.push_back(text(s.hi + 1));
+  else out.push_back("1e39");
+  if (s.lo > -1e30) out.push_back(text(s.lo - 1));
+  if (s.type == SettingType::kInt) out.push_back(text(s.lo + 0.5));
+  return out;
+}
+
+std::string load_error(const std::string& text) {
+  try {
+    tracer::load_scene_from_json(text, "bad.json");
+  } catch (const tracer::InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Settings, BadValuesGetTheSameMessageFromEveryEntryPoint) {
+  tracer::Scene base = tracer::builtin_default_scene();
+  ui::Workbench wb(base, tracer::BackendChoice::kCpu, 1);
+  int checked = 0;
+  for (const Setting& s : tracer::settings_table()) {
+    if (s.type != SettingType::kInt && s.type != SettingType::kFloat) continue;
+    for (const std::string& bad : bad_texts(s)) {
+      SCOPED_TRACE(s.key + " = " + bad);
+      // The table's own words for it.
+      json ignored;
+      const std::string msg = tracer::parse_setting_text(s, bad, &ignored);
+      ASSERT_NE(msg, "");
+      EXPECT_NE(msg.find("\"" + s.key + "\""), std::string::npos) << msg;
+      // --set, on any command.
+      tracer::Scene scene = base;
+      EXPECT_EQ(tracer::set_setting_assignment(scene, s.key + "=" + bad), msg);
+      // The workbench.
+      std::string err;
+      EXPECT_FALSE(wb.apply(s.key + "=" + bad, &err));
+      EXPECT_NE(err.find(msg), std::string::npos) << err;
+      // A scene file (JSON has no NaN or infinity: only the numbers).
+      if (bad.find("inf") == std::string::npos && bad != "nan") {
+        const std::string e = load_error("{\"" + s.section() + "\": {\"" + s.name() + "\": " +
+                                         bad + "}, " + kObjects + "}");
+        EXPECT_NE(e.find("bad.json:1: " + msg), std::string::npos) << e;
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 60);
+}
+
+TEST(Settings, FlagsGiveTheTablesMessage) {
+  // One run per flag: the command refuses the value before rendering, with the table's words.
+  for (const Setting& s : tracer::settings_table()) {
+    if (s.flag.empty()) continue;
+    const std::string bad = s.type == SettingType::kBool     ? "maybe"
+                            : s.type == SettingType::kChoice ? "bogus"
+                            : s.hi < 1e30                    ? std::to_string(s.hi + 1)
+                                                             : "nan";
+    json ignored;
+    const std::string msg = tracer::parse_setting_text(s, bad, &ignored);
+    std::string log;
+    EXPECT_EQ(test::run_command(test::pathtracer_exe() + " render -q " + s.flag + " " + bad +
+                                    " --out " + testing::TempDir() + "/never.png",
+                                &log),
+              2)
+        << s.flag << " " << bad << "\n" << log;
+    EXPECT_NE(log.find(s.flag + " " + bad + ": " + msg), std::string::npos) << log;
+  }
+}
+
+TEST(Settings, UnknownKeysListTheValidOnesAndGuess) {
+  tracer::Scene scene = tracer::builtin_default_scene();
+  const std::string m = tracer::set_setting_assignment(scene, "render.max_dpth=3");
+  EXPECT_NE(m.find("did you mean \"render.max_depth\""), std::string::npos) << m;
+  EXPECT_NE(m.find("gpu.kernel"), std::string::npos) << m;  // the valid keys are listed
+  EXPECT_NE(m.find("materials.NAME.albedo"), std::string::npos) << m;
+  const std::string e =
+      load_error(std::string("{\"render\": {\n\"spp\": 4,\n\"max_dpth\": 3}, ") + kObjects + "}");
+  EXPECT_NE(e.find("bad.json:3: unknown setting \"max_dpth\""), std::string::npos) << e;
+  EXPECT_NE(e.find("did you mean \"max_depth\""), std::string::npos) << e;
+  EXPECT_NE(e.find("rr_start_depth"), std::string::npos) << e;
+  ui::Workbench wb(scene, tracer::BackendChoice::kCpu, 1);
+  std::string err;
+  EXPECT_FALSE(wb.apply("gpu.kernal=wavefront", &err));
+  EXPECT_NE(err.find("did you mean \"gpu.kernel\""), std::string::npos) << err;
+}
+
+// The docs' tables of settings are generated from the table; TRACER_UPDATE_DOCS=1 rewrites them.
+TEST(Settings, DocsTablesAreTheTable) {
+  const std::string begin = "<!-- settings-table:begin (generated from tracer/scene/settings.cpp by "
+                            "tests/settings_test.cpp; TRACER_UPDATE_DOCS=1 rewrites it) -->\n";
+  const std::string end = "<!-- settings-table:end -->";
+  const std::string table = tracer::settings_markdown();
+  for (const char* doc : {"docs/CLI.md", "docs/SCENE_FORMAT.md"}) {
+    const std::string path = test::source_dir() + "/" + doc;
+    std::ifstream f(path);
+    ASSERT_TRUE(f.good()) << path;
+    std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    const size_t a = text.find(begin), b = text.find(end);
+    ASSERT_NE(a, std::string::npos) << doc << " has no generated settings table";
+    ASSERT_NE(b, std::string::npos) << doc;
+    const std::string current = text.substr(a + begin.size(), b - a - begin.size());
+    if (current != table && std::getenv("TRACER_UPDATE_DOCS")) {
+      text = text.substr(0, a + begin.size()) + table + text.substr(b);
+      std::ofstream(path) << text;
+      continue;
+    }
+    EXPECT_EQ(current, table) << doc << " is out of date: run TRACER_UPDATE_DOCS=1 "
+                              << "build/tests/settings_test --gtest_filter=*Docs*";
+  }
+}
+
+}  // namespace
