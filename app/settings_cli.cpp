@@ -7,14 +7,8 @@
 namespace app {
 
 std::string setting_flag_help(const tracer::Setting& s) {
-  std::string h = s.help;
-  if (s.type == tracer::SettingType::kBool || s.type == tracer::SettingType::kChoice) {
-    h += " [";
-    for (size_t i = 0; i < s.choices.size(); ++i) h += (i ? "|" : "") + s.choices[i];
-    h += "]";
-  }
-  h += " (default " + tracer::setting_default_text(s) + "; --set " + s.key + ")";
-  return h;
+  return s.help + " [" + tracer::setting_values_text(s) + (s.unit.empty() ? "" : " " + s.unit) +
+         "; default " + tracer::setting_default_text(s) + "; --set " + s.key + "]";
 }
 
 void add_setting_options(CLI::App& cmd, SettingArgs* args, const std::vector<std::string>& sections,

@@ -279,9 +279,9 @@ void render_panel(Workbench& wb, PanelState& ps) {
   setting_widget(wb, ps, "render.clamp", "clamp (0: off)", 0.1f, "%.2f");
   setting_widget(wb, ps, "render.width", "width");
   setting_widget(wb, ps, "render.height", "height");
-  setting_widget(wb, ps, "render.spp", "stop at spp (0: never)");
-  setting_widget(wb, ps, "render.time_limit_s", "stop after s (0: never)", 1.0f, "%.1f");
-  setting_widget(wb, ps, "render.samples_per_frame", "samples/frame (0: auto)", 0.0f, nullptr, 256);
+  setting_widget(wb, ps, "render.spp", "stop at spp");
+  setting_widget(wb, ps, "render.time_limit_s", "stop after s", 1.0f, "%.1f");
+  setting_widget(wb, ps, "render.samples_per_frame", "samples/frame", 0.0f, nullptr, 256);
   ImGui::Checkbox("pause", &wb.paused);
   ImGui::SameLine();
   if (ImGui::Button("Reset accumulator (R)")) wb.changed(Edit::kSettings);

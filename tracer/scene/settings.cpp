@@ -32,7 +32,7 @@ double shortest(float f) {
 
 std::string number_text(double d) {
   char buf[32];
-  snprintf(buf, sizeof buf, "%.9g", d);
+  snprintf(buf, sizeof buf, "%.10g", d);
   return buf;
 }
 
@@ -425,6 +425,15 @@ std::string setting_default_text(const Setting& s) {
   return setting_text(defaults, s);
 }
 
+std::string setting_values_text(const Setting& s) {
+  if (s.type == T::kBool || s.type == T::kChoice) {
+    std::string out;
+    for (size_t i = 0; i < s.choices.size(); ++i) out += (i ? "|" : "") + s.choices[i];
+    return out;
+  }
+  return (s.type == T::kVec3 ? "x,y,z each " : "") + range_text(s);
+}
+
 json settings_to_json(const Scene& scene) {
   json j = json::object();
   for (const Setting& s : settings_table()) j[s.section()][s.name()] = s.get(scene);
@@ -575,15 +584,26 @@ std::string settings_markdown() {
     if (s.section() != section) {
       section = s.section();
       out += (out.empty() ? "" : "\n") + std::string("**\"") + section + "\"**\n\n";
-      out += "| key (`--set`) | flag | value | default | effect |\n|---|---|---|---|---|\n";
+      out += "| key (`--set`) | flag | value | default | meaning | an edit in the window |\n"
+             "|---|---|---|---|---|---|\n";
     }
     std::string value;
     if (s.type == T::kChoice || s.type == T::kBool) value = choice_list(s);
     else value = std::string(type_words(s)) + ", " + range_text(s);
     if (!s.unit.empty()) value += " (" + s.unit + ")";
     std::string def = setting_default_text(s);
+    const char* effect = "";
+    switch (s.effect) {
+      case E::kDisplay: effect = "redraws (no restart)"; break;
+      case E::kCamera:
+      case E::kImage: effect = "restarts the image"; break;
+      case E::kResize: effect = "restarts at the new size"; break;
+      case E::kGpu: effect = "speed only (no restart)"; break;
+      case E::kStop: effect = "stop condition (no restart)"; break;
+      case E::kBackend: effect = "new renderer, restarts"; break;
+    }
     out += "| `" + s.key + "` | " + (s.flag.empty() ? "" : "`" + s.flag + "`") + " | " + value +
-           " | `" + def + "` | " + s.help + " |\n";
+           " | `" + def + "` | " + s.help + " | " + effect + " |\n";
   }
   return out;
 }

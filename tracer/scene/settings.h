@@ -103,6 +103,8 @@ nlohmann::json material_to_json(const Material& m);
 // The value as text in the --set language ("on", "1.5", "0,1,2", "wavefront").
 std::string setting_text(const Scene& scene, const Setting& s);
 std::string setting_default_text(const Setting& s);
+// What a value may be, for help texts: "1..1024", "[0, 1]", ">= 0", "on|off", "auto|cpu|cuda".
+std::string setting_values_text(const Setting& s);
 // {"camera": {...}, "render": {...}, "gpu": {...}, "display": {...}}: every setting, in the
 // scene format (the sidecar and Save scene write this; the scene reader reads it back).
 nlohmann::json settings_to_json(const Scene& scene);
