@@ -19,13 +19,13 @@
 
 #include "bench_error.h"
 #include "commands.h"
+#include "core/diagnostics.h"
 #include "cpu/cpu_backend.h"
 #include "image/convergence.h"
 #include "image/flip.h"
 #include "image/image.h"
 #include "image/svg_plot.h"
 #include "scene/compiled_scene.h"
-#include "scene/diagnostics.h"
 #include "scene/loader.h"
 #if defined(TRACER_CUDA_BACKEND)
 #include "cuda/cuda_renderer.h"
