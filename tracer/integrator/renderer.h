@@ -122,6 +122,9 @@ class Renderer {
   virtual void set_gpu_options(const GpuOptions&) {}
 };
 
+// The integrator's settings from a scene's render settings, for set_scene and set_settings.
+IntegratorSettings make_integrator_settings(const RenderSettings& rs);
+
 // relMSE (pbrt's MRSE) between the two half-buffer estimates; their mean's error is about half.
 double half_buffer_relmse(const Renderer& r);
 
