@@ -9,6 +9,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "backends/backend_select.h"
 #include "commands.h"
 #include "image/image.h"
 #include "integrator/renderer.h"

@@ -12,6 +12,7 @@
 #include <thread>
 #include <vector>
 
+#include "backends/backend_select.h"
 #include "image/convergence.h"
 #include "integrator/renderer.h"
 #include "scene/compiled_scene.h"
