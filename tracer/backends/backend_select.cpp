@@ -34,8 +34,7 @@ GlDisplayBuffer::GlDisplayBuffer(unsigned int pbo) : impl_(std::make_unique<Impl
 void GlDisplayBuffer::write_display(const Renderer& renderer, float exposure_scale, ToneMap op) {
   if (renderer.backend_name() != "cuda")
     throw std::logic_error("GlDisplayBuffer::write_display: the renderer is not the CUDA backend");
-  impl_->interop.write_display(static_cast<const CudaRenderer&>(renderer), exposure_scale,
-                               int(op));
+  impl_->interop.write_display(static_cast<const CudaRenderer&>(renderer), exposure_scale, int(op));
 }
 
 #else
@@ -56,7 +55,9 @@ double measure_copy_bandwidth_gbs() {
 
 struct GlDisplayBuffer::Impl {};
 
-GlDisplayBuffer::GlDisplayBuffer(unsigned int) { throw std::runtime_error(kNoCuda); }
+GlDisplayBuffer::GlDisplayBuffer(unsigned int) {
+  throw std::runtime_error(kNoCuda);
+}
 
 void GlDisplayBuffer::write_display(const Renderer&, float, ToneMap) {
   throw std::logic_error(std::string("GlDisplayBuffer::write_display: ") + kNoCuda);
