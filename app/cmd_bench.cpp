@@ -9,15 +9,13 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "backends/backend_select.h"
 #include "bench_error.h"
 #include "commands.h"
 #include "cpu/cpu_backend.h"
 #include "image/image.h"
 #include "scene/compiled_scene.h"
 #include "scene/loader.h"
-#if defined(TRACER_CUDA_BACKEND)
-#include "cuda/cuda_renderer.h"
-#endif
 
 namespace app {
 namespace {
@@ -200,7 +198,6 @@ int run_bench(const BenchOptions& o) {
 
   std::vector<Result> results;
   double gpu_best = 0.0;
-#if defined(TRACER_CUDA_BACKEND)
   std::string why;
   std::unique_ptr<tracer::Renderer> gpu;
   if (o.backend != "cpu") gpu = tracer::make_cuda_renderer(&why);
@@ -214,7 +211,6 @@ int run_bench(const BenchOptions& o) {
                 gpu->device_name().c_str(), copy_gbs);
     out["device"] = gpu->device_name();
     out["copy_bandwidth_GBps"] = copy_gbs;
-    auto* cuda = static_cast<tracer::CudaRenderer*>(gpu.get());
     std::vector<Config> configs;
     auto add = [&](const std::string& name, tracer::KernelMode k, bool compaction, bool sort,
                    bool specialize, bool jitter = true) {
@@ -268,8 +264,8 @@ int run_bench(const BenchOptions& o) {
     add("auto", K::kAuto, true, false, true);
     for (const Config& c : configs) results.push_back(run_config(*gpu, cs, cfg, c, o.spp));
     for (const auto& r : results) gpu_best = std::max(gpu_best, r.segments_per_s);
-    out["path_state_bytes_per_pixel"] = cuda->path_state_bytes_per_pixel();
-    out["scene_device_bytes"] = cuda->scene_bytes();
+    out["path_state_bytes_per_pixel"] = gpu->path_state_bytes_per_pixel();
+    out["scene_device_bytes"] = gpu->scene_bytes();
     out["bvh_bytes_per_triangle"] =
         cs.view().tri_count ? double(cs.nodes().size() * sizeof(tracer::BvhNode)) /
                                   cs.view().tri_count
@@ -480,11 +476,10 @@ int run_bench(const BenchOptions& o) {
                                          {"in_shade", 1000.0 * extra / compacted}};
     }
     std::printf("\npath state: %zu bytes per pixel; BVH: %.1f bytes per triangle\n",
-                cuda->path_state_bytes_per_pixel(), out["bvh_bytes_per_triangle"].get<double>());
+                gpu->path_state_bytes_per_pixel(), out["bvh_bytes_per_triangle"].get<double>());
   } else if (o.backend != "cpu") {
     std::printf("no GPU: %s\n", why.c_str());
   }
-#endif
   // The CPU backend on the same scene, for the CPU/GPU ratio.
   if (o.backend != "cuda" && o.cpu_spp > 0) {
     tracer::CpuRenderer cpu;

@@ -17,19 +17,17 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "backends/backend_select.h"
 #include "bench_error.h"
 #include "commands.h"
+#include "core/diagnostics.h"
 #include "cpu/cpu_backend.h"
 #include "image/convergence.h"
 #include "image/flip.h"
 #include "image/image.h"
 #include "image/svg_plot.h"
 #include "scene/compiled_scene.h"
-#include "scene/diagnostics.h"
 #include "scene/loader.h"
-#if defined(TRACER_CUDA_BACKEND)
-#include "cuda/cuda_renderer.h"
-#endif
 
 namespace app {
 namespace {
@@ -490,10 +488,8 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
   }
   // Renderers: the GPU when asked for and present, the CPU when a configuration needs it.
   std::unique_ptr<tracer::Renderer> gpu;
-  std::string why = "built without CUDA";
-#if defined(TRACER_CUDA_BACKEND)
+  std::string why = "--backend cpu";
   if (bs.backend != "cpu") gpu = tracer::make_cuda_renderer(&why);
-#endif
   if (!gpu && bs.backend == "cuda") {
     std::cerr << "error: --backend cuda: " << why << "\n";
     return kExitInputError;

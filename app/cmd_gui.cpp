@@ -13,16 +13,13 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "backends/backend_select.h"
 #include "commands.h"
 #include "settings_cli.h"
 #include "gui_platform.h"
 #include "image/image.h"
 #include "scene/loader.h"
 #include "ui/panels.h"
-#if defined(TRACER_CUDA_BACKEND)
-#include "cuda/cuda_renderer.h"
-#include "cuda/gl_interop.h"
-#endif
 
 namespace app {
 namespace {
@@ -191,10 +188,8 @@ int run_gui(const GuiOptions& o) {
   if (!o.stats_json.empty()) stats_out.open(o.stats_json);
 
   DisplayTexture tex;
-#if defined(TRACER_CUDA_BACKEND)
-  std::unique_ptr<tracer::GlInteropBuffer> interop;
+  std::unique_ptr<tracer::GlDisplayBuffer> interop;
   bool interop_failed = false;
-#endif
   int exit_code = 0;
   size_t next_step = 0;
   bool quit = false;
@@ -240,17 +235,14 @@ int run_gui(const GuiOptions& o) {
 
     const int w = wb.width(), h = wb.height();
     const bool resizing = w != tex.width || h != tex.height;
-#if defined(TRACER_CUDA_BACKEND)
     if (resizing) interop.reset();  // unregister before the buffer is reallocated
-#endif
     const bool resized = tex.ensure(w, h) || resizing;
     bool uploaded = false;
-#if defined(TRACER_CUDA_BACKEND)
-    if (auto* gpu = static_cast<tracer::CudaRenderer*>(wb.gpu_renderer())) {
+    if (const tracer::Renderer* gpu = wb.gpu_renderer()) {
       try {
         if (resized || !interop) {
           interop.reset();  // unregister before the buffer is reallocated
-          if (!interop_failed) interop = std::make_unique<tracer::GlInteropBuffer>(tex.pbo);
+          if (!interop_failed) interop = std::make_unique<tracer::GlDisplayBuffer>(tex.pbo);
         }
       } catch (const std::exception& e) {
         interop_failed = true;
@@ -259,7 +251,7 @@ int run_gui(const GuiOptions& o) {
       }
       if (interop && gpu->samples_done() > 0) {
         try {
-          interop->write_display(*gpu, wb.display().scale(), int(wb.display().tone_map));
+          interop->write_display(*gpu, wb.display().scale(), wb.display().tone_map);
           tex.upload_from_pbo();
           uploaded = true;
           ps.interop = true;
@@ -274,7 +266,6 @@ int run_gui(const GuiOptions& o) {
       interop.reset();
       ps.interop = false;
     }
-#endif
     int fw = 0, fh = 0;
     if (!uploaded && wb.fetch_display(rgba, fw, fh) && fw == tex.width && fh == tex.height)
       tex.upload_host(rgba);

@@ -9,6 +9,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "backends/backend_select.h"
 #include "commands.h"
 #include "integrator/sidecar.h"
 #include "settings_cli.h"

@@ -19,6 +19,7 @@ clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-reco
   tests/fuzz/fuzz_loaders.cpp tracer/scene/json_loader.cpp tracer/scene/json_lines.cpp \
   tracer/scene/loader.cpp tracer/scene/loader_util.cpp tracer/scene/obj_loader.cpp \
   tracer/scene/gltf_loader.cpp tracer/scene/validate.cpp tracer/scene/scene.cpp \
+  tracer/core/diagnostics.cpp \
   -ltinyobjloader -ltinygltf -o "$OUT/fuzz_loaders"
 status=0
 for fmt in json obj gltf; do

@@ -11,8 +11,8 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "core/diagnostics.h"
 #include "image/svg_plot.h"
-#include "scene/diagnostics.h"
 #include "test_util.h"
 
 namespace {

@@ -536,6 +536,12 @@ TEST(Gpu, KernelAutoChoosesAndSaysWhich) {
   const FrameStats st = gpu->render(8);
   EXPECT_NE(st.note.find("kernel auto chose"), std::string::npos) << st.note;
   std::printf("%s\n", st.note.c_str());
+  // Auto kept the design its own timing found faster (ties go to the wavefront).
+  const AutoKernelTimes t = gpu->auto_kernel_times();
+  ASSERT_GT(t.wavefront_ms, 0.0);
+  ASSERT_GT(t.megakernel_ms, 0.0);
+  EXPECT_EQ(gpu->chosen_kernel(), t.wavefront_ms <= t.megakernel_ms ? "wavefront" : "megakernel")
+      << t.wavefront_ms << " ms wavefront, " << t.megakernel_ms << " ms megakernel per sample";
 }
 
 }  // namespace

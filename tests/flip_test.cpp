@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "scene/diagnostics.h"
+#include "core/diagnostics.h"
 #include "test_util.h"
 
 namespace tracer {

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "scene/diagnostics.h"
+#include "core/diagnostics.h"
 
 namespace tracer {
 namespace {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "integrator/path.h"
+#include "integrator/renderer.h"
 #include "scene/compiled_scene.h"
 #include "scene/scene.h"
 

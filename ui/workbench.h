@@ -14,6 +14,7 @@
 #include <vector>
 #include <nlohmann/json_fwd.hpp>
 
+#include "backends/backend_select.h"
 #include "image/convergence.h"
 #include "integrator/renderer.h"
 #include "scene/compiled_scene.h"

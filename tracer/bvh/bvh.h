@@ -1,6 +1,6 @@
 // The BVH layout shared by both backends: 4-wide 128-byte nodes in one flat array and a primitive
-// index array that leaves point into. Traversal lives in scene/scene_view.h because it
-// needs the primitives; the host-side binned-SAH builder is declared here.
+// index array that leaves point into. Traversal lives in bvh/traverse.h beside the primitives it
+// tests; the host-side binned-SAH builder is declared here.
 #pragma once
 
 #include <vector>

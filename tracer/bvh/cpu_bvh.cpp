@@ -3,7 +3,7 @@
 // so both traversals find the same hits; tests/bvh_test.cpp checks that on random rays.
 #include "bvh/cpu_bvh.h"
 
-#include "scene/scene_view.h"
+#include "bvh/traverse.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -216,7 +216,7 @@ inline int lowest_lane(int mask) {
 
 // Tests a leaf; returns true when an any-hit query may stop.
 template <bool kAnyHit>
-inline bool leaf_hit(const SceneView& s, const Ray& ray, const SimdRay& r, const CpuLeaf& leaf,
+inline bool leaf_hit(const TraceView& s, const Ray& ray, const SimdRay& r, const CpuLeaf& leaf,
                      uint32_t skip, uint32_t skip2, float& tmax, Hit& hit) {
   const CpuBvhView& b = s.cpu_bvh;
   for (uint32_t i = 0; i < leaf.packet_count; ++i) {
@@ -259,7 +259,7 @@ inline bool leaf_hit(const SceneView& s, const Ray& ray, const SimdRay& r, const
 // Depth-first traversal: each step tests the four boxes of a node, goes on with the nearest child
 // hit (closest-hit queries) or the first (any-hit), and pushes the others, farthest first.
 template <bool kAnyHit>
-Hit traverse_simd(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
+Hit traverse_simd(const TraceView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
   Hit hit;
   if (s.node_count == 0) return hit;
   const vec3 inv_d = 1.0f / ray.d;
@@ -324,22 +324,22 @@ Hit traverse_simd(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t sk
 
 }  // namespace
 
-TRACER_CPU_MULTIVERSION Hit cpu_intersect_closest(const SceneView& s, const Ray& ray,
+TRACER_CPU_MULTIVERSION Hit cpu_intersect_closest(const TraceView& s, const Ray& ray,
                                                   uint32_t skip, uint32_t skip2) {
   return traverse_simd<false>(s, ray, skip, skip2);
 }
 
-TRACER_CPU_MULTIVERSION Hit cpu_intersect_any(const SceneView& s, const Ray& ray, uint32_t skip,
+TRACER_CPU_MULTIVERSION Hit cpu_intersect_any(const TraceView& s, const Ray& ray, uint32_t skip,
                                               uint32_t skip2) {
   return traverse_simd<true>(s, ray, skip, skip2);
 }
 
 #else  // no SSE: never called, since build_cpu_bvh leaves the view empty
 
-Hit cpu_intersect_closest(const SceneView&, const Ray&, uint32_t, uint32_t) {
+Hit cpu_intersect_closest(const TraceView&, const Ray&, uint32_t, uint32_t) {
   return Hit();
 }
-Hit cpu_intersect_any(const SceneView&, const Ray&, uint32_t, uint32_t) {
+Hit cpu_intersect_any(const TraceView&, const Ray&, uint32_t, uint32_t) {
   return Hit();
 }
 

@@ -57,12 +57,12 @@ bool cpu_bvh_supported();
 // The CPU layout of `bvh`. Primitive ids below tri_count are triangles of `tris`.
 CpuBvh build_cpu_bvh(const Bvh& bvh, const std::vector<TriangleVerts>& tris, uint32_t tri_count);
 
-struct SceneView;
+struct TraceView;
 // Nearest hit / any hit in (0, ray.tmax) through the CPU layout, ignoring primitives skip and
-// skip2, with the results of the shared traversal (scene_view.h). Out of line on purpose: the
+// skip2, with the results of the shared traversal (traverse.h). Out of line on purpose: the
 // shared traversal calls them from host code compiled by both g++ and nvcc, which must not see
 // different inline bodies.
-Hit cpu_intersect_closest(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2);
-Hit cpu_intersect_any(const SceneView& s, const Ray& ray, uint32_t skip, uint32_t skip2);
+Hit cpu_intersect_closest(const TraceView& s, const Ray& ray, uint32_t skip, uint32_t skip2);
+Hit cpu_intersect_any(const TraceView& s, const Ray& ray, uint32_t skip, uint32_t skip2);
 
 }  // namespace tracer

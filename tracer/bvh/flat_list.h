@@ -71,7 +71,7 @@ struct FlatList {
   uint32_t quad_blockers = 0, triangle_blockers_end = 0;
   // Faces of the scene's bounding box that one quad covers exactly (the walls, floor and ceiling
   // of a room): the last box_faces quads, after the other hull quads. Queries find the face a ray
-  // meets with one slab test of the box (scene_view.h, flat_box_hit) instead of testing each.
+  // meets with one slab test of the box (traverse.h, flat_box_hit) instead of testing each.
   // box_entry[2 * axis + side] (side 0: the low face, 1: the high one) is the face's entry, or
   // kInvalid where the face is open (no entry covers it whole; what lies there is tested as usual).
   uint32_t box_faces = 0;
@@ -81,7 +81,7 @@ struct FlatList {
   // rotated or sheared) are its faces, entries [6 g, 6 g + 6) of solid g, f = 2 * axis + side in
   // the order of solids[g]'s rows; solids[g] maps world space onto the centred unit cube (each
   // local coordinate in [-1/2, 1/2]), and queries find the face a ray meets with one slab test
-  // in those coordinates (scene_view.h, flat_solid_hit) instead of testing the six quads. The
+  // in those coordinates (traverse.h, flat_solid_hit) instead of testing the six quads. The
   // loops over the quads start after them, at entry 6 * solids.size(). At most kFlatMaxSolids.
   std::vector<FlatPrim> solids;
   uint32_t degenerate = 0;             // triangles of zero area (no ray hits them)

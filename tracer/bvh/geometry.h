@@ -1,18 +1,12 @@
-// Rays, primitives and their intersection routines, shared by CPU and CUDA.
+// Hits, primitives and their intersection routines with rays (core/ray.h), shared by CPU and CUDA.
 // Triangles use the watertight test of Woop, Benthin & Wald (JCGT 2(1), 2013); spheres the
 // cancellation-free quadratic of Haines et al., Ray Tracing Gems (2019), ch. 7.
 #pragma once
 
 #include "core/math.h"
+#include "core/ray.h"
 
 namespace tracer {
-
-struct Ray {
-  vec3 o;
-  float tmax;
-  vec3 d;  // unit length
-  float pad;
-};
 
 struct Hit {
   float t = kInfinity;

@@ -2,8 +2,8 @@
 // focus distance; a lens radius of 0 is a pinhole. Pixel positions are jittered per sample.
 #pragma once
 
-#include "bvh/geometry.h"
 #include "core/features.h"
+#include "core/ray.h"
 #include "core/sampling.h"
 
 namespace tracer {

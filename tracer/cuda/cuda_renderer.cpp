@@ -465,6 +465,13 @@ std::string CudaRenderer::chosen_kernel() const {
   return "";
 }
 
+AutoKernelTimes CudaRenderer::auto_kernel_times() const {
+  AutoKernelTimes t;
+  t.wavefront_ms = impl_->auto_ms[0];
+  t.megakernel_ms = impl_->auto_ms[1];
+  return t;
+}
+
 size_t CudaRenderer::path_state_bytes_per_pixel() const {
   // 10 float4 arrays (8 + the odd bounces' rays), alive flag, two queues + shadow queue +
   // sorted queue + sort key, cached hit.

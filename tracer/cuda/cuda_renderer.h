@@ -30,11 +30,12 @@ class CudaRenderer final : public Renderer {
   // Writes the display image (RGBA8) into device memory, e.g. a mapped OpenGL pixel buffer.
   void display_to_device(void* rgba8, float exposure_scale, ToneMap op) const;
 
-  // Device bytes per pixel of path state and per triangle of BVH + triangles, for reports.
-  size_t path_state_bytes_per_pixel() const;
-  size_t scene_bytes() const;
+  // Device bytes per pixel of path state and of the scene, for reports.
+  size_t path_state_bytes_per_pixel() const override;
+  size_t scene_bytes() const override;
   // The design --kernel auto chose (after its first frames), or the forced one.
-  std::string chosen_kernel() const;
+  std::string chosen_kernel() const override;
+  AutoKernelTimes auto_kernel_times() const override;
 
  private:
   struct Impl;

@@ -8,7 +8,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "scene/diagnostics.h"
+#include "core/diagnostics.h"
 
 namespace tracer {
 namespace {

@@ -9,7 +9,7 @@
 #include <limits>
 #include <string>
 
-#include "scene/diagnostics.h"
+#include "core/diagnostics.h"
 
 namespace tracer {
 namespace {

@@ -19,8 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "core/diagnostics.h"
 #include "image/image.h"
-#include "scene/diagnostics.h"
 
 namespace tracer {
 namespace {

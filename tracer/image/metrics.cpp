@@ -7,8 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/diagnostics.h"
 #include "image/image.h"
-#include "scene/diagnostics.h"
 
 namespace tracer {
 namespace {

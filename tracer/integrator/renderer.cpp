@@ -1,8 +1,24 @@
-// Backend-independent helpers of the Renderer interface: the host display transform and the
-// half-buffer noise estimate.
+// Backend-independent helpers of the Renderer interface: the integrator settings of a scene, the
+// host display transform and the half-buffer noise estimate.
 #include "integrator/renderer.h"
 
 namespace tracer {
+
+IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
+  IntegratorSettings cfg;
+  cfg.width = uint32_t(rs.width);
+  cfg.height = uint32_t(rs.height);
+  cfg.max_depth = uint32_t(rs.max_depth);
+  cfg.rr_start_depth = uint32_t(rs.rr_start_depth);
+  cfg.seed = rs.seed;
+  cfg.nee = rs.nee;
+  cfg.mis = rs.mis;
+  cfg.russian_roulette = rs.russian_roulette;
+  cfg.jitter = rs.jitter;
+  cfg.clamp = rs.clamp;
+  cfg.sampler = rs.sampler;
+  return cfg;
+}
 
 void Renderer::display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const {
   const ImageRGB img = image();

@@ -66,6 +66,11 @@ struct FrameStats {
   std::string note;                        // e.g. why the first-bounce cache is off
 };
 
+// --kernel auto's calibration: milliseconds per sample of each design, from the samples it timed.
+struct AutoKernelTimes {
+  double wavefront_ms = 0, megakernel_ms = 0;
+};
+
 class Renderer {
  public:
   virtual ~Renderer() = default;
@@ -88,13 +93,24 @@ class Renderer {
   virtual void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const;
   // GPU-only switches; the CPU backend ignores them.
   virtual void set_gpu_options(const GpuOptions&) {}
+
+  // Figures for reports (`pathtracer bench`, tests). The defaults are the CPU backend's: it keeps
+  // no path state between stages and no copy of the scene, and has one design.
+  // Bytes per pixel of the path state kept between stages.
+  virtual size_t path_state_bytes_per_pixel() const { return 0; }
+  // Bytes of the scene copied into the backend's own (device) memory.
+  virtual size_t scene_bytes() const { return 0; }
+  // The design that renders: the forced one, the one --kernel auto chose after its first
+  // frames ("auto (not decided yet)" before), or the backend's name where it has one design.
+  virtual std::string chosen_kernel() const { return backend_name(); }
+  // What --kernel auto timed for each design before choosing (zero where it timed nothing).
+  virtual AutoKernelTimes auto_kernel_times() const { return {}; }
 };
+
+// The integrator's settings from a scene's render settings, for set_scene and set_settings.
+IntegratorSettings make_integrator_settings(const RenderSettings& rs);
 
 // relMSE (pbrt's MRSE) between the two half-buffer estimates; their mean's error is about half.
 double half_buffer_relmse(const Renderer& r);
-
-// kAuto: CUDA when built with it and a device exists, else the CPU (with `note` saying why).
-// kCuda without a usable device throws std::runtime_error with the reason.
-std::unique_ptr<Renderer> make_renderer(BackendChoice choice, int cpu_threads, std::string* note);
 
 }  // namespace tracer

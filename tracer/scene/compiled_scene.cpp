@@ -9,22 +9,6 @@ Camera make_camera(const CameraDesc& d, int width, int height) {
                      d.focus_distance, uint32_t(width), uint32_t(height));
 }
 
-IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
-  IntegratorSettings cfg;
-  cfg.width = uint32_t(rs.width);
-  cfg.height = uint32_t(rs.height);
-  cfg.max_depth = uint32_t(rs.max_depth);
-  cfg.rr_start_depth = uint32_t(rs.rr_start_depth);
-  cfg.seed = rs.seed;
-  cfg.nee = rs.nee;
-  cfg.mis = rs.mis;
-  cfg.russian_roulette = rs.russian_roulette;
-  cfg.jitter = rs.jitter;
-  cfg.clamp = rs.clamp;
-  cfg.sampler = rs.sampler;
-  return cfg;
-}
-
 std::string describe_features(uint32_t f) {
   static const struct {
     uint32_t bit;

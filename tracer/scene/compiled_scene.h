@@ -5,7 +5,6 @@
 #include <string>
 #include <vector>
 
-#include "integrator/path.h"
 #include "scene/scene.h"
 #include "scene/scene_view.h"
 
@@ -53,7 +52,6 @@ class CompiledScene {
 };
 
 Camera make_camera(const CameraDesc& desc, int width, int height);
-IntegratorSettings make_integrator_settings(const RenderSettings& rs);
 
 // "depth-of-field, dielectrics, ..." for messages and `pathtracer info`.
 std::string describe_features(uint32_t features);

@@ -12,7 +12,7 @@
 #include <set>
 
 #include "core/math.h"
-#include "integrator/medium.h"
+#include "materials/subsurface.h"
 #include "scene/loader_util.h"
 
 namespace tracer {

@@ -5,7 +5,7 @@
 #include <iterator>
 #include <vector>
 
-#include "scene/diagnostics.h"
+#include "core/diagnostics.h"
 
 namespace tracer {
 

@@ -6,7 +6,7 @@
 
 #include "core/math.h"
 #include "scene/json_lines.h"
-#include "integrator/medium.h"
+#include "materials/subsurface.h"
 #include "scene/loader.h"
 #include "scene/loader_util.h"
 

@@ -5,10 +5,10 @@
 #include <string>
 #include <vector>
 
+#include "core/diagnostics.h"
 #include "core/sobol.h"
 #include "materials/material.h"
 #include "materials/texture.h"
-#include "scene/diagnostics.h"
 #include "scene/settings.h"
 
 namespace tracer {

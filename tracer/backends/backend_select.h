@@ -1,0 +1,45 @@
+// Choosing a backend, and the few things only the CUDA backend has, declared the same in every
+// build: ui/ and app/ reach the backends through this header alone (tracer_backends links the
+// CUDA backend privately, so cuda/ headers are out of their reach).
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "integrator/renderer.h"
+
+namespace tracer {
+
+// kAuto: CUDA when built with it and a device exists, else the CPU (with `note` saying why).
+// kCuda without a usable device throws std::runtime_error with the reason.
+std::unique_ptr<Renderer> make_renderer(BackendChoice choice, int cpu_threads, std::string* note);
+
+// The CUDA backend, or nullptr with the reason when this build has none or no device answers.
+std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not);
+
+// Device-to-device copy bandwidth in GB/s (bytes read + bytes written): the ceiling the
+// wavefront's memory traffic is measured against. Needs the CUDA backend and a device.
+double measure_copy_bandwidth_gbs();
+
+// An OpenGL pixel buffer that the CUDA backend writes its display image into on the device
+// (CUDA/GL interop, cuda/gl_interop.h), so the image skips host memory: registered with CUDA by
+// the constructor, unregistered by the destructor.
+class GlDisplayBuffer {
+ public:
+  // Registers the GL buffer `pbo` (a GL_PIXEL_UNPACK_BUFFER of at least width*height*4 bytes).
+  // Throws when the build has no CUDA backend or the driver cannot share the buffer.
+  explicit GlDisplayBuffer(unsigned int pbo);
+  ~GlDisplayBuffer();
+  GlDisplayBuffer(const GlDisplayBuffer&) = delete;
+  GlDisplayBuffer& operator=(const GlDisplayBuffer&) = delete;
+
+  // Writes the display image of `renderer`, which must be the CUDA backend (backend_name()
+  // "cuda"), into the buffer; the caller then uploads the buffer into its texture.
+  void write_display(const Renderer& renderer, float exposure_scale, ToneMap op);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace tracer
