@@ -72,7 +72,7 @@ TEST(Cli, TimeBudgetRenders) {
   const auto j = nlohmann::json::parse(f);
   // Behaviour, not speed (a loaded machine may be slow): the sidecar records the budget, and the
   // render stopped because the budget was spent, after at least one sample.
-  EXPECT_DOUBLE_EQ(j["settings"]["time_limit_s"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(j["render"]["time_limit_s"].get<double>(), 0.5);
   EXPECT_GE(j["spp"].get<int>(), 1);
   EXPECT_GE(j["wall_time_s"].get<double>(), 0.5);
 }
