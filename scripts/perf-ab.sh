@@ -19,8 +19,17 @@ bench() {  # binary scene-file
   cat /tmp/b.txt >> "$OUT/bench.log"
   grep -E "^(megakernel|wavefront|auto)|bounce rays|bytes_per|bvh" /tmp/b.txt | cut -c1-100
 }
-for s in assets/scenes/cornell_box.json assets/scenes/cornell_closed.json \
-  assets/scenes/cornell_spheres.json /tmp/cornell_bunnies.json assets/scenes/cornell_box.json; do
+# SCENES narrows or widens the run (names in assets/scenes, cornell_bunnies, textured); each scene
+# runs the binaries alternately, so drift in the machine's clocks hits both.
+scene_file() {
+  case "$1" in
+    cornell_bunnies) echo /tmp/cornell_bunnies.json ;;
+    textured) echo assets/scenes/textured.gltf ;;
+    *) echo "assets/scenes/$1.json" ;;
+  esac
+}
+for name in ${SCENES:-cornell_box cornell_closed cornell_spheres cornell_bunnies cornell_box}; do
+  s=$(scene_file "$name")
   for b in ${BINS:-pathtracer-base pathtracer}; do bench "$b" "$s"; done
 done
 NCU=$(command -v ncu || ls /opt/nvidia/nsight-compute/*/ncu /usr/local/cuda/bin/ncu 2>/dev/null | head -1)
