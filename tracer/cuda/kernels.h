@@ -1,6 +1,7 @@
-// Host-callable launchers for the CUDA kernels (defined in kernels.cu). Each takes a
-// specialisation index `spec` (bits: 1 spheres, 2 depth of field, 4 specular materials) and runs
-// the kernel compiled for exactly those features; kGeneralSpec runs the one for all features.
+// Host-callable launchers for the CUDA kernels (each defined beside its kernels: megakernel.cu,
+// wavefront_trace.cu, wavefront_shade.cu, film.cu). Each takes a specialisation index `spec`
+// (bits: 1 spheres, 2 depth of field, 4 specular materials) and runs the kernel compiled for
+// exactly those features; kGeneralSpec runs the one for all features.
 #pragma once
 
 #include <cuda_runtime.h>
