@@ -50,7 +50,7 @@ struct CudaRenderer::Impl {
 
   // Films for the even and the odd samples, and counters.
   DeviceBuffer<float4> film[2];
-  DeviceBuffer<unsigned long long> counters;  // shadow, non-finite, megakernel extension
+  DeviceBuffer<unsigned long long> counters;  // [kCounterCount], indexed by Counter
   uint32_t samples = 0;
   uint64_t nonfinite = 0;
 
@@ -120,7 +120,7 @@ struct CudaRenderer::Impl {
     f.n = n();
     f.clamp = cfg.clamp;
     f.clamped_luminance = clamp_sum.get();
-    f.clamped = counters.get() + 5;
+    f.clamped = counters.get() + kCounterClamped;
     return f;
   }
 
@@ -184,7 +184,7 @@ struct CudaRenderer::Impl {
     shadow_counts.resize(2 * shadow_stride);
     count.resize(1);
     cub_temp.resize(std::max<size_t>(1, compaction_temp_bytes(count_pixels)));
-    counters.resize(8);
+    counters.resize(kCounterCount);
     clamp_sum.resize(1);
     cached_hits.resize(0);
     cache_valid = false;
@@ -359,8 +359,8 @@ struct CudaRenderer::Impl {
     // (An early stop, every path ended, can come before the bounce chosen for the tail.)
     if (!tail_ran) tail_from = 0;
     // Extension rays of the bounces the stages ran (the tail counts its own).
-    launch_add_alive(w.alive_counts, tail_from ? tail_from : iterations + 2, w.counters + 6,
-                     stream);
+    launch_add_alive(w.alive_counts, tail_from ? tail_from : iterations + 2,
+                     w.counters + kCounterExtension, stream);
   }
 };
 
@@ -538,33 +538,33 @@ FrameStats CudaRenderer::render(uint32_t spp) {
       }
     }
     // The wavefront's extension rays (every path alive after a bounce traces one more segment)
-    // are summed on the device (counters[6]), so samples run back to back without a wait.
+    // are summed on the device (kCounterExtension), so samples run back to back without a wait.
     if (mode == KernelMode::kWavefront) ++wavefront_samples;
     if (m.chosen == KernelMode::kAuto && ++m.auto_step == 4) {
       m.chosen = m.auto_ms[0] <= m.auto_ms[1] ? KernelMode::kWavefront : KernelMode::kMegakernel;
     }
     st.kernel = mode == KernelMode::kWavefront ? "wavefront" : "megakernel";
   }
-  unsigned long long c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  unsigned long long c[kCounterCount] = {};
   TRACER_CUDA_CHECK(cudaMemcpyAsync(c, m.counters.get(), sizeof(c), cudaMemcpyDeviceToHost,
                                     m.stream));
   TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
   st.rays.camera = uint64_t(m.n()) * spp;
-  st.rays.shadow = c[0];
-  // counters[2] holds the megakernel's segments, camera rays included.
+  st.rays.shadow = c[kCounterShadow];
+  // The megakernel's segments include its camera rays.
   uint64_t mega_samples = 0;
-  st.rays.extension = c[6];
-  if (c[2] > 0) {
+  st.rays.extension = c[kCounterExtension];
+  if (c[kCounterMegaSegments] > 0) {
     mega_samples = spp - wavefront_samples;
-    st.rays.extension += c[2] - uint64_t(m.n()) * mega_samples;
+    st.rays.extension += c[kCounterMegaSegments] - uint64_t(m.n()) * mega_samples;
   }
-  st.nonfinite = c[1];
-  st.rays.walk_capped = c[3];
-  st.clamped = c[5];
+  st.nonfinite = c[kCounterNonfinite];
+  st.rays.walk_capped = c[kCounterWalkCapped];
+  st.clamped = c[kCounterClamped];
   TRACER_CUDA_CHECK(cudaMemcpy(&st.clamped_luminance, m.clamp_sum.get(), sizeof(double),
                                cudaMemcpyDeviceToHost));
-  st.rays.medium_leaks = c[4];
-  m.nonfinite += c[1];
+  st.rays.medium_leaks = c[kCounterMediumLeak];
+  m.nonfinite += c[kCounterNonfinite];
   m.samples += spp;
   if (m.chosen != KernelMode::kAuto && m.opts.kernel == KernelMode::kAuto) {
     st.note += std::string(st.note.empty() ? "" : "; ") + "kernel auto chose " + chosen_kernel() +

@@ -56,13 +56,14 @@ __device__ __forceinline__ uint32_t path_flags(const WavefrontState& w, uint32_t
 }
 
 // A wavefront path whose sample is complete: its radiance goes to the film, its flags to the
-// counters, and its slot is free (alive 0).
+// counters, and its slot is free (kStatusDone).
 __device__ __forceinline__ void finish_path(const WavefrontState& w, uint32_t id, vec3 L,
                                             uint32_t flags, bool first, const FilmView& film) {
-  add_to_film(film, id, L, first, &w.counters[1]);
-  w.alive[id] = 0;
-  if (flags & kPathWalkCapped) atomicAdd(&w.counters[3], 1ull);  // rare: plain atomics
-  if (flags & kPathMediumLeak) atomicAdd(&w.counters[4], 1ull);
+  add_to_film(film, id, L, first, &w.counters[kCounterNonfinite]);
+  w.alive[id] = kStatusDone;
+  // Rare: plain atomics.
+  if (flags & kPathWalkCapped) atomicAdd(&w.counters[kCounterWalkCapped], 1ull);
+  if (flags & kPathMediumLeak) atomicAdd(&w.counters[kCounterMediumLeak], 1ull);
 }
 
 // One atomic per warp for a per-thread count (warp-aggregated over the active lanes).
@@ -140,13 +141,14 @@ __device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_
 }
 
 // The path a queue slot refers to, or kInvalid when the slot is empty or the path is done. A
-// queue (either compaction) holds only paths with alive == 1, so only the pass over every path
-// reads the flag: for a queued path it would be one more dependent load before the state's.
+// queue (either compaction) holds only paths with alive == kStatusAlive, so only the pass over
+// every path reads the flag: for a queued path it would be one more dependent load before the
+// state's.
 __device__ __forceinline__ uint32_t queued_path(const WavefrontState& w, const uint32_t* queue,
                                                 uint32_t i, uint32_t total) {
   if (i >= total) return kInvalid;
   if (queue) return queue[i];
-  return w.alive[i] == 1 ? i : kInvalid;
+  return w.alive[i] == kStatusAlive ? i : kInvalid;
 }
 
 __device__ __forceinline__ uint32_t queue_total(const WavefrontState& w, const uint32_t* queue,

@@ -93,15 +93,16 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
         st.radiance += sr.contribution;
     }
     if (!go_on) {
-      add_to_film(film, st.pixel, st.radiance, first, &counters[1]);
-      if (st.flags & kPathWalkCapped) atomicAdd(&counters[3], 1ull);  // rare: plain atomics
-      if (st.flags & kPathMediumLeak) atomicAdd(&counters[4], 1ull);
+      add_to_film(film, st.pixel, st.radiance, first, &counters[kCounterNonfinite]);
+      // Rare: plain atomics.
+      if (st.flags & kPathWalkCapped) atomicAdd(&counters[kCounterWalkCapped], 1ull);
+      if (st.flags & kPathMediumLeak) atomicAdd(&counters[kCounterMediumLeak], 1ull);
       alive = false;
     }
   }
-  // The tail's segments are all extension rays, as the wavefront counts them (counters[6]).
-  warp_add(&counters[FromQueue ? 6 : 2], segments);
-  warp_add(&counters[0], shadows);
+  // The tail's segments are all extension rays, as the wavefront counts them.
+  warp_add(&counters[FromQueue ? kCounterExtension : kCounterMegaSegments], segments);
+  warp_add(&counters[kCounterShadow], shadows);
 }
 
 // The megakernel for scenes with a flat primitive list (bvh/flat_list.h). Each lane's shadow
@@ -171,26 +172,27 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_FLAT_MIN_BLOCKS(Spec))
       sr.valid = false;
     }
     if (done_pixel != kInvalid) {
-      add_to_film(film, done_pixel, done_L, first, &counters[1]);
+      add_to_film(film, done_pixel, done_L, first, &counters[kCounterNonfinite]);
       done_pixel = kInvalid;
     }
     if (!alive) continue;
     ++segments;
     const bool go_on = shade_path<F>(s, cfg, st, hit, sr);
     if (!go_on) {
-      if (st.flags & kPathWalkCapped) atomicAdd(&counters[3], 1ull);  // rare: plain atomics
-      if (st.flags & kPathMediumLeak) atomicAdd(&counters[4], 1ull);
+      // Rare: plain atomics.
+      if (st.flags & kPathWalkCapped) atomicAdd(&counters[kCounterWalkCapped], 1ull);
+      if (st.flags & kPathMediumLeak) atomicAdd(&counters[kCounterMediumLeak], 1ull);
       if (sr.valid) {
         done_pixel = st.pixel;
         done_L = st.radiance;
       } else {
-        add_to_film(film, st.pixel, st.radiance, first, &counters[1]);
+        add_to_film(film, st.pixel, st.radiance, first, &counters[kCounterNonfinite]);
       }
       alive = false;
     }
   }
-  warp_add(&counters[FromQueue ? 6 : 2], segments);
-  warp_add(&counters[0], shadows);
+  warp_add(&counters[FromQueue ? kCounterExtension : kCounterMegaSegments], segments);
+  warp_add(&counters[kCounterShadow], shadows);
 }
 
 }  // namespace

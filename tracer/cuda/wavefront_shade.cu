@@ -17,7 +17,7 @@ __global__ void __launch_bounds__(kBlock) generate_kernel(SceneView s, Integrato
   PathState st;
   generate_path<features_of<Spec>()>(s, cfg, id, sample, st);
   store_state(w, id, st);
-  w.alive[id] = 1;
+  w.alive[id] = kStatusAlive;
   if (walks) w.hit[id].y = __uint_as_float(kInvalid);  // camera rays leave from no surface
 }
 
@@ -74,7 +74,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     } else if (!shadow_queue) {
       w.shadow_c[id].w = 0.0f;
     }
-    w.alive[id] = go_on ? 1 : 2;
+    w.alive[id] = go_on ? kStatusAlive : kStatusEnded;
   }
   // Warp-aggregated statistics: shadow rays traced and paths entering the next bounce.
   const unsigned ballot_shadow = __ballot_sync(0xffffffffu, shadow_valid);
@@ -84,7 +84,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   const unsigned ballot_finish = __ballot_sync(0xffffffffu, finish);
   const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
   if (lane == 0 && ballot_shadow)
-    atomicAdd(&w.counters[0], (unsigned long long)__popc(ballot_shadow));
+    atomicAdd(&w.counters[kCounterShadow], (unsigned long long)__popc(ballot_shadow));
   uint32_t* next_count = &w.alive_counts[bounce + 1];
   if (!next_queue && !shadow_queue) {
     if (lane == 0 && ballot_alive) atomicAdd(next_count, uint32_t(__popc(ballot_alive)));
@@ -152,11 +152,11 @@ __global__ void add_alive_kernel(const uint32_t* alive_counts, uint32_t count,
 // there): their samples end now, are added to the film, and are counted as capped walks.
 __global__ void flush_kernel(WavefrontState w, bool first, FilmView film) {
   const uint32_t id = blockIdx.x * blockDim.x + threadIdx.x;
-  if (id >= w.n || w.alive[id] == 0) return;
+  if (id >= w.n || w.alive[id] == kStatusDone) return;
   const float4 r = w.radiance[id];
-  add_to_film(film, id, vec3(r.x, r.y, r.z), first, &w.counters[1]);
-  w.alive[id] = 0;
-  atomicAdd(&w.counters[3], 1ull);
+  add_to_film(film, id, vec3(r.x, r.y, r.z), first, &w.counters[kCounterNonfinite]);
+  w.alive[id] = kStatusDone;
+  atomicAdd(&w.counters[kCounterWalkCapped], 1ull);
 }
 
 __global__ void sort_keys_kernel(SceneView s, WavefrontState w, const uint32_t* queue,
@@ -165,7 +165,7 @@ __global__ void sort_keys_kernel(SceneView s, WavefrontState w, const uint32_t* 
   if (i >= (queue ? *count : w.n)) return;
   const uint32_t id = queue ? queue[i] : i;
   uint32_t key = 7;  // dead paths last
-  if (w.alive[id] == 1) {
+  if (w.alive[id] == kStatusAlive) {
     const uint32_t prim = __float_as_uint(w.hit[id].y);
     if (prim == kInvalid) {
       key = 6;  // escaped
@@ -211,7 +211,7 @@ __global__ void sort_scatter_kernel(WavefrontState w, const uint32_t* queue, con
 
 struct IsAlive {
   const uint8_t* alive;
-  __host__ __device__ bool operator()(uint32_t id) const { return alive[id] == 1; }
+  __host__ __device__ bool operator()(uint32_t id) const { return alive[id] == kStatusAlive; }
 };
 
 }  // namespace

@@ -147,7 +147,8 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
           retired = true;
         } else {
           id = queue && !w.rays_at_slots ? queue[k] : k;  // the ray's index
-          if (queue || w.alive[id] == 1) {  // a finished path takes another one next round
+          // (A finished path's lane takes another one next round.)
+          if (queue || w.alive[id] == kStatusAlive) {
             ray = extension_ray(s, w, id, walks, &skip);
             inv_d = 1.0f / ray.d;
             setup = RayTriSetup(ray, inv_d);
@@ -195,7 +196,7 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
   if (i >= queue_total(w, queue, count)) return;
   const uint32_t id = queue ? queue[i] : i;
   const uint8_t state = w.alive[id];
-  if (state == 0) return;
+  if (state == kStatusDone) return;
   const float4 c = w.shadow_c[id];
   float4 r = w.radiance[id];
   if (c.w != 0.0f) {
@@ -203,10 +204,10 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
       r.x += c.x;
       r.y += c.y;
       r.z += c.z;
-      if (state == 1) w.radiance[id] = r;
+      if (state == kStatusAlive) w.radiance[id] = r;
     }
   }
-  if (state == 2)  // the path ended in this bounce: its sample is complete
+  if (state == kStatusEnded)  // the path ended in this bounce: its sample is complete
     finish_path(w, id, vec3(r.x, r.y, r.z), path_flags(w, id), first, film);
 }
 
@@ -248,9 +249,9 @@ __device__ __forceinline__ void shadow_queued_lane(const SceneView& s, const Wav
     r.x += c.x;
     r.y += c.y;
     r.z += c.z;
-    if (state == 1) w.radiance[id] = r;
+    if (state == kStatusAlive) w.radiance[id] = r;
   }
-  if (state == 2)
+  if (state == kStatusEnded)
     finish_path(w, id, vec3(r.x, r.y, r.z), path_flags(w, id), first, film);
 }
 
