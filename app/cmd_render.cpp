@@ -32,8 +32,7 @@ struct RenderOptions {
   bool quiet = false;
   // GPU switches (ignored by the CPU backend).
   std::string kernel = "auto";
-  std::string compaction = "on", sort = "off", cache = "on", specialize = "on", fetch = "on";
-  std::string flat = "on", slots = "on", fuse = "on";
+  std::string compaction = "on", sort = "off", cache = "on", flat = "on";
   float tail = tracer::GpuOptions().tail_fraction;
   std::string jitter;
   float clamp = -1.0f;  // < 0: the scene's setting
@@ -44,15 +43,9 @@ tracer::GpuOptions gpu_options(const RenderOptions& o) {
   g.kernel = o.kernel == "wavefront"    ? tracer::KernelMode::kWavefront
              : o.kernel == "megakernel" ? tracer::KernelMode::kMegakernel
                                         : tracer::KernelMode::kAuto;
-  using C = tracer::GpuOptions::Compaction;
-  g.compaction = o.compaction != "off";
-  g.compaction_by = o.compaction == "cub" ? C::kCub : o.compaction == "shade" ? C::kShade : C::kAuto;
+  tracer::parse_compaction(o.compaction, &g.compaction);  // (checked by the option)
   g.sort_materials = o.sort == "on";
   g.first_bounce_cache = o.cache == "on";
-  g.specialize = o.specialize == "on";
-  g.dynamic_fetch = o.fetch == "on";
-  g.rays_at_slots = o.slots == "on";
-  g.fused_trace = o.fuse == "on";
   g.flat_list = o.flat == "on";
   g.tail_fraction = o.tail;
   return g;
@@ -204,9 +197,7 @@ int run_render(const RenderOptions& o) {
     if (renderer->backend_name() == "cuda") {
       j["gpu"] = {{"kernel_option", o.kernel}, {"kernel", last_kernel},
                   {"specialization", last_spec}, {"compaction", o.compaction},
-                  {"sort", o.sort}, {"first_bounce_cache", o.cache}, {"fetch", o.fetch},
-                  {"slots", o.slots}, {"fuse", o.fuse}, {"flat", o.flat},
-                  {"specialize", o.specialize},
+                  {"sort", o.sort}, {"first_bounce_cache", o.cache}, {"flat", o.flat},
                   {"note", last_note}};
     }
     j["spp"] = spp_done;
@@ -304,24 +295,13 @@ Runner add_render_command(CLI::App& cmd) {
                  "Compact live path indices after each bounce: shade (the shade kernel appends "
                  "the paths that go on to the next bounce's queue, and the shadow rays to the "
                  "shadow stage's), cub (a CUB select over the alive flags after each bounce), on "
-                 "(shade, but cub for textured scenes) or off")
-      ->check(CLI::IsMember({"on", "shade", "cub", "off"}))->group(gpu)->capture_default_str();
+                 "or auto (shade, but cub for textured scenes) or off")
+      ->check(CLI::IsMember({"on", "auto", "shade", "cub", "off"}))
+      ->group(gpu)
+      ->capture_default_str();
   cmd.add_option("--sort", o->sort, "Sort paths by material before shading")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--cache", o->cache, "First-bounce cache (needs --jitter off and no depth of field)")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--specialize", o->specialize, "Kernels compiled for the scene's features only")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--fetch", o->fetch,
-                 "Wavefront intersect with dynamic fetch: a lane whose ray is done takes the next")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--slots", o->slots,
-                 "Wavefront with the shade kernel's queues: extension rays and hits stored at "
-                 "their queue slots (off: at their paths' ids)")
-      ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
-  cmd.add_option("--fuse", o->fuse,
-                 "Wavefront with rays at their queue slots and the flat list: each bounce's shadow "
-                 "stage and the next bounce's intersect stage as one launch (off: two)")
       ->check(CLI::IsMember({"on", "off"}))->group(gpu)->capture_default_str();
   cmd.add_option("--flat", o->flat,
                  "Scenes of at most 64 primitives (quads count once, spheres twice): every lane "

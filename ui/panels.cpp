@@ -253,19 +253,16 @@ void render_panel(Workbench& wb, PanelState& ps) {
       g.kernel = tracer::KernelMode(kernel);
       gc = true;
     }
-    gc |= ImGui::Checkbox("stream compaction", &g.compaction);
-    if (g.compaction) {
-      int by = int(g.compaction_by);
-      if (ImGui::Combo("compaction by", &by, "auto\0shade kernel\0CUB select\0")) {
-        g.compaction_by = tracer::GpuOptions::Compaction(by);
-        gc = true;
-      }
-      if (ImGui::IsItemHovered())
-        ImGui::SetTooltip("shade kernel: it appends the paths that go on to the next bounce's "
-                          "queue, and queues the shadow rays; CUB select: over the alive flags "
-                          "after each bounce; auto: the shade kernel, CUB on textured scenes");
+    int by = int(g.compaction);  // the order of tracer::Compaction
+    if (ImGui::Combo("compaction", &by, "off\0auto\0shade kernel\0CUB select\0")) {
+      g.compaction = tracer::Compaction(by);
+      gc = true;
     }
-    if (g.compaction) {
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("shade kernel: it appends the paths that go on to the next bounce's "
+                        "queue, and queues the shadow rays; CUB select: over the alive flags "
+                        "after each bounce; auto: the shade kernel, CUB on textured scenes");
+    if (g.compaction != tracer::Compaction::kOff) {
       gc |= ImGui::SliderFloat("tail below", &g.tail_fraction, 0.0f, 1.0f, "%.2f of the pixels");
       if (ImGui::IsItemHovered())
         ImGui::SetTooltip("Wavefront: once fewer paths than this fraction of the pixels remain, "
@@ -273,20 +270,10 @@ void render_panel(Workbench& wb, PanelState& ps) {
     }
     gc |= ImGui::Checkbox("material sorting", &g.sort_materials);
     gc |= ImGui::Checkbox("first-bounce cache", &g.first_bounce_cache);
-    gc |= ImGui::Checkbox("dynamic ray fetch", &g.dynamic_fetch);
-    gc |= ImGui::Checkbox("rays at queue slots", &g.rays_at_slots);
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("Wavefront with the shade kernel's queues: each extension ray and its hit "
-                        "are stored at the path's queue slot, read in whole sectors");
-    gc |= ImGui::Checkbox("fused trace stage", &g.fused_trace);
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("Wavefront with rays at queue slots and the flat list: each bounce's "
-                        "shadow rays and the next bounce's extension rays in one launch");
     gc |= ImGui::Checkbox("flat list (small scenes)", &g.flat_list);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("Scenes of at most 64 primitives: every lane tests every primitive in one "
                         "uniform loop instead of walking the BVH");
-    gc |= ImGui::Checkbox("specialised kernels", &g.specialize);
     if (gc) wb.changed(Edit::kGpuOptions);
     ImGui::TreePop();
   }

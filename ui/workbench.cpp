@@ -350,7 +350,7 @@ std::vector<std::string> Workbench::settable_keys() {
           "render.rr_start_depth", "render.seed", "render.jitter", "render.samples_per_frame",
           "render.clamp", "render.sampler",
           "display.exposure", "display.tonemap", "gpu.kernel", "gpu.compaction", "gpu.tail", "gpu.sort",
-          "gpu.cache", "gpu.specialize", "gpu.fetch", "gpu.slots", "gpu.fuse", "gpu.flat",
+          "gpu.cache", "gpu.flat",
           "backend", "materials.NAME.type",
           "materials.NAME.albedo", "materials.NAME.emission", "materials.NAME.emission_strength",
           "materials.NAME.ior", "materials.NAME.fresnel", "materials.NAME.absorption",
@@ -443,28 +443,20 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
     else return fail("expected auto, wavefront or megakernel");
     changed(Edit::kGpuOptions);
   } else if (key == "gpu.compaction") {
-    using C = tracer::GpuOptions::Compaction;
-    if (value == "cub" || value == "shade" || value == "auto") {
-      gpu_.compaction = true;
-      gpu_.compaction_by = value == "cub" ? C::kCub : value == "shade" ? C::kShade : C::kAuto;
-    } else {
+    if (!tracer::parse_compaction(value, &gpu_.compaction)) {
       if (!parse_bool(value, &b)) return fail("expected on (auto), shade, cub or off");
-      gpu_.compaction = b;
-      gpu_.compaction_by = C::kAuto;
+      gpu_.compaction = b ? tracer::Compaction::kAuto : tracer::Compaction::kOff;
     }
     changed(Edit::kGpuOptions);
   } else if (key == "gpu.tail") {
     if (!number(0.0f, 1.0f)) return fail("expected a fraction of the pixels in [0, 1] (0: off)");
     gpu_.tail_fraction = f[0];
     changed(Edit::kGpuOptions);
-  } else if (key == "gpu.sort" || key == "gpu.cache" ||
-             key == "gpu.specialize" || key == "gpu.fetch" || key == "gpu.slots" ||
-             key == "gpu.fuse" || key == "gpu.flat") {
+  } else if (key == "gpu.sort" || key == "gpu.cache" || key == "gpu.flat") {
     if (!parse_bool(value, &b)) return fail("expected on or off");
-    (key == "gpu.sort" ? gpu_.sort_materials
-     : key == "gpu.cache" ? gpu_.first_bounce_cache : key == "gpu.fetch" ? gpu_.dynamic_fetch
-     : key == "gpu.slots" ? gpu_.rays_at_slots : key == "gpu.fuse" ? gpu_.fused_trace
-     : key == "gpu.flat" ? gpu_.flat_list : gpu_.specialize) = b;
+    (key == "gpu.sort"    ? gpu_.sort_materials
+     : key == "gpu.cache" ? gpu_.first_bounce_cache
+                          : gpu_.flat_list) = b;
     changed(Edit::kGpuOptions);
   } else if (key == "backend") {
     tracer::BackendChoice c;

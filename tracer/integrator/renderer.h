@@ -3,46 +3,16 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "image/image.h"
+#include "integrator/gpu_options.h"
 #include "integrator/path.h"
 #include "scene/compiled_scene.h"
 
 namespace tracer {
-
-// GPU design and speed switches. None of them changes the expected image.
-enum class KernelMode { kAuto, kWavefront, kMegakernel };
-struct GpuOptions {
-  KernelMode kernel = KernelMode::kAuto;
-  // Compact the indices of live paths after each bounce: kShade, the shade kernel appends each
-  // path that goes on to the next bounce's queue (one atomic per block on the count it keeps
-  // anyway; it then also queues the shadow rays, stored at their queue slots, for the shadow
-  // stage); kCub, a CUB select over the alive flags after each bounce; kAuto, kShade except on
-  // textured scenes (where the block's barrier after their long shading cost 10%, PERFORMANCE.md).
-  bool compaction = true;
-  enum class Compaction { kAuto, kShade, kCub } compaction_by = Compaction::kAuto;
-  // The wavefront's tail (with compaction): once a bounce's queue is estimated (from the last
-  // timed sample) to hold fewer paths than this fraction of the pixels, one megakernel launch
-  // runs all their remaining bounces. 0: the stages run every bounce.
-  float tail_fraction = 0.25f;
-  bool sort_materials = false;    // bucket paths by material type before shading
-  bool first_bounce_cache = true; // reuse camera-ray hits (only without jitter and DoF)
-  bool specialize = true;         // kernels compiled for the scene's features only
-  bool dynamic_fetch = true;      // wavefront intersect: lanes take new rays between rounds
-  // Wavefront with compaction in the shade kernel (no sorting, no random walks): each extension
-  // ray and its hit are stored at the path's slot in its bounce's queue, not at its id, so the
-  // intersect and shade kernels read and write them in whole sectors however few paths are left.
-  bool rays_at_slots = true;
-  // With rays at their slots and the flat list: each bounce's shadow stage and the next bounce's
-  // intersect stage run as one launch (the trace stage), as one grid of both stages' blocks.
-  bool fused_trace = true;
-  // ... also the tail's first bounce: its rays are traced with the last staged bounce's shadow
-  // rays, and the tail starts by shading their hits (no shadow stage runs alone before it).
-  bool fused_tail = true;
-  bool flat_list = true;          // small scenes: every lane tests every primitive, no BVH
-};
 
 // The bounce from which the wavefront's tail runs (0: none): the first after the camera rays'
 // whose estimated queue (paths entering each bounce, as measured in an earlier sample; a bounce
@@ -55,8 +25,8 @@ uint32_t wavefront_tail_bounce(const std::vector<uint32_t>& estimate, float frac
 struct BounceTimes {
   double intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
   // The fused trace stage that traced this bounce's extension rays together with the previous
-  // bounce's shadow rays (GpuOptions::fused_trace; then intersect is 0 here and the previous
-  // bounce's shadow is 0).
+  // bounce's shadow rays (EffectiveGpuOptions::fused_trace; then intersect is 0 here and the
+  // previous bounce's shadow is 0).
   double trace = 0;
 };
 
@@ -96,6 +66,9 @@ struct FrameStats {
   std::string kernel;                      // "wavefront", "megakernel", "cpu"
   std::string specialization;              // which compiled variant ran
   std::string note;                        // e.g. why the first-bounce cache is off
+  // The GPU backend: the switches and design paths that ran, and what overrode the request and
+  // why (EffectiveGpuOptions::overrides, describe()). Empty on the CPU.
+  std::optional<EffectiveGpuOptions> gpu;
 };
 
 class Renderer {
