@@ -1,9 +1,11 @@
 // `pathtracer bench`: speed figures measured side by side in one run. On the GPU it times the
 // megakernel and the wavefront with each switch (compaction in the shade kernel or by CUB, the
-// tail, material sorting, specialisation, first-bounce cache), with per-stage times (also per
+// tail, material sorting, first-bounce cache, the flat list), with per-stage times (also per
 // bounce), paths alive per bounce, bytes moved per segment and the achieved bandwidth against the
-// device's measured copy bandwidth; it also times the CPU
-// backend on the same scene so the CPU/GPU ratio comes from one run.
+// device's measured copy bandwidth; it also times the CPU backend on the same scene so the
+// CPU/GPU ratio comes from one run. The engineering baselines (no dynamic fetch, general kernels,
+// rays at ids, unfused stages) are build variants (gpu_options.h): a variant build labels its
+// rows with its name.
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
@@ -40,6 +42,7 @@ struct Config {
 
 struct Result {
   std::string name, kernel, specialization, note;
+  std::string gpu_options;  // EffectiveGpuOptions::describe() (GPU only)
   // ms_per_spp: one call of `spp` samples, back to back as a progressive render runs them;
   // ms_per_frame: the median of one-sample calls, each waited for (what one display update of
   // the workbench costs, the host's synchronisation included).
@@ -106,6 +109,7 @@ Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
       res.kernel = st.kernel;
       res.specialization = st.specialization;
       res.note = st.note;
+      if (st.gpu) res.gpu_options = st.gpu->describe();
     }
   }
   std::sort(ms.begin(), ms.end());
@@ -162,7 +166,8 @@ nlohmann::json to_json(const Result& r) {
           {"fused_trace", r.stages.fused_trace},
           {"tail_ms", r.stages.tail},
           {"bounce_stage_ms", bounce_json(r.stages)},
-          {"note", r.note}};
+          {"note", r.note},
+          {"gpu_options", r.gpu_options}};
 }
 
 int run_bench(const BenchOptions& o) {
@@ -212,56 +217,51 @@ int run_bench(const BenchOptions& o) {
     out["device"] = gpu->device_name();
     out["copy_bandwidth_GBps"] = copy_gbs;
     std::vector<Config> configs;
+    // A variant build's rows carry its name: "wavefront+compaction [unfused]".
+    const std::string variant = tracer::gpu_build_variant();
+    std::printf("build variant: %s\n", variant.c_str());
+    out["build_variant"] = variant;
+    const std::string label = variant == "default" ? "" : " [" + variant + "]";
+    using C = tracer::Compaction;
     auto add = [&](const std::string& name, tracer::KernelMode k, bool compaction, bool sort,
-                   bool specialize, bool jitter = true) {
+                   bool jitter = true) {
       Config c;
-      c.name = name;
+      c.name = name + label;
       c.gpu.kernel = k;
-      c.gpu.compaction = compaction;
+      c.gpu.compaction = compaction ? C::kAuto : C::kOff;
       c.gpu.sort_materials = sort;
-      c.gpu.specialize = specialize;
       c.gpu.first_bounce_cache = !jitter;
       c.gpu.tail_fraction = o.tail;
       c.jitter = jitter;
       configs.push_back(c);
     };
     using K = tracer::KernelMode;
-    add("megakernel, general", K::kMegakernel, false, false, false);
-    add("megakernel, specialized", K::kMegakernel, false, false, true);
-    add("wavefront, general", K::kWavefront, false, false, false);
-    add("wavefront", K::kWavefront, false, false, true);
-    add("wavefront+compaction", K::kWavefront, true, false, true);
-    add("wavefront+compaction (in shade)", K::kWavefront, true, false, true);
-    configs.back().gpu.compaction_by = tracer::GpuOptions::Compaction::kShade;
-    add("wavefront+compaction (CUB)", K::kWavefront, true, false, true);
-    configs.back().gpu.compaction_by = tracer::GpuOptions::Compaction::kCub;
-    add("wavefront+compaction, no tail", K::kWavefront, true, false, true);
+    add("megakernel, specialized", K::kMegakernel, false, false);
+    add("wavefront", K::kWavefront, false, false);
+    add("wavefront+compaction", K::kWavefront, true, false);
+    add("wavefront+compaction (in shade)", K::kWavefront, true, false);
+    configs.back().gpu.compaction = C::kShade;
+    add("wavefront+compaction (CUB)", K::kWavefront, true, false);
+    configs.back().gpu.compaction = C::kCub;
+    add("wavefront+compaction, no tail", K::kWavefront, true, false);
     configs.back().gpu.tail_fraction = 0.0f;
-    add("wavefront+compaction, no fetch", K::kWavefront, true, false, true);
-    configs.back().gpu.dynamic_fetch = false;
-    add("wavefront+compaction, rays at ids", K::kWavefront, true, false, true);
-    configs.back().gpu.rays_at_slots = false;
-    add("wavefront+compaction, unfused", K::kWavefront, true, false, true);
-    configs.back().gpu.fused_trace = false;
-    add("wavefront+compaction, fused but not the tail's", K::kWavefront, true, false, true);
-    configs.back().gpu.fused_tail = false;
-    add("wavefront+compaction+sorting", K::kWavefront, true, true, true);
-    add("wavefront+sorting", K::kWavefront, false, true, true);
+    add("wavefront+compaction+sorting", K::kWavefront, true, true);
+    add("wavefront+sorting", K::kWavefront, false, true);
     if (o.jitter_off_configs && !(cs.features() & tracer::kFeatureDepthOfField)) {
-      add("wavefront+compaction, no jitter", K::kWavefront, true, false, true, false);
+      add("wavefront+compaction, no jitter", K::kWavefront, true, false, false);
       Config c = configs.back();
-      c.name = "wavefront+compaction+cache, no jitter";
+      c.name = "wavefront+compaction+cache, no jitter" + label;
       c.gpu.first_bounce_cache = true;
       configs.push_back(c);
       configs[configs.size() - 2].gpu.first_bounce_cache = false;
     }
     if (cs.flat_list().enabled) {  // small scenes: the same designs through the BVH instead
-      add("megakernel, specialized, BVH", K::kMegakernel, false, false, true);
+      add("megakernel, specialized, BVH", K::kMegakernel, false, false);
       configs.back().gpu.flat_list = false;
-      add("wavefront+compaction, BVH", K::kWavefront, true, false, true);
+      add("wavefront+compaction, BVH", K::kWavefront, true, false);
       configs.back().gpu.flat_list = false;
     }
-    add("auto", K::kAuto, true, false, true);
+    add("auto", K::kAuto, true, false);
     for (const Config& c : configs) results.push_back(run_config(*gpu, cs, cfg, c, o.spp));
     for (const auto& r : results) gpu_best = std::max(gpu_best, r.segments_per_s);
     out["path_state_bytes_per_pixel"] = gpu->path_state_bytes_per_pixel();
@@ -278,7 +278,7 @@ int run_bench(const BenchOptions& o) {
                   r.kernel.c_str(), r.ms_per_spp, r.segments_per_s / 1e6, r.rays_per_s / 1e6,
                   r.rays.extension / 1e6, r.rays.shadow / 1e6, r.ms_per_frame);
     }
-    std::printf("specialization for this scene: %s\n", results[1].specialization.c_str());
+    std::printf("specialization for this scene: %s\n", results.front().specialization.c_str());
     if (!results.back().note.empty()) std::printf("auto: %s\n", results.back().note.c_str());
 
     // Stage breakdown and bandwidth of each wavefront configuration; per bounce for the
@@ -457,8 +457,8 @@ int run_bench(const BenchOptions& o) {
     const Result* in_shade = nullptr;
     const Result* by_cub = nullptr;
     for (const auto& r : results) {
-      if (r.name == "wavefront+compaction (in shade)") in_shade = &r;
-      if (r.name == "wavefront+compaction (CUB)") by_cub = &r;
+      if (r.name == "wavefront+compaction (in shade)" + label) in_shade = &r;
+      if (r.name == "wavefront+compaction (CUB)" + label) by_cub = &r;
     }
     // (Only when both ran the same bounces through their stages.)
     if (in_shade && by_cub && in_shade->alive.size() > 1 && by_cub->stages.compact > 0 &&

@@ -53,7 +53,7 @@ struct Config {
 
 const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
 const std::vector<std::string> kModifiers = {
-    "no-compaction", "cub-compaction", "shade-compaction", "no-tail", "unfused", "sorting", "general", "no-fetch", "no-rr",
+    "no-compaction", "cub-compaction", "shade-compaction", "no-tail", "sorting", "no-rr",
     "no-nee",        "no-mis",         "schlick", "depth=N", "clamp=X",  "random",
     "sobol",         "sobol-pairs",    "scalar-bvh", "no-flat", "flat"};
 
@@ -98,21 +98,15 @@ Config parse_config(const std::string& text) {
       return x;
     };
     if (m == "no-compaction")
-      c.gpu.compaction = false;
+      c.gpu.compaction = tracer::Compaction::kOff;
     else if (m == "cub-compaction")
-      c.gpu.compaction_by = tracer::GpuOptions::Compaction::kCub;
+      c.gpu.compaction = tracer::Compaction::kCub;
     else if (m == "shade-compaction")
-      c.gpu.compaction_by = tracer::GpuOptions::Compaction::kShade;
+      c.gpu.compaction = tracer::Compaction::kShade;
     else if (m == "no-tail")
       c.gpu.tail_fraction = 0.0f;
-    else if (m == "unfused")
-      c.gpu.fused_trace = false;
     else if (m == "sorting")
       c.gpu.sort_materials = true;
-    else if (m == "general")
-      c.gpu.specialize = false;
-    else if (m == "no-fetch")
-      c.gpu.dynamic_fetch = false;
     else if (m == "no-flat" || m == "flat") {
       if (c.cpu != (m == "flat"))
         throw std::invalid_argument("\"" + m + "\" in \"" + text + "\" applies to " +
@@ -154,7 +148,7 @@ Config parse_config(const std::string& text) {
       const std::string guess = tracer::did_you_mean(m, kModifiers);
       throw std::invalid_argument("unknown modifier \"" + m + "\" in \"" + text + "\"" +
                                   (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") +
-                                  "; modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, unfused, sorting, general, no-fetch, no-rr, no-nee, "
+                                  "; modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, sorting, no-rr, no-nee, "
                                   "no-mis, schlick, depth=N, clamp=X, random, sobol, sobol-pairs, "
                                   "scalar-bvh, no-flat, flat");
     }
@@ -164,7 +158,7 @@ Config parse_config(const std::string& text) {
 
 std::string default_suite(bool gpu) {
   if (gpu)
-    return "megakernel,wavefront,wavefront+no-compaction,wavefront+sorting,megakernel+general,"
+    return "megakernel,wavefront,wavefront+no-compaction,wavefront+sorting,"
            "megakernel+no-rr,megakernel+no-nee,megakernel+no-mis,megakernel+schlick,"
            "megakernel+depth=4,megakernel+clamp=10,megakernel+random,megakernel+sobol-pairs,cpu";
   return "cpu,cpu+scalar-bvh,cpu+random,cpu+sobol-pairs,cpu+no-rr,cpu+no-nee,cpu+no-mis,"
@@ -444,7 +438,8 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
       ->group(g);
   cmd.add_option("--configs", o->configs,
                  "Comma-separated configurations: cpu|megakernel|wavefront|auto, each with "
-                 "+modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, unfused, sorting, general, no-fetch, no-rr, no-nee, no-mis, schlick, "
+                 "+modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, sorting, "
+                 "no-rr, no-nee, no-mis, schlick, "
                  "depth=N, clamp=X, random, sobol, sobol-pairs (the sampler), scalar-bvh (CPU: "
                  "the GPU's "
                  "scalar traversal instead of SSE), no-flat (GPU: the BVH also for small "
@@ -506,6 +501,9 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
       configs.push_back(parse_config(t));
       if (!configs.back().cpu && !gpu)
         throw std::invalid_argument("configuration \"" + t + "\" needs the GPU: " + why);
+      // A build variant's GPU rows carry its name (gpu_options.h), e.g. "wavefront [unfused]".
+      if (!configs.back().cpu && tracer::gpu_build_variant() != "default")
+        configs.back().name += " [" + tracer::gpu_build_variant() + "]";
     }
     if (configs.empty()) throw std::invalid_argument("--configs names no configuration");
   } catch (const std::invalid_argument& e) {
@@ -535,6 +533,7 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
   std::printf("scene %s: %dx%d, max depth %d; features: %s\n",
               settings["scene"].get<std::string>().c_str(), rs.width, rs.height, rs.max_depth,
               tracer::describe_features(cs.features()).c_str());
+  if (gpu) std::printf("GPU build variant: %s\n", tracer::gpu_build_variant().c_str());
   std::string ext = std::filesystem::path(ref_path).extension().string();
   for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
   if (ext != ".exr") {
@@ -629,6 +628,7 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
                          {"reference_floor_relmse", floor_terms.reference_floor},
                          {"time_limit_s", o.time_limit}};
   if (gpu) meta["gpu"] = gpu->device_name();
+  if (gpu) meta["gpu_build_variant"] = tracer::gpu_build_variant();
   meta["cpu"] = cpu.device_name();
   try {
     write_outputs(o.out_dir, sweeps,

@@ -5,12 +5,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh >/dev/null
-# VARIANT=name EXTRA_CUDA_FLAGS=... builds an experimental variant into .devbuild/dist-name.
+# VARIANT=name EXTRA_CUDA_FLAGS=... EXTRA_CXX_FLAGS=... builds an experimental variant into
+# .devbuild/dist-name: kernel macros (e.g. -DTRACER_MEGA_MIN_BLOCKS=3) go in EXTRA_CUDA_FLAGS, the
+# GPU build variants of tracer/integrator/gpu_options.h (e.g. -DTRACER_VARIANT_UNFUSED, read by
+# host code) in EXTRA_CXX_FLAGS. The flags are set when VARIANT's build folder is configured.
 BUILD=.devbuild/build${VARIANT:+-$VARIANT}
 DIST=.devbuild/dist${VARIANT:+-$VARIANT}
 if [ ! -f "$BUILD/build.ninja" ]; then
   cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 \
-    -DCMAKE_CUDA_FLAGS="${EXTRA_CUDA_FLAGS:-}" \
+    -DCMAKE_CUDA_FLAGS="${EXTRA_CUDA_FLAGS:-}" -DCMAKE_CXX_FLAGS="${EXTRA_CXX_FLAGS:-}" \
     -DCMAKE_CUDA_COMPILER=/usr/local/cuda/bin/nvcc \
     -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_CUDA_COMPILER_LAUNCHER=ccache >/dev/null
 fi

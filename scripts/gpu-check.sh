@@ -4,11 +4,14 @@
 # closed), the glass/mirror box and the bunny box. Figures go to $OUT (at most 8 files).
 #   here:   scripts/build-device.sh      (builds .devbuild/dist)
 #   device: run(command="scripts/gpu-check.sh", carry=[".devbuild/dist"])
+# A build variant (tracer/integrator/gpu_options.h) runs the same way from its own folder, e.g.
+#   here:   VARIANT=unfused EXTRA_CXX_FLAGS=-DTRACER_VARIANT_UNFUSED scripts/build-device.sh
+#   device: run(command="DIST=.devbuild/dist-unfused scripts/gpu-check.sh bench", ...)
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/gpu-check}
 mkdir -p "$OUT"
-DIST=.devbuild/dist
+DIST=${DIST:-.devbuild/dist}
 export TRACER_SOURCE_DIR=$PWD
 LOG=$OUT/gpu-check.log
 exec > >(tee "$LOG") 2>&1
@@ -111,7 +114,9 @@ fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction
   # (its shared memory and barriers), CUB, sorting, the megakernel tail, random walks, the BVH,
-  # the fused trace stage (rays at their slots; with spheres, and with and without a tail).
+  # the fused trace stage (rays at their slots; with spheres, and with and without a tail). The
+  # baselines that are build variants now (no fetch, rays at ids over the shade kernel's queues,
+  # the unfused stages) are sanitized by running this against a variant's DIST.
   CS=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
   echo "== compute-sanitizer ($CS)"
   for tool in racecheck synccheck memcheck; do

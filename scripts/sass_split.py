@@ -60,10 +60,10 @@ def read_counts(path):
     return out
 
 
-# Call sites in the megakernel (kernels.cu) and the files below them, in order of precedence.
+# Call sites in the megakernel (megakernel.cu) and the files below them, in order of precedence.
 def classify(chain, sites):
     files = [f for f, _ in chain]
-    outer = next(((f, n) for f, n in reversed(chain) if f == "kernels.cu"), None)
+    outer = next(((f, n) for f, n in reversed(chain) if f == "megakernel.cu"), None)
     site = sites.get(outer[1], "kernel loop") if outer else "kernel loop"
     if site in ("closest traversal", "shadow traversal"):
         if "geometry.h" in files:
@@ -96,11 +96,11 @@ def main():
     bad = sum(1 for i in range(n)
               if insns[i][1].split()[0].lstrip("@!P0123456789T") not in counts[i][1])
     print(f"joined {n} by position, {bad} opcode mismatches")
-    # The megakernel's call sites, found in a copy of kernels.cu beside this script or in tracer/.
+    # The megakernel's call sites, from a copy of megakernel.cu beside this script or tracer/'s.
     import os
     here = os.path.dirname(os.path.abspath(__file__))
-    src = next(p for p in (os.path.join(here, "kernels.cu"), os.path.join(here, "..", "tracer",
-               "cuda", "kernels.cu")) if os.path.exists(p))
+    src = next(p for p in (os.path.join(here, "megakernel.cu"), os.path.join(here, "..", "tracer",
+               "cuda", "megakernel.cu")) if os.path.exists(p))
     named, in_mk = {}, False
     for ln, text in enumerate(open(src), 1):
         in_mk = in_mk or "megakernel(SceneView" in text

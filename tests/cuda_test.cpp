@@ -1,10 +1,11 @@
 // GPU tests (ctest label `gpu`): the CUDA backend renders what the CPU backend renders. With the
 // same seed both trace the same paths, so most pixels agree to rounding; with different seeds the
 // images agree statistically (4x4-block z-test against CPU variances). Compaction, material
-// sorting, the first-bounce cache, specialisation and the megakernel never change the image.
-// Every test skips, saying why, when no CUDA device is present.
+// sorting, the first-bounce cache, the flat list, the tail and the megakernel never change the
+// image. Every test skips, saying why, when no CUDA device is present.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -134,87 +135,89 @@ TEST(Gpu, MatchesCpuOnEveryAsset) {
   }
 }
 
+// Every combination of the switches that a scene's resolution tells apart (kernel x compaction x
+// sorting x first-bounce cache x flat list x tail) renders the image of the plain wavefront (the
+// same seed: the same paths, so the same pixels to rounding), runs the design that
+// resolve_gpu_options chose and reports it. The megakernel ignores the wavefront's switches: it
+// runs with and without the flat list. (Dynamic fetch, specialisation, rays at ids and the
+// unfused stages are build variants, no longer switches: a variant build runs this test through
+// its own paths, against its own plain wavefront.)
 TEST(Gpu, SwitchesNeverChangeTheImage) {
   REQUIRE_GPU(gpu);
   RenderSettings rs;
   const Scene s = small_asset("cornell_spheres.json", &rs);
+  rs.jitter = false;  // (else the first-bounce cache never runs)
+  const CompiledScene cs(s, rs.width, rs.height);
+  // The scene is small enough for the flat list. Through the BVH a different (watertight) test
+  // rounds differently, so a few paths that graze an edge may go elsewhere: the same images to
+  // rounding, alive counts not compared.
+  ASSERT_TRUE(cs.flat_list().enabled);
+  const GpuSceneTraits traits = gpu_scene_traits(cs, make_integrator_settings(rs));
   GpuOptions plain;
   plain.kernel = KernelMode::kWavefront;
-  plain.compaction = false;
-  plain.sort_materials = false;
-  plain.specialize = false;
+  plain.compaction = Compaction::kOff;
+  plain.first_bounce_cache = false;
   FrameStats base_stats;
   const ImageRGB base = render_gpu(*gpu, s, rs, 64, plain, &base_stats);
-  struct Variant {
-    const char* name;
-    GpuOptions o;
-  };
-  std::vector<Variant> variants;
-  GpuOptions o = plain;
-  o.compaction = true;
-  o.compaction_by = GpuOptions::Compaction::kShade;  // also on this specular scene
-  o.tail_fraction = 0.0f;
-  variants.push_back({"compaction (in the shade kernel), no tail", o});
-  o.tail_fraction = 0.6f;  // the tail from an early bounce on
-  variants.push_back({"compaction, tail below 0.6", o});
-  o.tail_fraction = GpuOptions().tail_fraction;
-  variants.push_back({"compaction (in the shade kernel)", o});
-  GpuOptions at_ids = o;  // the rays and hits at their paths' ids instead of their queue slots
-  at_ids.rays_at_slots = false;
-  variants.push_back({"compaction, rays at their ids", at_ids});
-  GpuOptions unfused = o;  // the shadow and the next intersect stage as two launches
-  unfused.fused_trace = false;
-  variants.push_back({"compaction, trace stage unfused", unfused});
-  GpuOptions cub = o;
-  cub.compaction_by = GpuOptions::Compaction::kCub;
-  variants.push_back({"compaction (CUB select)", cub});
-  cub.sort_materials = true;
-  variants.push_back({"compaction (CUB select)+sorting", cub});
-  o.sort_materials = true;
-  variants.push_back({"compaction+sorting", o});
-  o.specialize = true;
-  variants.push_back({"compaction+sorting+specialized", o});
-  GpuOptions no_fetch = o;
-  no_fetch.dynamic_fetch = false;
-  variants.push_back({"one thread per ray (no fetch)", no_fetch});
-  GpuOptions sort_only = plain;
-  sort_only.sort_materials = true;
-  variants.push_back({"sorting without compaction", sort_only});
-  GpuOptions mega = plain;
-  mega.kernel = KernelMode::kMegakernel;
-  variants.push_back({"megakernel", mega});
-  mega.specialize = true;
-  variants.push_back({"megakernel specialized", mega});
-  // The scene is small enough for the flat list, which every variant above uses. Through the
-  // BVH a different (watertight) test rounds differently, so a few paths that graze an edge
-  // may go elsewhere: same images to rounding, alive counts not compared.
-  ASSERT_TRUE(CompiledScene(s, rs.width, rs.height).flat_list().enabled);
   EXPECT_NE(base_stats.specialization.find("flat list"), std::string::npos)
       << base_stats.specialization;
-  GpuOptions bvh = plain;
-  bvh.flat_list = false;
-  variants.push_back({"BVH instead of the flat list", bvh});
-  bvh.compaction = true;  // the dynamic-fetch intersect kernel over the shade kernel's queue
-  variants.push_back({"BVH, compaction", bvh});
-  mega.flat_list = false;
-  variants.push_back({"megakernel specialized, BVH", mega});
-  for (const auto& v : variants) {
-    FrameStats st;
-    const ImageRGB img = render_gpu(*gpu, s, rs, 64, v.o, &st);
-    const double same = identical_fraction(img, base);
-    std::printf("%-32s identical %.4f (%s)\n", v.name, same, st.specialization.c_str());
-    EXPECT_GT(same, 0.97) << v.name;
-    EXPECT_EQ(st.specialization.find("BVH") != std::string::npos, !v.o.flat_list) << v.name;
-    // With a tail the counts end at the bounce it took over (the first call's first sample
-    // has no estimate yet, so only later calls use it): a prefix of the plain wavefront's.
-    if (v.o.kernel == KernelMode::kWavefront && !base_stats.alive_per_bounce.empty() &&
-        v.o.flat_list) {
-      ASSERT_LE(st.alive_per_bounce.size(), base_stats.alive_per_bounce.size()) << v.name;
-      EXPECT_TRUE(std::equal(st.alive_per_bounce.begin(), st.alive_per_bounce.end(),
-                             base_stats.alive_per_bounce.begin()))
-          << v.name;
-    }
-  }
+  std::printf("build variant %s\n", gpu_build_variant().c_str());
+  std::vector<EffectiveGpuOptions> ran;  // the distinct designs, each rendered once
+  auto same_design = [](const EffectiveGpuOptions& a, const EffectiveGpuOptions& b) {
+    return a.options == b.options && a.rays_at_slots == b.rays_at_slots &&
+           a.fused_trace == b.fused_trace && a.fused_tail == b.fused_tail &&
+           a.dynamic_fetch == b.dynamic_fetch && a.spec == b.spec;
+  };
+  for (const KernelMode kernel : {KernelMode::kWavefront, KernelMode::kMegakernel})
+    for (const Compaction compaction :
+         {Compaction::kOff, Compaction::kAuto, Compaction::kShade, Compaction::kCub})
+      for (const bool sort : {false, true})
+        for (const bool cache : {false, true})
+          for (const bool flat : {true, false})
+            for (const float tail : {0.0f, GpuOptions().tail_fraction, 0.6f}) {
+              GpuOptions o;
+              o.kernel = kernel;
+              o.compaction = compaction;
+              o.sort_materials = sort;
+              o.first_bounce_cache = cache;
+              o.flat_list = flat;
+              o.tail_fraction = tail;  // 0.6: the tail from an early bounce on
+              if (kernel == KernelMode::kMegakernel &&
+                  (compaction != Compaction::kOff || sort || cache || tail != 0.0f))
+                continue;
+              const EffectiveGpuOptions want = resolve_gpu_options(o, traits);
+              if (std::any_of(ran.begin(), ran.end(),
+                              [&](const EffectiveGpuOptions& e) { return same_design(e, want); }))
+                continue;
+              ran.push_back(want);
+              FrameStats st;
+              const ImageRGB img = render_gpu(*gpu, s, rs, 64, o, &st);
+              const std::string what = want.describe();
+              const double same = identical_fraction(img, base);
+              std::printf("identical %.4f: %s\n", same, what.c_str());
+              EXPECT_GT(same, 0.97) << what;
+              ASSERT_TRUE(st.gpu.has_value()) << what;
+              EXPECT_TRUE(same_design(*st.gpu, want)) << what << "\nran: " << st.gpu->describe();
+              EXPECT_EQ(st.kernel, kernel == KernelMode::kWavefront ? "wavefront" : "megakernel");
+              EXPECT_EQ(st.specialization.find("BVH") != std::string::npos, !want.options.flat_list)
+                  << what;
+              if (kernel != KernelMode::kWavefront) continue;
+              EXPECT_EQ(st.stages.rays_at_slots, want.rays_at_slots) << what;
+              EXPECT_EQ(st.stages.fused_trace, want.fused_trace) << what;
+              // With a tail the counts end at the bounce it took over (the first call's first
+              // sample has no estimate yet, so only later calls use it): a prefix of the plain
+              // wavefront's.
+              if (!base_stats.alive_per_bounce.empty() && want.options.flat_list) {
+                ASSERT_LE(st.alive_per_bounce.size(), base_stats.alive_per_bounce.size()) << what;
+                EXPECT_TRUE(std::equal(st.alive_per_bounce.begin(), st.alive_per_bounce.end(),
+                                       base_stats.alive_per_bounce.begin()))
+                    << what;
+              }
+            }
+  // Off: 2 sortings x 2 caches x 2 accelerations; shade (= auto here) and CUB: 2 x 2 x 2 x 3
+  // tails each; the megakernel: 2 accelerations.
+  std::printf("%zu designs\n", ran.size());
+  EXPECT_EQ(ran.size(), 8u + 2 * 24u + 2u);
 }
 
 // With compaction in the shade kernel the shade kernel also queues the paths that have a shadow
@@ -232,14 +235,14 @@ TEST(Gpu, ShadowQueueHoldsEveryShadowRay) {
     o.kernel = KernelMode::kWavefront;
     o.tail_fraction = 0.0f;
     FrameStats one, queued, cub;
-    auto run = [&](GpuOptions::Compaction by, FrameStats* st, uint32_t spp) {
-      o.compaction_by = by;
+    auto run = [&](Compaction by, FrameStats* st, uint32_t spp) {
+      o.compaction = by;
       gpu->set_gpu_options(o);
       gpu->set_scene(cs, make_integrator_settings(rs));
       *st = gpu->render(spp);
       return gpu->image();
     };
-    run(GpuOptions::Compaction::kShade, &one, 1);
+    run(Compaction::kShade, &one, 1);
     uint64_t queued_rays = 0;
     for (uint32_t k : one.shadow_per_bounce) queued_rays += k;
     EXPECT_EQ(queued_rays, one.rays.shadow) << name;
@@ -251,8 +254,8 @@ TEST(Gpu, ShadowQueueHoldsEveryShadowRay) {
       const uint32_t on = b + 1 < one.alive_per_bounce.size() ? one.alive_per_bounce[b + 1] : 0;
       EXPECT_LE(one.finished_per_bounce[b], in - on) << name << " bounce " << b;
     }
-    const ImageRGB a = run(GpuOptions::Compaction::kShade, &queued, 32);
-    const ImageRGB b = run(GpuOptions::Compaction::kCub, &cub, 32);
+    const ImageRGB a = run(Compaction::kShade, &queued, 32);
+    const ImageRGB b = run(Compaction::kCub, &cub, 32);
     EXPECT_TRUE(cub.shadow_per_bounce.empty()) << name;
     const double same = identical_fraction(a, b);
     std::printf("%-22s shadow queue against CUB's pass: identical %.4f, shadow rays %llu / %llu\n",
@@ -280,7 +283,7 @@ TEST(Gpu, TailRunsTheSamePaths) {
         GpuOptions o;
         o.kernel = KernelMode::kWavefront;
         o.flat_list = flat;
-        o.compaction_by = cub ? GpuOptions::Compaction::kCub : GpuOptions::Compaction::kShade;
+        o.compaction = cub ? Compaction::kCub : Compaction::kShade;
         o.tail_fraction = 0.0f;
         FrameStats plain, tail;
         auto run = [&](const GpuOptions& opts, FrameStats* st) {
@@ -319,7 +322,11 @@ TEST(Gpu, TailRunsTheSamePaths) {
 // traced hits): the same work, so the same image (each pixel's film sum is added once per
 // sample, whatever the order of launches), the same queues and the same ray counts as the two
 // stages apart; with a tail and without one, with and without spheres. Its time is reported
-// per bounce.
+// per bounce. The stages run apart where material sorting keeps the rays at their paths' ids
+// (the same shade kernel's queues, shadow queue and flat list; sorting reorders only the shade
+// kernel's paths, each shaded as before). A build without the fused stage (the unfused and
+// rays-at-ids variants) skips the test; one without the tail's fusion (unfused-tail) checks the
+// tail traced by the tail itself.
 TEST(Gpu, FusedTraceStageIsTheTwoStages) {
   REQUIRE_GPU(gpu);
   for (const char* name : {"cornell_box.json", "cornell_spheres.json", "smallpt.json"}) {
@@ -328,15 +335,14 @@ TEST(Gpu, FusedTraceStageIsTheTwoStages) {
     rs.max_depth = 8;  // every bounce staged without a tail (no early stop before the last)
     const CompiledScene cs(s, rs.width, rs.height);
     ASSERT_TRUE(cs.flat_list().enabled) << name;
-    for (const float tail : {0.0f, 0.3f, -0.3f}) {  // -0.3: a tail, fused_tail off
+    for (const float tail : {0.0f, 0.3f}) {
       GpuOptions o;
       o.kernel = KernelMode::kWavefront;
-      o.compaction_by = GpuOptions::Compaction::kShade;
-      o.tail_fraction = std::abs(tail);
-      o.fused_tail = tail >= 0.0f;
+      o.compaction = Compaction::kShade;
+      o.tail_fraction = tail;
       FrameStats fused, apart;
       auto run = [&](bool fuse, FrameStats* st) {
-        o.fused_trace = fuse;
+        o.sort_materials = !fuse;
         gpu->set_gpu_options(o);
         gpu->set_scene(cs, make_integrator_settings(rs));
         gpu->render(1);  // the tail's estimate
@@ -345,9 +351,15 @@ TEST(Gpu, FusedTraceStageIsTheTwoStages) {
       };
       const ImageRGB a = run(true, &fused);
       const ImageRGB b = run(false, &apart);
-      const std::string what =
-          std::string(name) + (tail > 0 ? ", tail" : tail < 0 ? ", tail not fused" : ", no tail");
+      ASSERT_TRUE(fused.gpu.has_value() && apart.gpu.has_value());
+      if (!fused.gpu->fused_trace)
+        GTEST_SKIP() << "no fused trace stage in this build: " << fused.gpu->describe();
+      const bool tail_fused = fused.gpu->fused_tail;
+      const std::string what = std::string(name) + (tail == 0.0f ? ", no tail"
+                                                    : tail_fused ? ", tail"
+                                                                 : ", tail not fused");
       EXPECT_TRUE(fused.stages.fused_trace) << what;
+      EXPECT_FALSE(apart.gpu->rays_at_slots) << what;
       EXPECT_FALSE(apart.stages.fused_trace) << what;
       EXPECT_EQ(apart.stages.trace, 0.0) << what;
       // Bounce 0 is traced alone; each later bounce by the fused stage, with fused_tail the
@@ -355,7 +367,7 @@ TEST(Gpu, FusedTraceStageIsTheTwoStages) {
       // bounce's without a tail.
       const std::vector<BounceTimes>& t = fused.stages.bounces;
       EXPECT_EQ(fused.stages.tail_from, apart.stages.tail_from) << what;
-      if (tail <= 0.0f) {
+      if (tail == 0.0f || !tail_fused) {
         if (tail == 0.0f) EXPECT_EQ(fused.stages.tail_from, 0u) << what;
         else ASSERT_GT(fused.stages.tail_from, 0u) << what;
         EXPECT_EQ(t.size(), tail == 0.0f ? size_t(rs.max_depth) : fused.stages.tail_from) << what;
@@ -403,11 +415,16 @@ TEST(Gpu, FirstBounceCacheNeedsAFixedCamera) {
   FrameStats st;
   const ImageRGB a = render_gpu(*gpu, s, rs, 32, on, &st);
   EXPECT_EQ(st.note.find("disabled"), std::string::npos) << st.note;
+  ASSERT_TRUE(st.gpu.has_value());
+  EXPECT_TRUE(st.gpu->options.first_bounce_cache) << st.gpu->describe();
   const ImageRGB b = render_gpu(*gpu, s, rs, 32, off);
   EXPECT_GT(identical_fraction(a, b), 0.999);
   rs.jitter = true;
   render_gpu(*gpu, s, rs, 4, on, &st);
   EXPECT_NE(st.note.find("jitter"), std::string::npos) << "the reason must be reported";
+  ASSERT_TRUE(st.gpu.has_value());
+  ASSERT_NE(st.gpu->find("first_bounce_cache"), nullptr) << st.gpu->describe();
+  EXPECT_NE(st.gpu->find("first_bounce_cache")->reason.find("jitter"), std::string::npos);
 }
 
 TEST(Gpu, ResetIsComplete) {

@@ -65,22 +65,24 @@ TEST(Workbench, ApplyRejectsBadEditsWithReasons) {
   EXPECT_TRUE(wb->gpu_options().flat_list);
   EXPECT_TRUE(wb->apply("gpu.flat=off", &err)) << err;
   EXPECT_FALSE(wb->gpu_options().flat_list);
+  EXPECT_TRUE(wb->gpu_options().first_bounce_cache) << "gpu.flat sets only its own switch";
+  // The design paths are build variants now (gpu_options.h), not keys.
+  EXPECT_FALSE(wb->apply("gpu.fuse=off", &err));
   EXPECT_FALSE(wb->apply("gpu.flat=sometimes", &err));
   EXPECT_NE(err.find("on or off"), std::string::npos) << err;
-  // Compaction: on (auto), shade (in the shade kernel), cub (a CUB select) or off.
-  using C = tracer::GpuOptions::Compaction;
-  EXPECT_TRUE(wb->gpu_options().compaction);
-  EXPECT_EQ(wb->gpu_options().compaction_by, C::kAuto);
+  // Compaction: auto, shade (in the shade kernel), cub (a CUB select) or off.
+  using C = tracer::Compaction;
+  EXPECT_EQ(wb->gpu_options().compaction, C::kAuto);
   EXPECT_TRUE(wb->apply("gpu.compaction=cub", &err)) << err;
-  EXPECT_TRUE(wb->gpu_options().compaction && wb->gpu_options().compaction_by == C::kCub);
+  EXPECT_EQ(wb->gpu_options().compaction, C::kCub);
   EXPECT_TRUE(wb->apply("gpu.compaction=shade", &err)) << err;
-  EXPECT_EQ(wb->gpu_options().compaction_by, C::kShade);
+  EXPECT_EQ(wb->gpu_options().compaction, C::kShade);
   EXPECT_TRUE(wb->apply("gpu.compaction=off", &err)) << err;
-  EXPECT_FALSE(wb->gpu_options().compaction);
-  EXPECT_TRUE(wb->apply("gpu.compaction=on", &err)) << err;
-  EXPECT_TRUE(wb->gpu_options().compaction && wb->gpu_options().compaction_by == C::kAuto);
+  EXPECT_EQ(wb->gpu_options().compaction, C::kOff);
+  EXPECT_TRUE(wb->apply("gpu.compaction=auto", &err)) << err;
+  EXPECT_EQ(wb->gpu_options().compaction, C::kAuto);
   EXPECT_FALSE(wb->apply("gpu.compaction=thrust", &err));
-  EXPECT_NE(err.find("shade, cub or off"), std::string::npos) << err;
+  EXPECT_NE(err.find("auto, shade, cub or off"), std::string::npos) << err;
   EXPECT_TRUE(wb->apply("gpu.tail=0.5", &err)) << err;
   EXPECT_EQ(wb->gpu_options().tail_fraction, 0.5f);
   EXPECT_FALSE(wb->apply("gpu.tail=2", &err));

@@ -45,18 +45,19 @@ struct CudaRenderer::Impl {
   uint32_t features = 0;
 
   IntegratorSettings cfg;
-  GpuOptions opts;
+  GpuOptions opts;          // as requested
+  EffectiveGpuOptions eff;  // as they run on this scene (resolve())
   bool has_scene = false;
 
   // Films for the even and the odd samples, and counters.
   DeviceBuffer<float4> film[2];
-  DeviceBuffer<unsigned long long> counters;  // shadow, non-finite, megakernel extension
+  DeviceBuffer<unsigned long long> counters;  // [kCounterCount], indexed by Counter
   uint32_t samples = 0;
   uint64_t nonfinite = 0;
 
   // Wavefront pool.
   DeviceBuffer<float4> ray_o, ray_d, throughput, radiance, hit, shadow_o, shadow_d, shadow_c;
-  // The odd bounces' rays when they are stored at their queue slots (rays_at_slots()).
+  // The odd bounces' rays when they are stored at their queue slots (eff.rays_at_slots).
   DeviceBuffer<float4> ray_o_odd, ray_d_odd;
   DeviceBuffer<float4> cached_hits;
   DeviceBuffer<uint8_t> alive;
@@ -72,7 +73,7 @@ struct CudaRenderer::Impl {
   bool cache_valid = false;
   // Paths entering each bounce in the last timed wavefront sample (zeros from its tail on): the
   // wavefront hands its paths to the tail kernel at the first bounce where these fall below
-  // opts.tail_fraction of the pixels. Only speed depends on it.
+  // eff.options.tail_fraction of the pixels. Only speed depends on it.
   std::vector<uint32_t> tail_estimate;
   uint32_t tail_from = 0;  // the bounce where the last wavefront sample's tail began (0: none)
 
@@ -89,27 +90,13 @@ struct CudaRenderer::Impl {
   }
 
   uint32_t n() const { return cfg.width * cfg.height; }
-  uint32_t spec() const { return opts.specialize ? spec_for_features(features) : kGeneralSpec; }
-  // The shade kernel writes the queues (next bounce's and the shadow queue) this wave.
-  bool queues_in_shade() const { return opts.compaction && uses_shade_compaction(); }
-  bool uses_shade_compaction() const {
-    using C = GpuOptions::Compaction;
-    // Auto: the shade kernel's queues except on textured scenes, whose long, divergent shading
-    // (96 registers, 2 blocks per SM) waits at the block's barrier: there CUB was 10% faster,
-    // elsewhere the queues 0-18% (PERFORMANCE.md, "Rays per lane; a shadow queue").
-    return opts.compaction_by == C::kShade ||
-           (opts.compaction_by == C::kAuto && !(features & kFeatureTextures));
+  // What runs, decided in one place (gpu_options.h) for the requested options, the scene and
+  // the settings: after each change of any of them.
+  void resolve() {
+    if (!has_scene) return;
+    eff = resolve_gpu_options(opts, gpu_scene_traits(view, flat_available, cfg));
+    view.use_flat = eff.options.flat_list ? 1u : 0u;
   }
-  // Rays and hits at their queue slots: only over the shade kernel's queues, which a sort
-  // would reorder, and without random walks, whose rays look up the triangle they leave from by
-  // the path's id (and whose flags finish_path counts).
-  bool rays_at_slots() const {
-    return opts.rays_at_slots && queues_in_shade() && !opts.sort_materials &&
-           !(features & kFeatureSubsurface);
-  }
-  // A bounce's shadow stage and the next bounce's intersect stage as one launch (launch_trace).
-  bool fused_trace() const { return opts.fused_trace && rays_at_slots() && view.use_flat; }
-  void choose_accel() { view.use_flat = flat_available && opts.flat_list ? 1u : 0u; }
   std::string accel_name() const {
     return view.use_flat ? "flat list of " + flat_text : "4-wide BVH";
   }
@@ -120,7 +107,7 @@ struct CudaRenderer::Impl {
     f.n = n();
     f.clamp = cfg.clamp;
     f.clamped_luminance = clamp_sum.get();
-    f.clamped = counters.get() + 5;
+    f.clamped = counters.get() + kCounterClamped;
     return f;
   }
 
@@ -148,22 +135,6 @@ struct CudaRenderer::Impl {
     return w;
   }
 
-  bool cache_allowed(std::string* why) const {
-    if (!opts.first_bounce_cache) {
-      if (why) *why = "first-bounce cache off";
-      return false;
-    }
-    if (cfg.jitter) {
-      if (why) *why = "first-bounce cache disabled: the camera jitters samples within pixels";
-      return false;
-    }
-    if (view.camera.lens_radius > 0.0f) {
-      if (why) *why = "first-bounce cache disabled: depth of field moves camera rays";
-      return false;
-    }
-    return true;
-  }
-
   void allocate() {
     const uint32_t count_pixels = n();
     film[0].resize(count_pixels);
@@ -184,7 +155,7 @@ struct CudaRenderer::Impl {
     shadow_counts.resize(2 * shadow_stride);
     count.resize(1);
     cub_temp.resize(std::max<size_t>(1, compaction_temp_bytes(count_pixels)));
-    counters.resize(8);
+    counters.resize(kCounterCount);
     clamp_sum.resize(1);
     cached_hits.resize(0);
     cache_valid = false;
@@ -235,19 +206,19 @@ struct CudaRenderer::Impl {
 
   void megakernel_wave(uint32_t sample, bool first, bool timed) {
     mark(timed, kMega);  // start
-    launch_megakernel(spec(), view, flat_params, cfg, sample, first, film_view(sample), counters.get(),
-                      count.get(), stream);
+    launch_megakernel(eff.spec, view, flat_params, cfg, sample, first, film_view(sample),
+                      counters.get(), count.get(), stream);
     mark(timed, kMega);
   }
 
   // One sample per pixel through the wavefront; returns paths entering each bounce when asked.
   void wavefront_wave(uint32_t sample, bool first, bool timed) {
-    const uint32_t sp = spec();
+    const uint32_t sp = eff.spec;
     WavefrontState w = wavefront();
     mark(timed, kGenerate);
     launch_generate(sp, view, cfg, sample, w, stream);
     mark(timed, kGenerate);
-    const bool use_cache = cache_allowed(nullptr);
+    const bool use_cache = eff.options.first_bounce_cache;
     if (use_cache && cached_hits.size() != n()) {
       cached_hits.resize(n());
       cache_valid = false;
@@ -268,7 +239,7 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
     // Compaction in the shade kernel: bounce b reads the queue its predecessor's shade kernel
     // wrote (its length: alive_counts[b]) and writes the next one into the other buffer.
-    const bool queue_in_shade = queues_in_shade();
+    const bool queue_in_shade = eff.queues_in_shade();
     // ... and then a shadow queue too.
     if (queue_in_shade)
       TRACER_CUDA_CHECK(cudaMemsetAsync(w.shadow_counts, 0, shadow_counts.bytes(), stream));
@@ -277,13 +248,13 @@ struct CudaRenderer::Impl {
     // The tail (needs a queue): from the first bounce whose estimated queue is short, one
     // megakernel launch runs the remaining bounces of its paths, where each stage of a short
     // queue would cost its launch and one path's latency (PERFORMANCE.md, "per bounce").
-    tail_from = opts.compaction
-                    ? wavefront_tail_bounce(tail_estimate, opts.tail_fraction, n(), iterations)
-                    : 0;
+    tail_from = eff.compaction() ? wavefront_tail_bounce(tail_estimate, eff.options.tail_fraction,
+                                                         n(), iterations)
+                                 : 0;
     bool tail_ran = false;
-    const bool at_slots = rays_at_slots();
+    const bool at_slots = eff.rays_at_slots;
     w.rays_at_slots = at_slots;
-    const bool fuse = fused_trace();
+    const bool fuse = eff.fused_trace;
     bool traced = false;  // this bounce's rays were traced with the last bounce's shadow rays
     for (uint32_t b = 0; b < iterations; ++b) {
       if (at_slots) {  // bounce b's rays in one buffer, the next bounce's in the other
@@ -292,7 +263,7 @@ struct CudaRenderer::Impl {
         w.next_ray_o = (b & 1) ? ray_o.get() : ray_o_odd.get();
         w.next_ray_d = (b & 1) ? ray_d.get() : ray_d_odd.get();
       }
-      const bool compacted = opts.compaction && b > 0;
+      const bool compacted = eff.compaction() && b > 0;
       const uint32_t* q = compacted ? (queue_in_shade ? bounce_queue(b) : queue.get()) : nullptr;
       const uint32_t* c =
           compacted ? (queue_in_shade ? w.alive_counts + b : count.get()) : nullptr;
@@ -307,7 +278,7 @@ struct CudaRenderer::Impl {
         if (b == 0 && use_cache && cache_valid) {
           launch_copy_hits(cached_hits.get(), w.hit, n(), stream);
         } else {
-          launch_intersect(sp, view, flat_params, w, q, c, opts.dynamic_fetch, stream);
+          launch_intersect(sp, view, flat_params, w, q, c, eff.dynamic_fetch, stream);
           if (b == 0 && use_cache) {
             launch_copy_hits(w.hit, cached_hits.get(), n(), stream);
             cache_valid = true;
@@ -315,7 +286,7 @@ struct CudaRenderer::Impl {
         }
         mark(timed, b == 0 ? kIntersectFirst : kIntersect);
       }
-      if (opts.sort_materials) {
+      if (eff.options.sort_materials) {
         launch_sort_by_material(view, w, q, c, sorted.get(), stream);
         q = sorted.get();
         c = w.sort_bins + 16;  // the live paths among the sorted slots
@@ -327,7 +298,7 @@ struct CudaRenderer::Impl {
       mark(timed, kShade);
       // Fused: this bounce's shadow rays with the next bounce's extension rays, if there is a
       // next bounce (also the tail's, with fused_tail: it then starts by shading their hits).
-      traced = fuse && b + 1 < iterations && (opts.fused_tail || b + 1 != tail_from);
+      traced = fuse && b + 1 < iterations && (eff.fused_tail || b + 1 != tail_from);
       if (traced) {
         WavefrontState next = w;  // the next bounce's rays (at their slots)
         next.ray_o = w.next_ray_o;
@@ -343,7 +314,7 @@ struct CudaRenderer::Impl {
         if (walks) launch_flush(w, first, film_view(sample), stream);
         break;
       }
-      if (opts.compaction && !queue_in_shade) {
+      if (eff.compaction() && !queue_in_shade) {
         launch_compact(w, queue.get(), count.get(), cub_temp.get(), cub_temp.bytes(), stream);
         mark(timed, kCompact);
       }
@@ -359,8 +330,8 @@ struct CudaRenderer::Impl {
     // (An early stop, every path ended, can come before the bounce chosen for the tail.)
     if (!tail_ran) tail_from = 0;
     // Extension rays of the bounces the stages ran (the tail counts its own).
-    launch_add_alive(w.alive_counts, tail_from ? tail_from : iterations + 2, w.counters + 6,
-                     stream);
+    launch_add_alive(w.alive_counts, tail_from ? tail_from : iterations + 2,
+                     w.counters + kCounterExtension, stream);
   }
 };
 
@@ -406,7 +377,6 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
                                    fl.enabled ? fl.solids : std::vector<FlatPrim>());
   m.view.flat_info = fl.enabled ? m.flat_info.get() : nullptr;
   m.view.tri_to_flat = fl.enabled ? m.tri_to_flat.get() : nullptr;
-  m.choose_accel();
   m.view.nodes = m.nodes.get();
   m.view.prim_indices = m.prim_indices.get();
   m.view.tri_verts = m.tri_verts.get();
@@ -432,6 +402,7 @@ void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
   m.view.camera.aspect = float(cfg.width) / float(cfg.height);
   m.allocate();
   m.tail_estimate.clear();
+  m.resolve();  // (the first-bounce cache depends on the jitter)
   reset();
 }
 
@@ -444,7 +415,7 @@ void CudaRenderer::reset() {
 
 void CudaRenderer::set_gpu_options(const GpuOptions& o) {
   impl_->opts = o;
-  impl_->choose_accel();
+  impl_->resolve();
   impl_->chosen = o.kernel;
   impl_->auto_step = 0;
   impl_->auto_ms[0] = impl_->auto_ms[1] = 0.0;
@@ -491,8 +462,10 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   const auto start = std::chrono::steady_clock::now();
   FrameStats st;
   st.spp_added = spp;
-  st.specialization = std::string(spec_label(m.spec())) + "; " + m.accel_name();
-  m.cache_allowed(&st.note);
+  st.specialization = std::string(spec_label(m.eff.spec)) + "; " + m.accel_name();
+  if (const GpuOverride* cache = m.eff.find("first_bounce_cache"))
+    st.note = "first-bounce cache disabled: " + cache->reason;
+  st.gpu = m.eff;
   m.counters.zero_async(m.stream);
   m.clamp_sum.zero_async(m.stream);
   uint32_t wavefront_samples = 0;
@@ -524,12 +497,12 @@ FrameStats CudaRenderer::render(uint32_t spp) {
         m.tail_estimate[0] = m.n();
         if (k == 0) {
           st.stages.tail_from = m.tail_from;
-          st.stages.rays_at_slots = m.rays_at_slots();
-          st.stages.fused_trace = m.fused_trace();
+          st.stages.rays_at_slots = m.eff.rays_at_slots;
+          st.stages.fused_trace = m.eff.fused_trace;
           std::vector<uint32_t> alive = m.tail_estimate;
           while (alive.size() > 1 && alive.back() == 0) alive.pop_back();
           st.alive_per_bounce = alive;
-          if (m.queues_in_shade()) {
+          if (m.eff.queues_in_shade()) {
             std::vector<uint32_t> counts;
             m.shadow_counts.download(counts);
             auto trimmed = [](std::vector<uint32_t> v) {
@@ -545,33 +518,33 @@ FrameStats CudaRenderer::render(uint32_t spp) {
       }
     }
     // The wavefront's extension rays (every path alive after a bounce traces one more segment)
-    // are summed on the device (counters[6]), so samples run back to back without a wait.
+    // are summed on the device (kCounterExtension), so samples run back to back without a wait.
     if (mode == KernelMode::kWavefront) ++wavefront_samples;
     if (m.chosen == KernelMode::kAuto && ++m.auto_step == 4) {
       m.chosen = m.auto_ms[0] <= m.auto_ms[1] ? KernelMode::kWavefront : KernelMode::kMegakernel;
     }
     st.kernel = mode == KernelMode::kWavefront ? "wavefront" : "megakernel";
   }
-  unsigned long long c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  unsigned long long c[kCounterCount] = {};
   TRACER_CUDA_CHECK(cudaMemcpyAsync(c, m.counters.get(), sizeof(c), cudaMemcpyDeviceToHost,
                                     m.stream));
   TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
   st.rays.camera = uint64_t(m.n()) * spp;
-  st.rays.shadow = c[0];
-  // counters[2] holds the megakernel's segments, camera rays included.
+  st.rays.shadow = c[kCounterShadow];
+  // The megakernel's segments include its camera rays.
   uint64_t mega_samples = 0;
-  st.rays.extension = c[6];
-  if (c[2] > 0) {
+  st.rays.extension = c[kCounterExtension];
+  if (c[kCounterMegaSegments] > 0) {
     mega_samples = spp - wavefront_samples;
-    st.rays.extension += c[2] - uint64_t(m.n()) * mega_samples;
+    st.rays.extension += c[kCounterMegaSegments] - uint64_t(m.n()) * mega_samples;
   }
-  st.nonfinite = c[1];
-  st.rays.walk_capped = c[3];
-  st.clamped = c[5];
+  st.nonfinite = c[kCounterNonfinite];
+  st.rays.walk_capped = c[kCounterWalkCapped];
+  st.clamped = c[kCounterClamped];
   TRACER_CUDA_CHECK(cudaMemcpy(&st.clamped_luminance, m.clamp_sum.get(), sizeof(double),
                                cudaMemcpyDeviceToHost));
-  st.rays.medium_leaks = c[4];
-  m.nonfinite += c[1];
+  st.rays.medium_leaks = c[kCounterMediumLeak];
+  m.nonfinite += c[kCounterNonfinite];
   m.samples += spp;
   if (m.chosen != KernelMode::kAuto && m.opts.kernel == KernelMode::kAuto) {
     st.note += std::string(st.note.empty() ? "" : "; ") + "kernel auto chose " + chosen_kernel() +

@@ -1,6 +1,7 @@
-// Host-callable launchers for the CUDA kernels (defined in kernels.cu). Each takes a
-// specialisation index `spec` (bits: 1 spheres, 2 depth of field, 4 specular materials) and runs
-// the kernel compiled for exactly those features; kGeneralSpec runs the one for all features.
+// Host-callable launchers for the CUDA kernels (each defined beside its kernels: megakernel.cu,
+// wavefront_trace.cu, wavefront_shade.cu, film.cu). Each takes a specialisation index `spec`
+// (bits: 1 spheres, 2 depth of field, 4 specular materials) and runs the kernel compiled for
+// exactly those features; kGeneralSpec runs the one for all features.
 #pragma once
 
 #include <cuda_runtime.h>
@@ -12,6 +13,25 @@
 namespace tracer {
 
 // kSpec*, kGeneralSpec, features_of<Spec>() and spec_for_features() are in core/features.h.
+
+// The 64-bit counters the kernels add to (WavefrontState::counters, launch_megakernel's).
+enum Counter : uint32_t {
+  kCounterShadow,        // shadow rays traced
+  kCounterNonfinite,     // samples rejected as NaN or infinite
+  kCounterMegaSegments,  // the megakernel's path segments (camera rays included)
+  kCounterWalkCapped,    // random walks stopped at their step limit (and paths flushed)
+  kCounterMediumLeak,    // paths that left a medium through an open mesh
+  kCounterClamped,       // samples the radiance clamp scaled (FilmView::clamped)
+  kCounterExtension,     // the wavefront's extension rays (launch_add_alive), the tail's segments
+  kCounterCount
+};
+
+// A wavefront path's alive flag (WavefrontState::alive).
+enum PathStatus : uint8_t {
+  kStatusDone = 0,   // its sample is complete (added to the film): the slot is free
+  kStatusAlive = 1,  // it goes on to the next bounce
+  kStatusEnded = 2,  // it ended this bounce; its radiance is not yet in the film
+};
 
 // Structure-of-arrays path pool of `n` paths; path id == pixel index.
 struct WavefrontState {
@@ -33,14 +53,11 @@ struct WavefrontState {
   float4* shadow_o = nullptr;    // origin, tmax
   float4* shadow_d = nullptr;    // direction, target prim (bits)
   float4* shadow_c = nullptr;    // contribution, valid (1 or 0)
-  uint8_t* alive = nullptr;      // 1 alive, 2 ended this bounce (radiance not yet added), 0 done
+  uint8_t* alive = nullptr;      // PathStatus
   uint32_t* sort_keys = nullptr;
   uint32_t* sort_bins = nullptr;       // 8 bins, 8 cursors, [16]: live paths in the sorted queue
   uint32_t* fetch = nullptr;           // the dynamic-fetch intersect kernel's ray counter
-  // [0] shadow rays, [1] non-finite samples, [2] megakernel segments, [3] random walks capped,
-  // [4] paths that left a medium through an open mesh, [5] samples the clamp scaled (FilmView),
-  // [6] the wavefront's extension rays (launch_add_alive after each sample)
-  unsigned long long* counters = nullptr;
+  unsigned long long* counters = nullptr;  // [kCounterCount], indexed by Counter
   uint32_t* alive_counts = nullptr;    // paths entering each bounce, [max_depth + 1]
   // With compaction in the shade kernel: the shadow rays of each bounce, the length of the shadow
   // queue its shade kernel wrote (the shadow stage then traces only those).
@@ -71,13 +88,15 @@ struct FilmView {
   unsigned long long* clamped = nullptr;        // how many samples it scaled
 };
 
-// counters[2] receives the path segments traced (camera rays included); next_pixel is scratch.
+// counters[kCounterMegaSegments] receives the path segments traced (camera rays included);
+// next_pixel is scratch.
 void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat,
                        const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
                        unsigned long long* counters, uint32_t* next_pixel, cudaStream_t stream);
 
 // The wavefront's tail: the megakernel over the paths of a queue (count: its device length),
-// each taken from the pool's state and run to its end (its segments go to counters[6]).
+// each taken from the pool's state and run to its end (its segments go to
+// counters[kCounterExtension]).
 // hits_ready: a fused trace stage traced the queue's rays (hits at their slots in w.hit), so the
 // tail starts by shading them (flat list and rays at their slots only; throws otherwise).
 void launch_tail(uint32_t spec, const SceneView& s, const FlatParams& flat,
@@ -119,7 +138,7 @@ void launch_trace(uint32_t spec, const SceneView& s, const FlatParams& flat,
 // paths come first, and their number goes to w.sort_bins[16] (the sorted queue's length).
 void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,
                              const uint32_t* count, uint32_t* sorted, cudaStream_t stream);
-// CUB select: ids of paths with alive == 1, in id order, and their number.
+// CUB select: ids of paths with alive == kStatusAlive, in id order, and their number.
 size_t compaction_temp_bytes(uint32_t n);
 void launch_compact(const WavefrontState& w, uint32_t* out_queue, uint32_t* out_count,
                     void* temp, size_t temp_bytes, cudaStream_t stream);

@@ -3,10 +3,12 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "image/image.h"
+#include "integrator/gpu_options.h"
 #include "integrator/path.h"
 #include "scene/compiled_scene.h"
 
@@ -23,8 +25,8 @@ uint32_t wavefront_tail_bounce(const std::vector<uint32_t>& estimate, float frac
 struct BounceTimes {
   double intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
   // The fused trace stage that traced this bounce's extension rays together with the previous
-  // bounce's shadow rays (GpuOptions::fused_trace; then intersect is 0 here and the previous
-  // bounce's shadow is 0).
+  // bounce's shadow rays (EffectiveGpuOptions::fused_trace; then intersect is 0 here and the
+  // previous bounce's shadow is 0).
   double trace = 0;
 };
 
@@ -64,6 +66,9 @@ struct FrameStats {
   std::string kernel;                      // "wavefront", "megakernel", "cpu"
   std::string specialization;              // which compiled variant ran
   std::string note;                        // e.g. why the first-bounce cache is off
+  // The GPU backend: the switches and design paths that ran, and what overrode the request and
+  // why (EffectiveGpuOptions::overrides, describe()). Empty on the CPU.
+  std::optional<EffectiveGpuOptions> gpu;
 };
 
 // --kernel auto's calibration: milliseconds per sample of each design, from the samples it timed.

@@ -106,8 +106,6 @@ Setting choice(std::string key, std::string flag, std::vector<std::string> names
       [f, values](Scene& sc, size_t i) { f(sc) = values[i]; });
 }
 
-using C = GpuOptions::Compaction;
-
 std::vector<Setting> make_table() {
   std::vector<Setting> t;
   // ---- camera ----
@@ -190,20 +188,13 @@ std::vector<Setting> make_table() {
       "GPU design: wavefront (one kernel per stage), megakernel (one persistent kernel) or "
       "auto (time both on the first samples, keep the faster).",
       E::kGpu, [](Scene& s) -> KernelMode& { return s.gpu.kernel; }));
-  t.push_back(named(
-      "gpu.compaction", "--compaction", {"on", "shade", "cub", "off"},
+  t.push_back(choice<Compaction>(
+      "gpu.compaction", "--compaction", {"auto", "shade", "cub", "off"},
+      {Compaction::kAuto, Compaction::kShade, Compaction::kCub, Compaction::kOff},
       "Wavefront: compact the live paths after each bounce. shade: the shade kernel queues the "
-      "paths that go on (and the shadow rays); cub: a CUB select over the alive flags; on: "
+      "paths that go on (and the shadow rays); cub: a CUB select over the alive flags; auto: "
       "shade, but cub on textured scenes; off: every stage runs over every pixel.",
-      E::kGpu,
-      [](const Scene& s) -> size_t {
-        if (!s.gpu.compaction) return 3;
-        return s.gpu.compaction_by == C::kShade ? 1 : s.gpu.compaction_by == C::kCub ? 2 : 0;
-      },
-      [](Scene& s, size_t i) {
-        s.gpu.compaction = i != 3;
-        s.gpu.compaction_by = i == 1 ? C::kShade : i == 2 ? C::kCub : C::kAuto;
-      }));
+      E::kGpu, [](Scene& s) -> Compaction& { return s.gpu.compaction; }));
   t.push_back(field("gpu.sort", "--sort", T::kBool, 0, 0, "",
                     "Wavefront: sort paths by material before shading.", E::kGpu,
                     [](Scene& s) -> bool& { return s.gpu.sort_materials; }));

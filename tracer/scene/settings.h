@@ -15,29 +15,36 @@
 
 namespace tracer {
 
-// GPU design and speed switches: what a user of the workbench compares. None of them changes the
-// expected image. Which of them a scene or another switch overrides is decided in one place,
-// resolve_gpu_options() (integrator/gpu_options.h).
+// The GPU backend's user-facing switches (what a user of the workbench compares; none of them
+// changes the expected image). Which of them a scene or another switch overrides is decided in
+// one place, resolve_gpu_options() (integrator/gpu_options.h).
 enum class KernelMode { kAuto, kWavefront, kMegakernel };
+
+// Compaction of the live paths' indices after each wavefront bounce. kShade: the shade kernel
+// appends each path that goes on to the next bounce's queue (one atomic per block on the count
+// it keeps anyway), and queues the shadow rays, stored at their queue slots, for the shadow
+// stage. kCub: a CUB select over the alive flags after each bounce. kAuto: kShade except on
+// textured scenes, whose long shading makes the block's barrier cost more than CUB's pass
+// (PERFORMANCE.md). kOff: every stage passes over every path.
+enum class Compaction { kOff, kAuto, kShade, kCub };
+
 struct GpuOptions {
   KernelMode kernel = KernelMode::kAuto;
-  // Compact the indices of live paths after each bounce: kShade, the shade kernel appends each
-  // path that goes on to the next bounce's queue (and queues the shadow rays); kCub, a CUB
-  // select over the alive flags; kAuto, kShade except on textured scenes.
-  bool compaction = true;
-  enum class Compaction { kAuto, kShade, kCub } compaction_by = Compaction::kAuto;
-  // The wavefront's tail (with compaction): once a bounce's queue is estimated to hold fewer
-  // paths than this fraction of the pixels, one megakernel launch runs their remaining bounces.
-  float tail_fraction = 0.25f;
+  Compaction compaction = Compaction::kAuto;
   bool sort_materials = false;     // bucket paths by material type before shading
   bool first_bounce_cache = true;  // reuse camera-ray hits (only without jitter and DoF)
-  bool specialize = true;
-  bool dynamic_fetch = true;
-  bool rays_at_slots = true;
-  bool fused_trace = true;
-  bool fused_tail = true;
-  bool flat_list = true;  // small scenes: every lane tests every primitive, no BVH
+  bool flat_list = true;           // small scenes: every lane tests every primitive, no BVH
+  // The wavefront's tail (with compaction): once a bounce's queue is estimated (from the last
+  // timed sample) to hold fewer paths than this fraction of the pixels, one megakernel launch
+  // runs all their remaining bounces. 0: the stages run every bounce.
+  float tail_fraction = 0.25f;
 };
+inline bool operator==(const GpuOptions& a, const GpuOptions& b) {
+  return a.kernel == b.kernel && a.compaction == b.compaction &&
+         a.sort_materials == b.sort_materials && a.first_bounce_cache == b.first_bounce_cache &&
+         a.flat_list == b.flat_list && a.tail_fraction == b.tail_fraction;
+}
+inline bool operator!=(const GpuOptions& a, const GpuOptions& b) { return !(a == b); }
 
 // Which renderer runs: the GPU when there is one (kAuto), or the one named.
 enum class BackendChoice { kAuto, kCpu, kCuda };

@@ -1,0 +1,233 @@
+// Resolution of the GPU switches (gpu_options.h): every rule that limits a switch or a design
+// path of the wavefront, in one place, each with the reason it gives.
+#include "integrator/gpu_options.h"
+
+#include <cstdio>
+
+#include "bvh/flat_list.h"
+#include "core/features.h"
+#include "integrator/path.h"
+#include "scene/compiled_scene.h"
+
+namespace tracer {
+namespace {
+
+// The build variants (gpu_options.h): each turns one design path off for the whole build.
+#ifdef TRACER_VARIANT_NO_FETCH
+constexpr bool kNoFetchOn = true;
+#else
+constexpr bool kNoFetchOn = false;
+#endif
+#ifdef TRACER_VARIANT_GENERAL_SPEC
+constexpr bool kGeneralSpecOn = true;
+#else
+constexpr bool kGeneralSpecOn = false;
+#endif
+#ifdef TRACER_VARIANT_RAYS_AT_IDS
+constexpr bool kRaysAtIdsOn = true;
+#else
+constexpr bool kRaysAtIdsOn = false;
+#endif
+#ifdef TRACER_VARIANT_UNFUSED
+constexpr bool kUnfusedOn = true;
+#else
+constexpr bool kUnfusedOn = false;
+#endif
+#ifdef TRACER_VARIANT_UNFUSED_TAIL
+constexpr bool kUnfusedTailOn = true;
+#else
+constexpr bool kUnfusedTailOn = false;
+#endif
+
+struct BuildVariant {
+  bool on;
+  const char* name;  // as gpu_build_variant() joins them
+  const char* macro;
+};
+constexpr BuildVariant kNoFetch = {kNoFetchOn, "no-fetch", "TRACER_VARIANT_NO_FETCH"};
+constexpr BuildVariant kGeneralSpecVariant = {kGeneralSpecOn, "general-spec",
+                                              "TRACER_VARIANT_GENERAL_SPEC"};
+constexpr BuildVariant kRaysAtIds = {kRaysAtIdsOn, "rays-at-ids", "TRACER_VARIANT_RAYS_AT_IDS"};
+constexpr BuildVariant kUnfused = {kUnfusedOn, "unfused", "TRACER_VARIANT_UNFUSED"};
+constexpr BuildVariant kUnfusedTail = {kUnfusedTailOn, "unfused-tail",
+                                       "TRACER_VARIANT_UNFUSED_TAIL"};
+constexpr const BuildVariant* kVariants[] = {&kNoFetch, &kGeneralSpecVariant, &kRaysAtIds,
+                                             &kUnfused, &kUnfusedTail};
+
+std::string variant_reason(const BuildVariant& v) {
+  return std::string("build variant ") + v.name + " (" + v.macro + ")";
+}
+
+const char* on_off(bool b) {
+  return b ? "on" : "off";
+}
+
+std::string fraction_text(float f) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", double(f));
+  return buf;
+}
+
+}  // namespace
+
+const char* kernel_mode_name(KernelMode k) {
+  switch (k) {
+    case KernelMode::kAuto:
+      return "auto";
+    case KernelMode::kWavefront:
+      return "wavefront";
+    case KernelMode::kMegakernel:
+      return "megakernel";
+  }
+  return "?";
+}
+
+const char* compaction_name(Compaction c) {
+  switch (c) {
+    case Compaction::kOff:
+      return "off";
+    case Compaction::kAuto:
+      return "auto";
+    case Compaction::kShade:
+      return "shade";
+    case Compaction::kCub:
+      return "cub";
+  }
+  return "?";
+}
+
+std::string gpu_build_variant() {
+  std::string s;
+  for (const BuildVariant* v : kVariants)
+    if (v->on) s += (s.empty() ? "" : "+") + std::string(v->name);
+  return s.empty() ? "default" : s;
+}
+
+GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,
+                                const IntegratorSettings& cfg) {
+  GpuSceneTraits t;
+  t.features = view.features;
+  t.flat_available = flat_available;
+  t.jitter = cfg.jitter != 0;
+  t.depth_of_field = view.camera.lens_radius > 0.0f;
+  return t;
+}
+
+GpuSceneTraits gpu_scene_traits(const CompiledScene& scene, const IntegratorSettings& cfg) {
+  return gpu_scene_traits(scene.view(), scene.flat_list().enabled, cfg);
+}
+
+const GpuOverride* EffectiveGpuOptions::find(const std::string& name) const {
+  for (const GpuOverride& o : overrides)
+    if (o.name == name) return &o;
+  return nullptr;
+}
+
+std::string EffectiveGpuOptions::describe() const {
+  const GpuOptions& o = options;
+  std::string s = std::string("kernel ") + kernel_mode_name(o.kernel) + ", compaction " +
+                  compaction_name(o.compaction) + ", sorting " + on_off(o.sort_materials) +
+                  ", first-bounce cache " + on_off(o.first_bounce_cache) + ", flat list " +
+                  on_off(o.flat_list) + ", tail " + fraction_text(o.tail_fraction) +
+                  "; wavefront paths: rays at slots " + on_off(rays_at_slots) + ", fused trace " +
+                  on_off(fused_trace) + ", fused tail " + on_off(fused_tail) + ", dynamic fetch " +
+                  on_off(dynamic_fetch) + ", specialised " + on_off(specialize) + "; build " +
+                  build_variant;
+  if (o.kernel == KernelMode::kMegakernel) s += " (the megakernel runs no wavefront stages)";
+  for (const GpuOverride& v : overrides)
+    s += "; " + v.name + " " + v.requested + " -> " + v.effective + ": " + v.reason;
+  return s;
+}
+
+EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSceneTraits& scene) {
+  EffectiveGpuOptions e;
+  e.options = requested;
+  e.build_variant = gpu_build_variant();
+  GpuOptions& o = e.options;
+  auto changed = [&](const char* name, const std::string& from, const std::string& to,
+                     const std::string& reason) {
+    e.overrides.push_back({name, from, to, reason, false});
+  };
+  // A design path: on unless `why` names what turns it off.
+  auto path = [&](const char* name, const std::string& why) {
+    if (!why.empty()) e.overrides.push_back({name, "on", "off", why, true});
+    return why.empty();
+  };
+
+  // The user's switches.
+  if (o.compaction == Compaction::kAuto) {
+    // The shade kernel's queues except on textured scenes, whose long, divergent shading (96
+    // registers, 2 blocks per SM) waits at the block's barrier: there CUB was 10% faster,
+    // elsewhere the queues 0-18% (PERFORMANCE.md, "Rays per lane; a shadow queue").
+    const bool textured = (scene.features & kFeatureTextures) != 0;
+    o.compaction = textured ? Compaction::kCub : Compaction::kShade;
+    changed("compaction", "auto", compaction_name(o.compaction),
+            textured ? "auto on a textured scene: CUB's select (the shade kernel's queues wait "
+                       "at the block's barrier after the long shading)"
+                     : "auto on an untextured scene: the shade kernel's queues");
+  }
+  if (o.compaction == Compaction::kOff && o.tail_fraction != 0.0f) {
+    changed("tail_fraction", fraction_text(o.tail_fraction), "0",
+            "the tail takes its paths from compaction's queues (compaction off)");
+    o.tail_fraction = 0.0f;
+  }
+  if (o.first_bounce_cache && (scene.jitter || scene.depth_of_field)) {
+    o.first_bounce_cache = false;
+    changed("first_bounce_cache", "on", "off",
+            scene.jitter ? "the camera jitters samples within pixels"
+                         : "depth of field moves camera rays");
+  }
+  if (o.flat_list && !scene.flat_available) {
+    o.flat_list = false;
+    changed("flat_list", "on", "off",
+            "the scene is too large for the flat list (its entries cost more than " +
+                std::to_string(kFlatMaxCost) + " triangle tests)");
+  }
+
+  // The wavefront's design paths, each off for exactly one reason (the first that applies).
+  const bool walks = (scene.features & kFeatureSubsurface) != 0;
+  std::string why;
+  if (kRaysAtIds.on)
+    why = variant_reason(kRaysAtIds);
+  else if (o.compaction == Compaction::kOff)
+    why = "no compaction: the stages pass over the paths by id";
+  else if (!e.queues_in_shade())
+    why = "CUB's queues hold path ids, in id order";
+  else if (o.sort_materials)
+    why = "material sorting reorders the queues";
+  else if (walks)
+    why = "random walks look up the triangle a ray leaves from by the path's id";
+  e.rays_at_slots = path("rays_at_slots", why);
+
+  why.clear();
+  if (kUnfused.on)
+    why = variant_reason(kUnfused);
+  else if (!e.rays_at_slots)
+    why = "the rays are at their paths' ids";
+  else if (!o.flat_list)
+    why = "the BVH's intersect stage is not fused";
+  e.fused_trace = path("fused_trace", why);
+
+  why.clear();
+  if (kUnfusedTail.on)
+    why = variant_reason(kUnfusedTail);
+  else if (!e.fused_trace)
+    why = "no fused trace stage";
+  else if (!(o.tail_fraction > 0.0f))
+    why = "no tail";
+  e.fused_tail = path("fused_tail", why);
+
+  why.clear();
+  if (kNoFetch.on)
+    why = variant_reason(kNoFetch);
+  else if (o.flat_list)
+    why = "the flat list's loop ends for a whole warp at once: no lane waits for a new ray";
+  e.dynamic_fetch = path("dynamic_fetch", why);
+
+  e.specialize =
+      path("specialize", kGeneralSpecVariant.on ? variant_reason(kGeneralSpecVariant) : "");
+  e.spec = e.specialize ? spec_for_features(scene.features) : kGeneralSpec;
+  return e;
+}
+
+}  // namespace tracer

@@ -1,0 +1,102 @@
+// The GPU backend's switches: what a user asks for (GpuOptions), the facts of a scene that limit
+// them (GpuSceneTraits), and the one function that resolves a request into what runs
+// (EffectiveGpuOptions), with a reason for every value it changes. Host code only (tested on CPU).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "scene/settings.h"
+
+namespace tracer {
+
+class CompiledScene;
+struct IntegratorSettings;
+struct SceneView;
+
+// The names the settings table gives them (gpu.kernel, gpu.compaction), for messages.
+const char* kernel_mode_name(KernelMode k);  // auto, wavefront, megakernel
+const char* compaction_name(Compaction c);   // off, auto, shade, cub
+
+// Build variants: the engineering baselines that measurements settled (PERFORMANCE.md) are no
+// switches; a bench build compiled with one of these macros (in CMAKE_CXX_FLAGS, as they are read
+// by host code: `VARIANT=unfused EXTRA_CXX_FLAGS=-DTRACER_VARIANT_UNFUSED
+// scripts/build-device.sh` builds into .devbuild/dist-unfused) runs the baseline instead:
+//   TRACER_VARIANT_NO_FETCH      the BVH's wavefront intersect stage runs one thread per queued
+//                                ray, not persistent warps whose lanes fetch new rays
+//                                (dynamic_fetch off);
+//   TRACER_VARIANT_GENERAL_SPEC  every kernel is the one compiled for all features, not the
+//                                scene's specialisation (specialize off);
+//   TRACER_VARIANT_RAYS_AT_IDS   extension rays and hits stay at their paths' ids also over the
+//                                shade kernel's queues (rays_at_slots off, hence no fused trace);
+//   TRACER_VARIANT_UNFUSED       each bounce's shadow stage and the next bounce's intersect stage
+//                                run as two launches (fused_trace off);
+//   TRACER_VARIANT_UNFUSED_TAIL  the tail's first bounce is traced by the tail itself, after a
+//                                shadow stage of its own (fused_tail off).
+// Their names: no-fetch, general-spec, rays-at-ids, unfused, unfused-tail. The code of each
+// baseline stays: rays at ids and the unfused stages also serve sorting, random walks, CUB's
+// queues and the BVH. Returns "default", or the names of the build's variants joined by '+'
+// (e.g. "no-fetch+unfused"), as the bench labels its rows.
+std::string gpu_build_variant();
+
+// What the resolution needs to know about a scene and the integrator's settings.
+struct GpuSceneTraits {
+  uint32_t features = 0;        // SceneFeature bits (textures, subsurface, spheres, ...)
+  bool flat_available = false;  // the scene is small enough for the flat list (FlatList::enabled)
+  bool jitter = true;           // the camera jitters samples within pixels
+  bool depth_of_field = false;  // the camera's lens radius is above zero
+};
+// From a scene's view (its features and camera) and whether it has a flat list, or from the
+// compiled scene itself.
+GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,
+                                const IntegratorSettings& cfg);
+GpuSceneTraits gpu_scene_traits(const CompiledScene& scene, const IntegratorSettings& cfg);
+
+// A value the resolution changed: a user switch (requested: as asked) or a design path of the
+// wavefront that is off (path: true; requested: "on", the design the build runs where it can).
+struct GpuOverride {
+  std::string name;  // the GpuOptions field or EffectiveGpuOptions path, e.g. "first_bounce_cache"
+  std::string requested, effective;  // e.g. "on", "off"
+  std::string reason;                // e.g. "the camera jitters samples within pixels"
+  bool path = false;
+};
+
+struct EffectiveGpuOptions {
+  // The switches as they run: compaction is never kAuto, the tail is 0 without compaction, the
+  // cache is off where camera rays move, the flat list off where the scene has none. (The
+  // kernel stays kAuto: the renderer times both designs. With the megakernel the wavefront's
+  // switches and paths are resolved all the same; they do not apply.)
+  GpuOptions options;
+  // The wavefront's design paths, from the switches, the scene and the build variant:
+  // Extension rays and hits stored at their paths' slots in each bounce's queue, not at their
+  // ids, so the intersect and shade kernels read them in whole sectors (only over the shade
+  // kernel's queues, which a sort would reorder, and without random walks, whose rays look up
+  // the triangle they leave from by the path's id).
+  bool rays_at_slots = false;
+  // With rays at their slots and the flat list: each bounce's shadow stage and the next bounce's
+  // intersect stage run as one launch (the trace stage).
+  bool fused_trace = false;
+  // ... also the tail's first bounce (with a tail): its rays are traced with the last staged
+  // bounce's shadow rays, and the tail starts by shading their hits.
+  bool fused_tail = false;
+  // The BVH's intersect stage: persistent warps whose lanes take new rays between rounds.
+  bool dynamic_fetch = false;
+  // Kernels compiled for the scene's features only (spec), or the general ones (kGeneralSpec).
+  bool specialize = false;
+  uint32_t spec = 7;
+  std::string build_variant;  // gpu_build_variant()
+  // One entry per changed switch and per path that is off, each with its reason.
+  std::vector<GpuOverride> overrides;
+
+  bool compaction() const { return options.compaction != Compaction::kOff; }
+  bool queues_in_shade() const { return options.compaction == Compaction::kShade; }
+  const GpuOverride* find(const std::string& name) const;  // nullptr: not overridden
+  // One line: the design that runs, each override with its reason, the build variant.
+  std::string describe() const;
+};
+
+// The one place that decides which GPU design runs for a request on a scene.
+EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSceneTraits& scene);
+
+}  // namespace tracer
