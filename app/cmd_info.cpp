@@ -5,7 +5,9 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "integrator/sidecar.h"
 #include "scene/compiled_scene.h"
+#include "settings_cli.h"
 #include "scene/loader.h"
 
 namespace app {
@@ -14,11 +16,26 @@ namespace {
 struct InfoOptions {
   std::string scene;
   bool json = false;
+  SettingArgs settings;  // e.g. --compaction cub: what the GPU would run with it
 };
+
+// describe()'s switches and design paths, without the overrides (printed a line each).
+std::string gpu_design_head(const tracer::EffectiveGpuOptions& e) {
+  const std::string d = e.describe();
+  const size_t build = d.find("; build ");
+  if (build == std::string::npos) return d;
+  const size_t end = d.find(';', build + 2);
+  return end == std::string::npos ? d : d.substr(0, end);
+}
 
 int run_info(const InfoOptions& o) {
   tracer::Scene scene;
   if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
+  std::string problem;
+  if (!apply_setting_args(o.settings, &scene, &problem)) {
+    std::cerr << "error: " << problem << "\n";
+    return kExitUsage;
+  }
   for (const auto& w : scene.diagnostics.warnings) std::cerr << "warning: " << w << "\n";
   const tracer::CompiledScene cs(scene, scene.settings.width, scene.settings.height);
   const tracer::SceneView& v = cs.view();
@@ -66,10 +83,14 @@ int run_info(const InfoOptions& o) {
                     {"max_cost", tracer::kFlatMaxCost}};
   j["features"] = tracer::describe_features(cs.features());
   j["gpu_specialization"] = tracer::spec_name_for_features(cs.features());
-  j["render"] = {{"width", scene.settings.width},
-                 {"height", scene.settings.height},
-                 {"spp", scene.settings.spp},
-                 {"max_depth", scene.settings.max_depth}};
+  const nlohmann::json settings = tracer::settings_to_json(scene);
+  j["render"] = settings["render"];
+  j["gpu"] = settings["gpu"];
+  // What the GPU would run for these settings on this scene, and why each switch that is
+  // overridden is (resolve_gpu_options, the one place that decides it).
+  const tracer::EffectiveGpuOptions gpu = tracer::resolve_gpu_options(
+      scene.gpu, tracer::gpu_scene_traits(cs, tracer::make_integrator_settings(scene.settings)));
+  j["gpu_design"] = tracer::effective_gpu_json(gpu);
   if (o.json) {
     std::cout << j.dump(2) << "\n";
     return 0;
@@ -90,8 +111,12 @@ int run_info(const InfoOptions& o) {
             << "flat list   " << flat_text << "\n"
             << "features    " << tracer::describe_features(cs.features()) << "\n"
             << "GPU kernels " << tracer::spec_name_for_features(cs.features()) << "\n"
+            << "GPU design  " << gpu_design_head(gpu) << "\n"
             << "render      " << scene.settings.width << "x" << scene.settings.height << ", "
             << scene.settings.spp << " spp, max depth " << scene.settings.max_depth << "\n";
+  for (const tracer::GpuOverride& ov : gpu.overrides)
+    std::cout << "  GPU " << (ov.path ? "path " : "switch ") << ov.name << " " << ov.requested
+              << " -> " << ov.effective << ": " << ov.reason << "\n";
   return 0;
 }
 
@@ -102,6 +127,9 @@ Runner add_info_command(CLI::App& cmd) {
   cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in")
       ->check(CLI::ExistingFile);
   cmd.add_flag("--json", o->json, "Print JSON instead of text");
+  add_setting_options(cmd, &o->settings, {"render", "gpu"},
+                      {"render.spp", "render.time_limit_s", "render.threads", "render.backend",
+                       "render.samples_per_frame"});
   return [o] { return run_info(*o); };
 }
 

@@ -125,6 +125,25 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
   const auto b = nlohmann::json::parse(log.substr(log.find('{')));
   EXPECT_EQ(b["flat_list"]["solid_boxes"].get<int>(), 2);
   EXPECT_EQ(b["flat_list"]["quads"].get<int>(), 18);
+  // The GPU design the settings resolve to, with a reason for each override: the cache is off
+  // while the camera jitters, and on (no override) when it does not.
+  auto override_of = [](const nlohmann::json& info, const std::string& name) {
+    for (const auto& o : info["gpu_design"]["overrides"])
+      if (o["name"] == name) return o;
+    return nlohmann::json();
+  };
+  const auto cache = override_of(b, "first_bounce_cache");
+  ASSERT_FALSE(cache.is_null()) << b["gpu_design"].dump();
+  EXPECT_NE(cache["reason"].get<std::string>().find("jitter"), std::string::npos);
+  EXPECT_EQ(b["gpu_design"]["effective"]["cache"], false);
+  ASSERT_EQ(test::run_command(exe() + " info --json --jitter off --compaction cub " +
+                                  test::source_dir() + "/assets/scenes/cornell_box.json", &log), 0)
+      << log;
+  const auto c = nlohmann::json::parse(log.substr(log.find('{')));
+  EXPECT_TRUE(override_of(c, "first_bounce_cache").is_null()) << c["gpu_design"].dump();
+  EXPECT_EQ(c["gpu_design"]["effective"]["compaction"], "cub");
+  EXPECT_EQ(c["gpu_design"]["wavefront_paths"]["rays_at_slots"], false);
+  EXPECT_FALSE(override_of(c, "rays_at_slots")["reason"].get<std::string>().empty());
 }
 
 TEST(Cli, CompareReportsMetricsAndDiff) {

@@ -372,6 +372,22 @@ void stats_panel(Workbench& wb, PanelState& ps) {
   ImGui::Text("kernel: %s%s", s.last.kernel.c_str(), ps.interop ? " (CUDA/GL interop)" : "");
   if (!s.last.specialization.empty()) ImGui::TextWrapped("variant: %s", s.last.specialization.c_str());
   if (!s.last.note.empty()) ImGui::TextWrapped("%s", s.last.note.c_str());
+  if (s.last.gpu) {
+    // What resolve_gpu_options() decided for the switches asked for, with its reasons.
+    const tracer::EffectiveGpuOptions& g = *s.last.gpu;
+    size_t switches = 0;
+    for (const auto& o : g.overrides) switches += o.path ? 0 : 1;
+    char title[96];
+    snprintf(title, sizeof title, "GPU design: %zu switch%s overridden###gpudesign", switches,
+             switches == 1 ? "" : "es");
+    if (ImGui::TreeNode(title)) {
+      for (const auto& o : g.overrides)
+        ImGui::TextWrapped("%s %s: %s -> %s (%s)", o.path ? "path" : "switch", o.name.c_str(),
+                           o.requested.c_str(), o.effective.c_str(), o.reason.c_str());
+      ImGui::TextDisabled("build: %s", g.build_variant.c_str());
+      ImGui::TreePop();
+    }
+  }
   const tracer::StageTimes& t = s.last.stages;
   if (t.intersect > 0 || t.megakernel > 0) {
     ImGui::Text("ms per sample: gen %.3f  isect %.3f  sort %.3f", t.generate, t.intersect, t.sort);

@@ -8,6 +8,29 @@
 
 namespace tracer {
 
+nlohmann::json effective_gpu_json(const EffectiveGpuOptions& e) {
+  Scene as_run;
+  as_run.gpu = e.options;
+  nlohmann::json j;
+  j["effective"] = settings_to_json(as_run)["gpu"];
+  j["wavefront_paths"] = {{"rays_at_slots", e.rays_at_slots},
+                          {"fused_trace", e.fused_trace},
+                          {"fused_tail", e.fused_tail},
+                          {"dynamic_fetch", e.dynamic_fetch},
+                          {"specialize", e.specialize}};
+  j["build_variant"] = e.build_variant;
+  nlohmann::json overrides = nlohmann::json::array();
+  for (const GpuOverride& o : e.overrides) {
+    overrides.push_back({{"name", o.name},
+                         {"requested", o.requested},
+                         {"effective", o.effective},
+                         {"reason", o.reason},
+                         {"design_path", o.path}});
+  }
+  j["overrides"] = overrides;
+  return j;
+}
+
 double clamp_removed_fraction(const SidecarRun& run) {
   return run.clamped_luminance / std::max(1e-30, run.kept_luminance + run.clamped_luminance);
 }
@@ -45,6 +68,7 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
     j["gpu_run"] = {{"kernel", run.last.kernel},
                     {"specialization", run.last.specialization},
                     {"note", run.last.note}};
+    if (run.last.gpu) j["gpu_run"].update(effective_gpu_json(*run.last.gpu));
   }
   j["features"] = run.features;
   j["warnings"] = scene.diagnostics.warnings;

@@ -6,6 +6,7 @@
 #include <nlohmann/json_fwd.hpp>
 #include <string>
 
+#include "integrator/gpu_options.h"
 #include "integrator/renderer.h"
 #include "scene/scene.h"
 
@@ -26,6 +27,10 @@ struct SidecarRun {
   std::string features;            // describe_features() of the compiled scene
   FrameStats last;                 // the last frame: kernel, specialization, note
 };
+
+// What the GPU ran for a request (resolve_gpu_options()): the effective switches, the wavefront's
+// design paths, the build variant and every override with its reason.
+nlohmann::json effective_gpu_json(const EffectiveGpuOptions& e);
 
 // The clamp's bias: the share of the image's luminance it removed.
 double clamp_removed_fraction(const SidecarRun& run);
