@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <string>
+#include <vector>
 
 namespace app {
 
@@ -27,6 +28,7 @@ struct ErrorBenchScene {
   std::string scene;
   int width = 0, height = 0, max_depth = 0;
   std::string backend = "auto";
+  std::vector<std::string> sets;  // --set KEY=VALUE, applied to the scene first (settings table)
 };
 int run_error_bench(const ErrorBenchScene& s, const ErrorBenchOptions& o);
 

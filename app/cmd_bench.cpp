@@ -14,6 +14,7 @@
 #include "backends/backend_select.h"
 #include "bench_error.h"
 #include "commands.h"
+#include "settings_cli.h"
 #include "cpu/cpu_backend.h"
 #include "image/image.h"
 #include "scene/compiled_scene.h"
@@ -29,8 +30,7 @@ struct BenchOptions {
   std::string backend = "auto";
   std::string json_out;
   bool jitter_off_configs = true;
-  std::string nee = "on";
-  float tail = tracer::GpuOptions().tail_fraction;
+  SettingArgs settings;  // --nee, --tail and --set (settings table), applied after the defaults
   ErrorBenchOptions error;
 };
 
@@ -170,6 +170,20 @@ nlohmann::json to_json(const Result& r) {
           {"gpu_options", r.gpu_options}};
 }
 
+// A row's name: its kernel and every GPU setting that differs from the defaults, as --set spells
+// them without the section, and jitter=off for the rows without jitter.
+std::string row_name(const tracer::GpuOptions& gpu, bool jitter) {
+  tracer::Scene row, defaults;
+  row.gpu = gpu;
+  std::string name = tracer::setting_text(row, *tracer::find_setting("gpu.kernel"));
+  for (const tracer::Setting& s : tracer::settings_table()) {
+    if (s.section() != "gpu" || s.key == "gpu.kernel") continue;
+    const std::string v = tracer::setting_text(row, s);
+    if (v != tracer::setting_text(defaults, s)) name += " " + s.name() + "=" + v;
+  }
+  return name + (jitter ? "" : " jitter=off");
+}
+
 int run_bench(const BenchOptions& o) {
   tracer::Scene scene;
   if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
@@ -177,8 +191,13 @@ int run_bench(const BenchOptions& o) {
   rs.width = o.width > 0 ? o.width : 1920;
   rs.height = o.height > 0 ? o.height : 1080;
   rs.max_depth = o.max_depth > 0 ? o.max_depth : 8;
-  rs.nee = o.nee == "on";
   scene.settings = rs;
+  std::string problem;
+  if (!apply_setting_args(o.settings, &scene, &problem)) {
+    std::cerr << "error: " << problem << "\n";
+    return kExitUsage;
+  }
+  rs = scene.settings;
   try {
     tracer::validate_scene(scene);
   } catch (const tracer::InputError& e) {
@@ -222,46 +241,42 @@ int run_bench(const BenchOptions& o) {
     std::printf("build variant: %s\n", variant.c_str());
     out["build_variant"] = variant;
     const std::string label = variant == "default" ? "" : " [" + variant + "]";
+    // Each row is the scene's GPU settings (the defaults, or --set / --tail) with a few changed;
+    // its name is the kernel and the settings that differ from the defaults, as --set spells
+    // them (settings table): "wavefront compaction=cub", "megakernel flat=off".
     using C = tracer::Compaction;
-    auto add = [&](const std::string& name, tracer::KernelMode k, bool compaction, bool sort,
-                   bool jitter = true) {
+    using K = tracer::KernelMode;
+    auto add = [&](K k, C compaction, bool sort = false, bool jitter = true, bool cache = true,
+                   bool flat = true, float tail = -1.0f) {
       Config c;
-      c.name = name + label;
+      c.gpu = scene.gpu;
       c.gpu.kernel = k;
-      c.gpu.compaction = compaction ? C::kAuto : C::kOff;
+      c.gpu.compaction = compaction;
       c.gpu.sort_materials = sort;
-      c.gpu.first_bounce_cache = !jitter;
-      c.gpu.tail_fraction = o.tail;
+      c.gpu.first_bounce_cache = cache;
+      c.gpu.flat_list = flat && scene.gpu.flat_list;
+      if (tail >= 0.0f) c.gpu.tail_fraction = tail;
       c.jitter = jitter;
+      c.name = row_name(c.gpu, jitter) + label;
       configs.push_back(c);
     };
-    using K = tracer::KernelMode;
-    add("megakernel, specialized", K::kMegakernel, false, false);
-    add("wavefront", K::kWavefront, false, false);
-    add("wavefront+compaction", K::kWavefront, true, false);
-    add("wavefront+compaction (in shade)", K::kWavefront, true, false);
-    configs.back().gpu.compaction = C::kShade;
-    add("wavefront+compaction (CUB)", K::kWavefront, true, false);
-    configs.back().gpu.compaction = C::kCub;
-    add("wavefront+compaction, no tail", K::kWavefront, true, false);
-    configs.back().gpu.tail_fraction = 0.0f;
-    add("wavefront+compaction+sorting", K::kWavefront, true, true);
-    add("wavefront+sorting", K::kWavefront, false, true);
+    add(K::kMegakernel, C::kAuto);
+    add(K::kWavefront, C::kOff);
+    add(K::kWavefront, C::kAuto);
+    add(K::kWavefront, C::kShade);
+    add(K::kWavefront, C::kCub);
+    add(K::kWavefront, C::kAuto, false, true, true, true, 0.0f);
+    add(K::kWavefront, C::kAuto, true);
+    add(K::kWavefront, C::kOff, true);
     if (o.jitter_off_configs && !(cs.features() & tracer::kFeatureDepthOfField)) {
-      add("wavefront+compaction, no jitter", K::kWavefront, true, false, false);
-      Config c = configs.back();
-      c.name = "wavefront+compaction+cache, no jitter" + label;
-      c.gpu.first_bounce_cache = true;
-      configs.push_back(c);
-      configs[configs.size() - 2].gpu.first_bounce_cache = false;
+      add(K::kWavefront, C::kAuto, false, false, false);
+      add(K::kWavefront, C::kAuto, false, false, true);
     }
     if (cs.flat_list().enabled) {  // small scenes: the same designs through the BVH instead
-      add("megakernel, specialized, BVH", K::kMegakernel, false, false);
-      configs.back().gpu.flat_list = false;
-      add("wavefront+compaction, BVH", K::kWavefront, true, false);
-      configs.back().gpu.flat_list = false;
+      add(K::kMegakernel, C::kAuto, false, true, true, false);
+      add(K::kWavefront, C::kAuto, false, true, true, false);
     }
-    add("auto", K::kAuto, true, false);
+    add(K::kAuto, C::kAuto);
     for (const Config& c : configs) results.push_back(run_config(*gpu, cs, cfg, c, o.spp));
     for (const auto& r : results) gpu_best = std::max(gpu_best, r.segments_per_s);
     out["path_state_bytes_per_pixel"] = gpu->path_state_bytes_per_pixel();
@@ -529,24 +544,29 @@ Runner add_bench_command(CLI::App& cmd) {
       ->check(CLI::Range(0, 100000))->capture_default_str();
   cmd.add_option("--backend", o->backend, "auto, cpu or cuda")->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   CLI::Option* json = cmd.add_option("--json", o->json_out, "Also write the figures to this JSON file");
-  CLI::Option* nee = cmd.add_option("--nee", o->nee, "Next-event estimation: on or off")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  CLI::Option* tail = cmd.add_option("--tail", o->tail,
-                     "The wavefront configurations' tail: the megakernel finishes the paths once "
-                     "fewer than this fraction of the pixels remain (0: off)")
-      ->check(CLI::Range(0.0f, 1.0f))->capture_default_str();
+  // From the settings table: --nee, --tail and --set (the rows' base; --set also with --error).
+  std::vector<std::string> skip;
+  for (const tracer::Setting& s : tracer::settings_table())
+    if (s.key != "render.nee" && s.key != "gpu.tail") skip.push_back(s.key);
+  add_setting_options(cmd, &o->settings, {"render", "gpu"}, skip);
   // The speed bench's own options mean nothing to --error (its configurations carry no-nee,
   // its sweep its sample counts, --out its files): combining them is a usage error.
   CLI::Option* error = add_error_bench_options(cmd, &o->error);
-  for (CLI::Option* opt : {spp, cpu_spp, json, nee, tail}) opt->excludes(error);
+  for (CLI::Option* opt : {spp, cpu_spp, json}) opt->excludes(error);
   return [o] {
     if (!o->error.enabled) return run_bench(*o);
+    if (!o->settings.flags.empty()) {
+      std::cerr << "error: --nee and --tail are the speed bench's; with --error, give each "
+                   "configuration its modifiers (e.g. megakernel+nee=off)\n";
+      return kExitUsage;
+    }
     ErrorBenchScene s;
     s.scene = o->scene;
     s.width = o->width;
     s.height = o->height;
     s.max_depth = o->max_depth;
     s.backend = o->backend;
+    s.sets = o->settings.sets;
     return run_error_bench(s, o->error);
   };
 }

@@ -37,8 +37,9 @@ using Clock = std::chrono::steady_clock;
 // independent estimates (the same seed would trace the same first paths).
 constexpr uint32_t kReferenceSeedOffset = 0x5EED0001u;
 
-// One configuration of the sweep: a backend (and GPU kernel) plus modifiers, e.g.
-// "megakernel+no-rr", "cpu+depth=4", "wavefront+no-compaction".
+// One configuration of the sweep: a backend (and GPU kernel) plus modifiers, each a setting of
+// the settings table as --set spells it without its section, e.g. "megakernel+rr=off",
+// "cpu+max_depth=4", "wavefront+compaction=off".
 struct Config {
   std::string name;
   bool cpu = false;
@@ -52,10 +53,30 @@ struct Config {
 };
 
 const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
-const std::vector<std::string> kModifiers = {
-    "no-compaction", "cub-compaction", "shade-compaction", "no-tail", "sorting", "no-rr",
-    "no-nee",        "no-mis",         "schlick", "depth=N", "clamp=X",  "random",
-    "sobol",         "sobol-pairs",    "scalar-bvh", "no-flat", "flat"};
+// Modifiers that are no setting of the settings table.
+const std::vector<std::string> kOwnModifiers = {"schlick", "scalar-bvh"};
+
+// The settings a configuration may change: a setting of the table's "render" or "gpu" section
+// that shapes the estimate or the design (not the image size, the stop condition or the
+// backend, which the bench fixes). Named by key ("render.nee"), name ("nee") or flag ("rr").
+const tracer::Setting* modifier_setting(const std::string& name) {
+  for (const tracer::Setting& s : tracer::settings_table()) {
+    if (s.section() != "render" && s.section() != "gpu") continue;
+    if (s.key == "gpu.kernel" || s.effect == tracer::SettingEffect::kResize ||
+        s.effect == tracer::SettingEffect::kStop || s.effect == tracer::SettingEffect::kBackend)
+      continue;
+    if (name == s.key || name == s.name() || (!s.flag.empty() && "--" + name == s.flag)) return &s;
+  }
+  return nullptr;
+}
+
+std::string modifier_list() {
+  std::string out;
+  for (const tracer::Setting& s : tracer::settings_table())
+    if (modifier_setting(s.key) == &s)
+      out += (out.empty() ? "" : ", ") + s.name() + "=" + tracer::setting_values_text(s);
+  return out + ", schlick, scalar-bvh (cpu)";
+}
 
 // Throws std::invalid_argument with a message naming the bad token.
 Config parse_config(const std::string& text) {
@@ -84,86 +105,63 @@ Config parse_config(const std::string& text) {
                                 (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)"));
   }
   c.gpu.first_bounce_cache = false;  // jitter stays on: the cache would never apply
+  // The settings' modifiers are applied through the table (its checks and messages) to a scene
+  // that holds the configuration's settings; what they change is copied out below.
+  tracer::Scene tmpl;
+  tmpl.gpu = c.gpu;
+  std::vector<std::string> changed;
   for (size_t i = 1; i < tokens.size(); ++i) {
     const std::string& m = tokens[i];
-    auto number = [&](const std::string& prefix, double lo, double hi) {
-      const std::string v = m.substr(prefix.size());
-      char* end = nullptr;
-      const double x = std::strtod(v.c_str(), &end);
-      if (v.empty() || *end != '\0' || !(x >= lo && x <= hi))
-        throw std::invalid_argument("\"" + m + "\" in \"" + text + "\": " + prefix +
-                                    " takes a "
-                                    "number in [" +
-                                    std::to_string(lo) + ", " + std::to_string(hi) + "]");
-      return x;
-    };
-    if (m == "no-compaction")
-      c.gpu.compaction = tracer::Compaction::kOff;
-    else if (m == "cub-compaction")
-      c.gpu.compaction = tracer::Compaction::kCub;
-    else if (m == "shade-compaction")
-      c.gpu.compaction = tracer::Compaction::kShade;
-    else if (m == "no-tail")
-      c.gpu.tail_fraction = 0.0f;
-    else if (m == "sorting")
-      c.gpu.sort_materials = true;
-    else if (m == "no-flat" || m == "flat") {
-      if (c.cpu != (m == "flat"))
-        throw std::invalid_argument("\"" + m + "\" in \"" + text + "\" applies to " +
-                                    (c.cpu ? "GPU" : "cpu") +
-                                    " configurations only (the GPU uses the flat list by "
-                                    "default, the CPU its BVH)");
-      if (c.cpu) c.cpu_flat = true;
-      else c.gpu.flat_list = false;
-    }
-    else if (m == "no-rr")
-      c.rr = false;
-    else if (m == "no-nee")
-      c.nee = false;
-    else if (m == "no-mis")
-      c.mis = false;
-    else if (m == "schlick")
+    const size_t eq = m.find('=');
+    if (m == "schlick") {
       c.schlick = true;
-    else if (m == "random")
-      c.sampler = int(tracer::kSamplerRandom);
-    else if (m == "sobol")
-      c.sampler = int(tracer::kSamplerSobol);
-    else if (m == "sobol-pairs")
-      c.sampler = int(tracer::kSamplerSobolPairs);
-    else if (m == "scalar-bvh") {
+    } else if (m == "scalar-bvh") {
       if (!c.cpu)
         throw std::invalid_argument("\"scalar-bvh\" in \"" + text +
                                     "\" applies to cpu configurations only (the GPU always "
                                     "traverses the shared layout)");
       c.scalar_bvh = true;
-    } else if (m.rfind("depth=", 0) == 0) {
-      const double d = number("depth=", 1, 1024);
-      if (d != std::floor(d))
-        throw std::invalid_argument("\"" + m + "\" in \"" + text +
-                                    "\": depth= takes a whole number");
-      c.max_depth = int(d);
-    } else if (m.rfind("clamp=", 0) == 0)
-      c.clamp = float(number("clamp=", 1e-6, 1e9));
-    else {
-      const std::string guess = tracer::did_you_mean(m, kModifiers);
+    } else if (eq != std::string::npos && modifier_setting(m.substr(0, eq))) {
+      const tracer::Setting& s = *modifier_setting(m.substr(0, eq));
+      const std::string problem = tracer::set_setting_assignment(tmpl, s.key + m.substr(eq));
+      if (!problem.empty())
+        throw std::invalid_argument("\"" + m + "\" in \"" + text + "\": " + problem);
+      changed.push_back(s.key);
+    } else {
+      std::vector<std::string> names = kOwnModifiers;
+      for (const tracer::Setting& s : tracer::settings_table())
+        if (modifier_setting(s.key) == &s) names.push_back(s.name());
+      const std::string guess = tracer::did_you_mean(m.substr(0, eq), names);
       throw std::invalid_argument("unknown modifier \"" + m + "\" in \"" + text + "\"" +
                                   (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") +
-                                  "; modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, sorting, no-rr, no-nee, "
-                                  "no-mis, schlick, depth=N, clamp=X, random, sobol, sobol-pairs, "
-                                  "scalar-bvh, no-flat, flat");
+                                  "; modifiers: " + modifier_list());
     }
+  }
+  const tracer::RenderSettings& rs = tmpl.settings;
+  for (const std::string& key : changed) {
+    if (key == "render.nee") c.nee = rs.nee;
+    else if (key == "render.mis") c.mis = rs.mis;
+    else if (key == "render.russian_roulette") c.rr = rs.russian_roulette;
+    else if (key == "render.max_depth") c.max_depth = rs.max_depth;
+    else if (key == "render.clamp") c.clamp = rs.clamp;
+    else if (key == "render.sampler") c.sampler = int(rs.sampler);
+    else if (key == "gpu.flat" && c.cpu) c.cpu_flat = tmpl.gpu.flat_list;  // the CPU's list
+    else if (key.rfind("gpu.", 0) == 0) c.gpu = tmpl.gpu;
+    else
+      throw std::invalid_argument("\"" + key + "\" in \"" + text +
+                                  "\" is no setting a configuration can change");
   }
   return c;
 }
 
 std::string default_suite(bool gpu) {
   if (gpu)
-    return "megakernel,wavefront,wavefront+no-compaction,wavefront+sorting,"
-           "megakernel+no-rr,megakernel+no-nee,megakernel+no-mis,megakernel+schlick,"
-           "megakernel+depth=4,megakernel+clamp=10,megakernel+random,megakernel+sobol-pairs,cpu";
-  return "cpu,cpu+scalar-bvh,cpu+random,cpu+sobol-pairs,cpu+no-rr,cpu+no-nee,cpu+no-mis,"
-         "cpu+schlick,cpu+depth=4,"
-         "cpu+clamp=10";
+    return "megakernel,wavefront,wavefront+compaction=off,wavefront+sort=on,"
+           "megakernel+rr=off,megakernel+nee=off,megakernel+mis=off,megakernel+schlick,"
+           "megakernel+max_depth=4,megakernel+clamp=10,megakernel+sampler=random,"
+           "megakernel+sampler=sobol-pairs,cpu";
+  return "cpu,cpu+scalar-bvh,cpu+sampler=random,cpu+sampler=sobol-pairs,cpu+rr=off,"
+         "cpu+nee=off,cpu+mis=off,cpu+schlick,cpu+max_depth=4,cpu+clamp=10";
 }
 
 struct Sweep {
@@ -438,13 +436,11 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
       ->group(g);
   cmd.add_option("--configs", o->configs,
                  "Comma-separated configurations: cpu|megakernel|wavefront|auto, each with "
-                 "+modifiers: no-compaction, cub-compaction, shade-compaction, no-tail, sorting, "
-                 "no-rr, no-nee, no-mis, schlick, "
-                 "depth=N, clamp=X, random, sobol, sobol-pairs (the sampler), scalar-bvh (CPU: "
-                 "the GPU's "
-                 "scalar traversal instead of SSE), no-flat (GPU: the BVH also for small "
-                 "scenes), flat (CPU: the GPU's flat list of small scenes). Default: a suite for the "
-                 "backends present")
+                 "+modifiers: a setting as NAME=VALUE (nee, mis, rr, max_depth, clamp, sampler, "
+                 "compaction, sort, cache, flat, tail: the settings table's names, values and "
+                 "checks; flat=on on cpu: the GPU's flat list of small scenes), schlick (every "
+                 "dielectric with Schlick's Fresnel), scalar-bvh (CPU: the GPU's scalar "
+                 "traversal instead of SSE). Default: a suite for the backends present")
       ->group(g);
   cmd.add_option("--max-spp", o->max_spp,
                  "Last sample count of each sweep (default 4096 GPU, "
@@ -471,6 +467,13 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
 int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
   tracer::Scene scene;
   if (!load_scene_or_report(bs.scene, &scene)) return kExitInputError;
+  for (const std::string& a : bs.sets) {
+    const std::string problem = tracer::set_setting_assignment(scene, a);
+    if (!problem.empty()) {
+      std::cerr << "error: --set \"" << a << "\": " << problem << "\n";
+      return kExitUsage;
+    }
+  }
   tracer::RenderSettings& rs = scene.settings;
   if (bs.width > 0) rs.width = bs.width;
   if (bs.height > 0) rs.height = bs.height;

@@ -101,11 +101,11 @@ if [ "$MODE" = all ] || [ "$MODE" = error ]; then
   echo "---- cornell_box 512x512 depth 8 (the reference for the CPU and peer comparison)"
   $DIST/pathtracer bench --error "$(scene cornell_box)" --width 512 --height 512 --max-depth 8 \
     --reference-spp 32768 --max-spp 8192 --time-limit 5 \
-    --configs megakernel,wavefront,megakernel+no-nee,megakernel+depth=4,cpu --out $E/cornell_512
+    --configs megakernel,wavefront,megakernel+nee=off,megakernel+max_depth=4,cpu --out $E/cornell_512
   echo "---- cornell_spheres 960x540 depth 8 (glass and mirror: caustics, Schlick)"
   $DIST/pathtracer bench --error "$(scene cornell_spheres)" --width 960 --height 540 \
     --max-depth 8 --reference-spp 32768 --max-spp 4096 --time-limit 5 \
-    --configs megakernel,wavefront,wavefront+sorting,megakernel+no-mis,megakernel+schlick,megakernel+clamp=10 \
+    --configs megakernel,wavefront,wavefront+sort=on,megakernel+mis=off,megakernel+schlick,megakernel+clamp=10 \
     --out $E/spheres_540p
   # The 512x512 reference comes back (the CPU and peer comparison use it); larger ones stay there.
   tar czf "$OUT/error-bench.tgz" -C /tmp --exclude='*1920x1080*.exr' --exclude='*960x540*.exr' \

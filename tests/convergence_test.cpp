@@ -215,7 +215,8 @@ TEST(BenchError, CpuSweepSeparatesUnbiasedFromBiased) {
       // later point and which decays there as 1/N^2, tilts the random sampler's fitted slope
       // to -1.2 in some random streams; four times the pixels average that out (-1.02).
       " bench --error --backend cpu --width 64 --height 64 --reference-spp 512"
-      " --max-spp 64 --configs cpu+random,cpu+depth=2,cpu+no-nee+random,cpu --out " +
+      " --max-spp 64 --configs cpu+sampler=random,cpu+max_depth=2,cpu+nee=off+sampler=random,cpu"
+      " --out " +
       dir;
   ASSERT_EQ(test::run_command(cmd, &log), 0) << log;
   std::ifstream f(dir + "/bench.json");
@@ -243,12 +244,20 @@ TEST(BenchError, CpuSweepSeparatesUnbiasedFromBiased) {
   EXPECT_NE(log.find("(loaded)"), std::string::npos) << log;
   EXPECT_EQ(test::run_command(test::pathtracer_exe() +
                                   " bench --error --backend cpu --configs "
-                                  "cpu+no-nea --out " +
+                                  "cpu+nea=off --out " +
                                   dir,
                               &log),
             2)
       << log;
-  EXPECT_NE(log.find("no-nee"), std::string::npos) << log;
+  EXPECT_NE(log.find("did you mean \"nee\""), std::string::npos) << log;
+  // A modifier's value is checked by the settings table, with its message.
+  EXPECT_EQ(test::run_command(test::pathtracer_exe() +
+                                  " bench --error --backend cpu --configs cpu+max_depth=0 --out " +
+                                  dir,
+                              &log),
+            2)
+      << log;
+  EXPECT_NE(log.find("\"render.max_depth\" is 0, outside 1..1024"), std::string::npos) << log;
 }
 
 TEST(BenchError, RefusesBadReferencesAndSpeedOnlyOptions) {
