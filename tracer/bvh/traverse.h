@@ -109,7 +109,7 @@ TRACER_HD TRACER_INLINE void order_pair(float& da, uint32_t& ra, float& db, uint
 // The traversal's state besides the ray: the stack of child references and where the walk is.
 // Kept as separate locals by the callers and passed by reference to the force-inlined round
 // below, so that nvcc keeps all but the stack in registers (a struct holding the stack array
-// went to local memory whole: -40% on the GPU).
+// would go to local memory whole: docs/PERFORMANCE.md, decision log, row 31).
 struct TraversalCursor {
   int sp;
   uint32_t next;  // the next child reference to visit; the root is an inner node

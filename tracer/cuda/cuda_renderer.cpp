@@ -247,7 +247,7 @@ struct CudaRenderer::Impl {
     auto bounce_queue = [&](uint32_t b) { return (b & 1) ? queue_odd.get() : queue.get(); };
     // The tail (needs a queue): from the first bounce whose estimated queue is short, one
     // megakernel launch runs the remaining bounces of its paths, where each stage of a short
-    // queue would cost its launch and one path's latency (PERFORMANCE.md, "per bounce").
+    // queue would cost its launch and one path's latency (PERFORMANCE.md, "Short queues").
     tail_from = eff.compaction() ? wavefront_tail_bounce(tail_estimate, eff.options.tail_fraction,
                                                          n(), iterations)
                                  : 0;

@@ -34,7 +34,7 @@ __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 
   }
   // Each pixel gets one sample per launch from one thread, so the sum needs no atomicity; but an
   // atomic add that returns nothing is sent to memory without waiting, where a read-modify-write
-  // stalls the lane on the read (3% of the flat megakernel's stall samples). Launches run in
+  // stalls the lane on the read. Launches run in
   // order, so the sums are the same.
   if (first) {
     film.accum[pixel] = make_float4(L.x, L.y, L.z, 0.0f);

@@ -10,10 +10,11 @@ namespace {
 
 // Minimum resident blocks per SM asked of the compiler for the megakernel (caps its registers).
 #ifndef TRACER_MEGA_MIN_BLOCKS
-#define TRACER_MEGA_MIN_BLOCKS 4  // 64 registers: measured fastest on an H200 (PERFORMANCE.md)
+#define TRACER_MEGA_MIN_BLOCKS 4  // 64 registers: the fastest cap measured (PERFORMANCE.md, row 4)
 #endif
-// The flat megakernel: 64 registers for diffuse-only scenes (48 and 80 measured slower), 80 for
-// the specular variants (whose shading spills at 64): each the faster on an H200 (PERFORMANCE.md).
+// The flat megakernel: 64 registers for diffuse-only scenes, 80 for the specular variants (whose
+// shading spills at 64): of the caps measured, each the faster for its scenes (PERFORMANCE.md,
+// decision log, rows 36-37).
 #ifndef TRACER_MEGA_FLAT_DIFFUSE_BLOCKS
 #define TRACER_MEGA_FLAT_DIFFUSE_BLOCKS 4
 #endif
@@ -108,7 +109,7 @@ __global__ void __launch_bounds__(kBlock, TRACER_MEGA_MIN_BLOCKS) megakernel(Sce
 // The megakernel for scenes with a flat primitive list (bvh/flat_list.h). Each lane's shadow
 // ray is traced together with the next extension ray of its path, in one pass over the list
 // (flat_closest_and_any): the loads and the loop are paid once, and no loop runs for only the
-// lanes that have a shadow ray (which left half the lanes idle in the separate shadow query). A
+// lanes that have a shadow ray (a separate shadow query would run with only those lanes). A
 // lane whose path ended with a shadow ray in flight keeps that path's pixel and radiance until
 // the next pass, already tracing its new path's camera ray in it.
 template <uint32_t Spec, bool FromQueue>

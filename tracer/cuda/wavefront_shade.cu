@@ -31,16 +31,17 @@ __device__ __forceinline__ void store_shadow_ray(const WavefrontState& w, uint32
 
 // Shades the queued paths; with next_queue (compaction in the shade kernel) each block appends
 // its paths that go on to the next bounce's queue, in slot order, with one atomic on the next
-// bounce's path count (alive_counts[bounce + 1]). One atomic per warp that waits for its result
-// cost 20 us per bounce where nearly every path goes on (the closed box: 65,000 atomics on one
-// address); the block's 8 warp counts are summed in shared memory first. With shadow_queue the
-// block appends its paths that have a shadow ray to it the same way (shadow_counts[bounce]), so
-// that the shadow stage traces full warps of rays instead of every path of the bounce (in the
-// open box 63% of them have none), and stores the rays at their slots (shadow_o/d/c[slot]),
-// where the stage reads them in whole sectors instead of scattered over the pool; the paths that end without a shadow ray go to the queue's
-// far end (slot n - 1 - k, counted on finish_counts[bounce]), where the shadow stage's last
-// warps add them to the film. (Adding them here instead cost the shade kernel 40-80% more on
-// bounces where many paths end: its film reductions stalled its loads and its barrier.)
+// bounce's path count (alive_counts[bounce + 1]). The block's 8 warp counts are summed in shared
+// memory first, so that one atomic per block, not per warp, waits on that count (per-warp atomics
+// on one address serialise where nearly every path goes on). With shadow_queue the block appends
+// its paths that have a shadow ray to it the same way (shadow_counts[bounce]), so that the shadow
+// stage traces full warps of rays instead of every path of the bounce (on later bounces many
+// paths have none), and stores the rays at their slots (shadow_o/d/c[slot]), where the stage
+// reads them in whole sectors instead of scattered over the pool; the paths that end without a
+// shadow ray go to the queue's far end (slot n - 1 - k, counted on finish_counts[bounce]), where
+// the shadow stage's last warps add them to the film. (Adding them to the film here would stall
+// the shade kernel's loads and barrier on bounces where many paths end: PERFORMANCE.md, decision
+// log, row 72.)
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSettings cfg,
                                                        uint32_t sample, uint32_t bounce,

@@ -45,7 +45,8 @@ __global__ void __launch_bounds__(kBlock) intersect_kernel(SceneView s, Wavefron
 }
 
 // Rays per lane of the flat list's intersect kernel (intersect_flat_kernel): 4 (64 registers)
-// without spheres, 2 (40) with them, where 4 took 84 registers and ran slower (PERFORMANCE.md).
+// without spheres, 2 (40) with them, where 4 would take 84 registers (PERFORMANCE.md, decision
+// log, rows 69-70 and 80).
 template <uint32_t Spec>
 constexpr int flat_rays() {
 #ifdef TRACER_FLAT_RAYS_PER_LANE
@@ -107,8 +108,8 @@ __global__ void __launch_bounds__(kBlock) intersect_flat_kernel(SceneView view,
   intersect_rows<F, kFlatRays>(s, w, queue, total, first);
 }
 
-// Lanes of the dynamic-fetch kernel refill in batches of 8: measured on an H100 as fast as 16
-// and ahead of one thread per ray by 31-34% on the bunny box's bounce rays (PERFORMANCE.md).
+// Lanes of the dynamic-fetch kernel refill in batches of 8 (16 is no faster, 4 slower:
+// PERFORMANCE.md, decision log, row 32).
 constexpr int kFetchBatch = 8;
 
 // The same query with dynamic fetch (Aila & Laine 2009, sec. 5): persistent warps, and a lane
@@ -216,9 +217,10 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
 // path's radiance and state are read at once, one dependent step after the queue slot (the pass
 // above waits for the state, then the contribution, then the ray). The lanes after them finish
 // the paths that ended without a shadow ray (finish_counts[b], from the queue's far end).
-// Minimum resident blocks per SM asked of the compiler for the queued shadow stage: none (59
-// registers, 4 blocks); 5 (48 registers) and 6 (40) were 0-3% and 2-6% slower, and even an
-// explicit 1 changes the sphere variant's code and cost smallpt 1.5% (PERFORMANCE.md).
+// Minimum resident blocks per SM asked of the compiler for the queued shadow stage: none by
+// default (59 registers, 4 blocks per SM); TRACER_SHADOW_MIN_BLOCKS sets one for a build
+// variant. Caps of 5 and 6 blocks, and an explicit 1 (which changes the sphere variant's code),
+// measured slower (PERFORMANCE.md, decision log, rows 75-76).
 #ifdef TRACER_SHADOW_MIN_BLOCKS
 #define TRACER_SHADOW_BOUNDS __launch_bounds__(kBlock, TRACER_SHADOW_MIN_BLOCKS)
 #else
@@ -270,9 +272,10 @@ __global__ void TRACER_SHADOW_BOUNDS shadow_queued_kernel(SceneView view,
 // The fused trace stage: the queued shadow stage of bounce `bounce` and the flat intersect stage
 // of bounce + 1 in one launch (both read only what bounce's shade kernel wrote, and neither
 // reads what the other writes). A stage over a short queue runs in one or two waves of blocks
-// that all wait for memory, then all compute, then all store; its time is about 11 us + 13 us
-// per million rays (PERFORMANCE.md). One grid holds both stages' blocks, so that the shadow
-// rays' loads overlap the extension rays' arithmetic, and one launch, fill and drain is saved.
+// that all wait for memory, then all compute, then all store, and pays a fixed cost however
+// short its queue (PERFORMANCE.md, "Short queues"). One grid holds both stages' blocks, so that
+// the shadow rays' loads overlap the extension rays' arithmetic, and one launch, fill and drain
+// is saved.
 // The first blocks trace the extension rays (w's rays: bounce + 1's, at their slots; the longer
 // blocks first), the rest are the shadow stage's; blocks past both have nothing to do.
 // Only with rays at their slots (hence no random walks) and the flat list.

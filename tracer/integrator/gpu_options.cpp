@@ -157,8 +157,8 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
   // The user's switches.
   if (o.compaction == Compaction::kAuto) {
     // The shade kernel's queues except on textured scenes, whose long, divergent shading (96
-    // registers, 2 blocks per SM) waits at the block's barrier: there CUB was 10% faster,
-    // elsewhere the queues 0-18% (PERFORMANCE.md, "Rays per lane; a shadow queue").
+    // registers, 2 blocks per SM) waits at the block's barrier, where CUB's separate pass is
+    // the faster (PERFORMANCE.md, decision log, rows 67 and 74).
     const bool textured = (scene.features & kFeatureTextures) != 0;
     o.compaction = textured ? Compaction::kCub : Compaction::kShade;
     changed("compaction", "auto", compaction_name(o.compaction),
