@@ -2,6 +2,8 @@
 // sidecar and --set with the same value; a bad value gets the same message from every entry point
 // (scene file, flag, --set, workbench); unknown keys list the valid ones; the docs' tables are
 // the table's.
+#include "scene/settings.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,7 +14,6 @@
 
 #include "integrator/sidecar.h"
 #include "scene/loader.h"
-#include "scene/settings.h"
 #include "test_util.h"
 #include "ui/workbench.h"
 
@@ -30,7 +31,8 @@ const char* kObjects =
 json other_value(const Setting& s, int index) {
   const json def = s.get(tracer::Scene());
   switch (s.type) {
-    case SettingType::kBool: return !def.get<bool>();
+    case SettingType::kBool:
+      return !def.get<bool>();
     case SettingType::kChoice:
       for (const std::string& c : s.choices)
         if (c != def.get<std::string>()) return c;
@@ -45,7 +47,8 @@ json other_value(const Setting& s, int index) {
       if (v == def.get<double>()) v = s.lo + 0.625 * (hi - s.lo);
       return v;
     }
-    case SettingType::kVec3: return json::array({0.5, 1.25, 3.0 + index});
+    case SettingType::kVec3:
+      return json::array({0.5, 1.25, 3.0 + index});
   }
   return def;
 }
@@ -53,8 +56,10 @@ json other_value(const Setting& s, int index) {
 // The value as --set spells it.
 std::string as_text(const Setting& s, const json& v) {
   switch (s.type) {
-    case SettingType::kBool: return v.get<bool>() ? "on" : "off";
-    case SettingType::kChoice: return v.get<std::string>();
+    case SettingType::kBool:
+      return v.get<bool>() ? "on" : "off";
+    case SettingType::kChoice:
+      return v.get<std::string>();
     case SettingType::kVec3: {
       std::ostringstream o;
       o << v[0].get<double>() << "," << v[1].get<double>() << "," << v[2].get<double>();
@@ -72,7 +77,8 @@ std::string as_text(const Setting& s, const json& v) {
 json all_changed() {
   json sections = json::object();
   int i = 0;
-  for (const Setting& s : tracer::settings_table()) sections[s.section()][s.name()] = other_value(s, i++);
+  for (const Setting& s : tracer::settings_table())
+    sections[s.section()][s.name()] = other_value(s, i++);
   return sections;
 }
 
@@ -92,7 +98,8 @@ void expect_same_settings(const tracer::Scene& a, const json& expected, const st
       EXPECT_EQ(float(got.get<double>()), float(want.get<double>())) << s.key << " via " << via;
     } else if (s.type == SettingType::kVec3) {
       for (size_t i = 0; i < 3; ++i)
-        EXPECT_EQ(float(got[i].get<double>()), float(want[i].get<double>())) << s.key << " via " << via;
+        EXPECT_EQ(float(got[i].get<double>()), float(want[i].get<double>()))
+            << s.key << " via " << via;
     } else if (s.type == SettingType::kInt) {
       EXPECT_EQ(got.get<double>(), want.get<double>()) << s.key << " via " << via;
     } else {
@@ -172,8 +179,10 @@ TEST(Settings, RenderCommandRecordsEverySettingItWasGiven) {
     if (s.key == "render.time_limit_s") continue;       // --spp and --time exclude each other
     const std::string v = as_text(s, expected[s.section()][s.name()]);
     // Alternate between the flag and --set where a setting has both.
-    if (!s.flag.empty() && use_flag) cmd += " " + s.flag + " '" + v + "'";
-    else cmd += " --set '" + s.key + "=" + v + "'";
+    if (!s.flag.empty() && use_flag)
+      cmd += " " + s.flag + " '" + v + "'";
+    else
+      cmd += " --set '" + s.key + "=" + v + "'";
     use_flag = !use_flag;
   }
   std::string log;
@@ -185,10 +194,12 @@ TEST(Settings, RenderCommandRecordsEverySettingItWasGiven) {
     for (auto it = expected[sec].begin(); it != expected[sec].end(); ++it) {
       const json got = side[sec][it.key()];
       if (it.value().is_number()) {
-        EXPECT_FLOAT_EQ(float(got.get<double>()), float(it.value().get<double>())) << sec << "." << it.key();
+        EXPECT_FLOAT_EQ(float(got.get<double>()), float(it.value().get<double>()))
+            << sec << "." << it.key();
       } else if (it.value().is_array()) {
         for (size_t i = 0; i < 3; ++i)
-          EXPECT_FLOAT_EQ(float(got[i].get<double>()), float(it.value()[i].get<double>())) << sec << "." << it.key();
+          EXPECT_FLOAT_EQ(float(got[i].get<double>()), float(it.value()[i].get<double>()))
+              << sec << "." << it.key();
       } else {
         EXPECT_EQ(got, it.value()) << sec << "." << it.key();
       }
@@ -205,8 +216,10 @@ std::vector<std::string> bad_texts(const Setting& s) {
     o << d;
     return o.str();
   };
-  if (s.hi < 1e30) out.push_back(text(s.hi + 1));
-  else out.push_back("1e39");
+  if (s.hi < 1e30)
+    out.push_back(text(s.hi + 1));
+  else
+    out.push_back("1e39");
   if (s.lo > -1e30) out.push_back(text(s.lo - 1));
   if (s.type == SettingType::kInt) out.push_back(text(s.lo + 0.5));
   return out;
@@ -243,8 +256,8 @@ TEST(Settings, BadValuesGetTheSameMessageFromEveryEntryPoint) {
       EXPECT_NE(err.find(msg), std::string::npos) << err;
       // A scene file (JSON has no NaN or infinity: only the numbers).
       if (bad.find("inf") == std::string::npos && bad != "nan") {
-        const std::string e = load_error("{\"" + s.section() + "\": {\"" + s.name() + "\": " +
-                                         bad + "}, " + kObjects + "}");
+        const std::string e = load_error("{\"" + s.section() + "\": {\"" + s.name() + "\": " + bad +
+                                         "}, " + kObjects + "}");
         EXPECT_NE(e.find("bad.json:1: " + msg), std::string::npos) << e;
       }
       ++checked;
@@ -268,7 +281,8 @@ TEST(Settings, FlagsGiveTheTablesMessage) {
                                     " --out " + testing::TempDir() + "/never.png",
                                 &log),
               2)
-        << s.flag << " " << bad << "\n" << log;
+        << s.flag << " " << bad << "\n"
+        << log;
     EXPECT_NE(log.find(s.flag + " " + bad + ": " + msg), std::string::npos) << log;
   }
 }
@@ -292,8 +306,9 @@ TEST(Settings, UnknownKeysListTheValidOnesAndGuess) {
 
 // The docs' tables of settings are generated from the table; TRACER_UPDATE_DOCS=1 rewrites them.
 TEST(Settings, DocsTablesAreTheTable) {
-  const std::string begin = "<!-- settings-table:begin (generated from tracer/scene/settings.cpp by "
-                            "tests/settings_test.cpp; TRACER_UPDATE_DOCS=1 rewrites it) -->\n";
+  const std::string begin =
+      "<!-- settings-table:begin (generated from tracer/scene/settings.cpp by "
+      "tests/settings_test.cpp; TRACER_UPDATE_DOCS=1 rewrites it) -->\n";
   const std::string end = "<!-- settings-table:end -->";
   const std::string table = tracer::settings_markdown();
   for (const char* doc : {"docs/CLI.md", "docs/SCENE_FORMAT.md"}) {

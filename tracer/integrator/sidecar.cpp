@@ -51,9 +51,8 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
   j["spp"] = run.spp;
   j["wall_time_s"] = run.wall_time_s;
   if (run.setup_time_s >= 0) j["setup_time_s"] = run.setup_time_s;
-  j["rays"] = {{"camera", run.rays.camera},
-               {"extension", run.rays.extension},
-               {"shadow", run.rays.shadow}};
+  j["rays"] = {
+      {"camera", run.rays.camera}, {"extension", run.rays.extension}, {"shadow", run.rays.shadow}};
   const double total = double(run.rays.camera + run.rays.extension + run.rays.shadow);
   j["mrays_per_s"] = run.wall_time_s > 0 ? total / run.wall_time_s / 1e6 : 0.0;
   j["nonfinite_samples"] = run.nonfinite;

@@ -14,7 +14,7 @@ namespace tracer {
 
 // What happened in the run that made the image.
 struct SidecarRun {
-  std::string output;        // the image's path
+  std::string output;  // the image's path
   std::string backend, device;
   uint32_t spp = 0;
   double wall_time_s = 0.0;  // rendering time

@@ -36,18 +36,40 @@ std::string number_text(double d) {
   return buf;
 }
 
-json to_value(bool b) { return b; }
-json to_value(int i) { return i; }
-json to_value(uint32_t u) { return u; }
-json to_value(float f) { return shortest(f); }
-json to_value(double d) { return d; }
-json to_value(vec3 v) { return json::array({shortest(v.x), shortest(v.y), shortest(v.z)}); }
+json to_value(bool b) {
+  return b;
+}
+json to_value(int i) {
+  return i;
+}
+json to_value(uint32_t u) {
+  return u;
+}
+json to_value(float f) {
+  return shortest(f);
+}
+json to_value(double d) {
+  return d;
+}
+json to_value(vec3 v) {
+  return json::array({shortest(v.x), shortest(v.y), shortest(v.z)});
+}
 
-void from_value(const json& j, bool& b) { b = j.get<bool>(); }
-void from_value(const json& j, int& i) { i = int(j.get<double>()); }
-void from_value(const json& j, uint32_t& u) { u = uint32_t(j.get<double>()); }
-void from_value(const json& j, float& f) { f = float(j.get<double>()); }
-void from_value(const json& j, double& d) { d = j.get<double>(); }
+void from_value(const json& j, bool& b) {
+  b = j.get<bool>();
+}
+void from_value(const json& j, int& i) {
+  i = int(j.get<double>());
+}
+void from_value(const json& j, uint32_t& u) {
+  u = uint32_t(j.get<double>());
+}
+void from_value(const json& j, float& f) {
+  f = float(j.get<double>());
+}
+void from_value(const json& j, double& d) {
+  d = j.get<double>();
+}
 void from_value(const json& j, vec3& v) {
   for (int i = 0; i < 3; ++i) v[i] = float(j[size_t(i)].get<double>());
 }
@@ -116,11 +138,10 @@ std::vector<Setting> make_table() {
                     "The point the camera looks at.", E::kCamera,
                     [](Scene& s) -> vec3& { return s.camera.look_at; }));
   t.push_back(field("camera.up", "", T::kVec3, -kHuge, kHuge, "",
-                    "The direction that is up in the image (need not be unit length).",
-                    E::kCamera, [](Scene& s) -> vec3& { return s.camera.up; }));
-  t.push_back(field("camera.vfov", "", T::kFloat, 1.0, 179.0, "degrees",
-                    "Vertical field of view.", E::kCamera,
-                    [](Scene& s) -> float& { return s.camera.vfov_deg; }));
+                    "The direction that is up in the image (need not be unit length).", E::kCamera,
+                    [](Scene& s) -> vec3& { return s.camera.up; }));
+  t.push_back(field("camera.vfov", "", T::kFloat, 1.0, 179.0, "degrees", "Vertical field of view.",
+                    E::kCamera, [](Scene& s) -> float& { return s.camera.vfov_deg; }));
   t.push_back(field("camera.aperture", "", T::kFloat, 0.0, kHuge, "world units",
                     "Lens radius for depth of field (0: a pinhole camera).", E::kCamera,
                     [](Scene& s) -> float& { return s.camera.aperture_radius; }));
@@ -169,11 +190,11 @@ std::vector<Setting> make_table() {
       "Sample points: sobol (Owen-scrambled Sobol, stratified), sobol-pairs (two independent "
       "Sobol halves: exact half-buffer noise) or random (PCG32).",
       E::kImage, [](Scene& s) -> uint32_t& { return s.settings.sampler; }));
-  t.push_back(choice<BackendChoice>(
-      "render.backend", "--backend", {"auto", "cpu", "cuda"},
-      {BackendChoice::kAuto, BackendChoice::kCpu, BackendChoice::kCuda},
-      "auto: the GPU when there is one, else the CPU.", E::kBackend,
-      [](Scene& s) -> BackendChoice& { return s.settings.backend; }));
+  t.push_back(
+      choice<BackendChoice>("render.backend", "--backend", {"auto", "cpu", "cuda"},
+                            {BackendChoice::kAuto, BackendChoice::kCpu, BackendChoice::kCuda},
+                            "auto: the GPU when there is one, else the CPU.", E::kBackend,
+                            [](Scene& s) -> BackendChoice& { return s.settings.backend; }));
   t.push_back(field("render.threads", "--threads", T::kInt, 0, 1024, "threads",
                     "CPU backend threads (0: all cores).", E::kBackend,
                     [](Scene& s) -> int& { return s.settings.threads; }));
@@ -212,28 +233,34 @@ std::vector<Setting> make_table() {
                     E::kGpu, [](Scene& s) -> float& { return s.gpu.tail_fraction; }));
   // ---- display ----
   t.push_back(field("display.exposure", "--exposure", T::kFloat, -20.0, 20.0, "stops",
-                    "Exposure of the display and of PNG exports (EXR stays linear).",
-                    E::kDisplay, [](Scene& s) -> float& { return s.display.exposure; }));
-  t.push_back(choice<ToneMap>(
-      "display.tonemap", "--tonemap", {"none", "reinhard", "aces"},
-      {ToneMap::kNone, ToneMap::kReinhard, ToneMap::kAces},
-      "Tone mapping of the display and of PNG exports.", E::kDisplay,
-      [](Scene& s) -> ToneMap& { return s.display.tone_map; }));
+                    "Exposure of the display and of PNG exports (EXR stays linear).", E::kDisplay,
+                    [](Scene& s) -> float& { return s.display.exposure; }));
+  t.push_back(choice<ToneMap>("display.tonemap", "--tonemap", {"none", "reinhard", "aces"},
+                              {ToneMap::kNone, ToneMap::kReinhard, ToneMap::kAces},
+                              "Tone mapping of the display and of PNG exports.", E::kDisplay,
+                              [](Scene& s) -> ToneMap& { return s.display.tone_map; }));
   return t;
 }
 
 const char* type_words(const Setting& s) {
   switch (s.type) {
-    case T::kBool: return "on or off";
-    case T::kInt: return "a whole number";
-    case T::kFloat: return "a number";
-    case T::kVec3: return "three numbers x,y,z";
-    case T::kChoice: return "a name";
+    case T::kBool:
+      return "on or off";
+    case T::kInt:
+      return "a whole number";
+    case T::kFloat:
+      return "a number";
+    case T::kVec3:
+      return "three numbers x,y,z";
+    case T::kChoice:
+      return "a name";
   }
   return "";
 }
 
-std::string quoted(const std::string& s) { return "\"" + s + "\""; }
+std::string quoted(const std::string& s) {
+  return "\"" + s + "\"";
+}
 
 std::string range_text(const Setting& s) {
   if (s.type == T::kInt) return number_text(s.lo) + ".." + number_text(s.hi);
@@ -256,8 +283,7 @@ std::string check_number(const Setting& s, double d) {
   if (!std::isfinite(d)) return quoted(s.key) + " is " + shown + ", not a finite number";
   if (s.type == T::kInt && d != std::floor(d))
     return quoted(s.key) + " is " + shown + ", not a whole number";
-  if (d < s.lo || d > s.hi)
-    return quoted(s.key) + " is " + shown + ", outside " + range_text(s);
+  if (d < s.lo || d > s.hi) return quoted(s.key) + " is " + shown + ", outside " + range_text(s);
   return "";
 }
 
@@ -283,7 +309,8 @@ std::vector<std::string> setting_keys() {
 std::string unknown_setting_message(const std::string& key, const std::string& section) {
   std::vector<std::string> keys;
   for (const Setting& s : settings_table())
-    if (section.empty() || s.section() == section) keys.push_back(section.empty() ? s.key : s.name());
+    if (section.empty() || s.section() == section)
+      keys.push_back(section.empty() ? s.key : s.name());
   if (section.empty()) keys.insert(keys.end(), kMaterialSetKeys.begin(), kMaterialSetKeys.end());
   std::string msg = "unknown setting " + quoted(key);
   const std::string guess = did_you_mean(key, keys);
@@ -337,9 +364,12 @@ std::string parse_setting_text(const Setting& s, const std::string& text, json* 
   };
   switch (s.type) {
     case T::kBool:
-      if (text == "on" || text == "true" || text == "1") *value = true;
-      else if (text == "off" || text == "false" || text == "0") *value = false;
-      else return quoted(s.key) + " must be on or off, not " + quoted(text);
+      if (text == "on" || text == "true" || text == "1")
+        *value = true;
+      else if (text == "off" || text == "false" || text == "0")
+        *value = false;
+      else
+        return quoted(s.key) + " must be on or off, not " + quoted(text);
       return "";
     case T::kInt:
     case T::kFloat: {
@@ -362,7 +392,8 @@ std::string parse_setting_text(const Setting& s, const std::string& text, json* 
         arr.push_back(d);
         start = comma + 1;
       }
-      if (arr.size() != 3) return quoted(s.key) + " must be three numbers x,y,z, not " + quoted(text);
+      if (arr.size() != 3)
+        return quoted(s.key) + " must be three numbers x,y,z, not " + quoted(text);
       *value = arr;
       return check_setting(s, arr);
     }
@@ -395,13 +426,16 @@ std::string set_setting_assignment(Scene& scene, const std::string& assignment) 
 namespace {
 std::string value_text(const Setting& s, const json& v) {
   switch (s.type) {
-    case T::kBool: return v.get<bool>() ? "on" : "off";
+    case T::kBool:
+      return v.get<bool>() ? "on" : "off";
     case T::kInt:
-    case T::kFloat: return number_text(v.get<double>());
+    case T::kFloat:
+      return number_text(v.get<double>());
     case T::kVec3:
       return number_text(v[0].get<double>()) + "," + number_text(v[1].get<double>()) + "," +
              number_text(v[2].get<double>());
-    case T::kChoice: return v.get<std::string>();
+    case T::kChoice:
+      return v.get<std::string>();
   }
   return "";
 }
@@ -451,10 +485,12 @@ std::string check_settings(const Scene& scene) {
 }
 
 const std::vector<std::string> kMaterialSetKeys = {
-    "materials.NAME.type",       "materials.NAME.albedo",   "materials.NAME.emission",
-    "materials.NAME.emission_strength", "materials.NAME.ior", "materials.NAME.fresnel",
-    "materials.NAME.absorption", "materials.NAME.two_sided", "materials.NAME.roughness",
-    "materials.NAME.scattering", "materials.NAME.g"};
+    "materials.NAME.type",       "materials.NAME.albedo",
+    "materials.NAME.emission",   "materials.NAME.emission_strength",
+    "materials.NAME.ior",        "materials.NAME.fresnel",
+    "materials.NAME.absorption", "materials.NAME.two_sided",
+    "materials.NAME.roughness",  "materials.NAME.scattering",
+    "materials.NAME.g"};
 
 namespace {
 bool parse_floats(const std::string& s, float* out, int n) {
@@ -483,7 +519,8 @@ std::string set_material_assignment(Scene& scene, const std::string& assignment)
     std::vector<std::string> names;
     for (const auto& m : scene.materials) names.push_back(m.name);
     const std::string guess = did_you_mean(name, names);
-    return "no material " + quoted(name) + (guess.empty() ? "" : " (did you mean " + quoted(guess) + "?)");
+    return "no material " + quoted(name) +
+           (guess.empty() ? "" : " (did you mean " + quoted(guess) + "?)");
   }
   Material m = scene.materials[idx].material;
   const float strength = max_component(m.emission);
@@ -492,12 +529,18 @@ std::string set_material_assignment(Scene& scene, const std::string& assignment)
     return parse_floats(value, f, 1) && f[0] >= lo && f[0] <= hi;
   };
   if (field == "type") {
-    if (value == "diffuse") m.type = MaterialType::kDiffuse;
-    else if (value == "mirror") m.type = MaterialType::kMirror;
-    else if (value == "dielectric") m.type = MaterialType::kDielectric;
-    else if (value == "conductor") m.type = MaterialType::kConductor;
-    else if (value == "subsurface") m.type = MaterialType::kSubsurface;
-    else return "expected diffuse, mirror, dielectric, conductor or subsurface";
+    if (value == "diffuse")
+      m.type = MaterialType::kDiffuse;
+    else if (value == "mirror")
+      m.type = MaterialType::kMirror;
+    else if (value == "dielectric")
+      m.type = MaterialType::kDielectric;
+    else if (value == "conductor")
+      m.type = MaterialType::kConductor;
+    else if (value == "subsurface")
+      m.type = MaterialType::kSubsurface;
+    else
+      return "expected diffuse, mirror, dielectric, conductor or subsurface";
   } else if (field == "roughness" || field == "g") {
     if (!number(field == "g" ? -0.99f : 0.0f, field == "g" ? 0.99f : 1.0f))
       return field == "g" ? "expected g in [-0.99, 0.99]" : "expected roughness in [0, 1]";
@@ -525,9 +568,12 @@ std::string set_material_assignment(Scene& scene, const std::string& assignment)
     if (!number(1.0f, 4.0f)) return "expected an index of refraction in [1, 4]";
     m.ior = f[0];
   } else if (field == "fresnel") {
-    if (value == "exact") m.flags &= ~kMaterialSchlickFresnel;
-    else if (value == "schlick") m.flags |= kMaterialSchlickFresnel;
-    else return "expected exact or schlick";
+    if (value == "exact")
+      m.flags &= ~kMaterialSchlickFresnel;
+    else if (value == "schlick")
+      m.flags |= kMaterialSchlickFresnel;
+    else
+      return "expected exact or schlick";
   } else if (field == "two_sided") {
     if (value != "on" && value != "off") return "expected on or off";
     m.flags = value == "on" ? (m.flags | kMaterialTwoSidedEmission)
@@ -575,23 +621,38 @@ std::string settings_markdown() {
     if (s.section() != section) {
       section = s.section();
       out += (out.empty() ? "" : "\n") + std::string("**\"") + section + "\"**\n\n";
-      out += "| key (`--set`) | flag | value | default | meaning | an edit in the window |\n"
-             "|---|---|---|---|---|---|\n";
+      out +=
+          "| key (`--set`) | flag | value | default | meaning | an edit in the window |\n"
+          "|---|---|---|---|---|---|\n";
     }
     std::string value;
-    if (s.type == T::kChoice || s.type == T::kBool) value = choice_list(s);
-    else value = std::string(type_words(s)) + ", " + range_text(s);
+    if (s.type == T::kChoice || s.type == T::kBool)
+      value = choice_list(s);
+    else
+      value = std::string(type_words(s)) + ", " + range_text(s);
     if (!s.unit.empty()) value += " (" + s.unit + ")";
     std::string def = setting_default_text(s);
     const char* effect = "";
     switch (s.effect) {
-      case E::kDisplay: effect = "redraws (no restart)"; break;
+      case E::kDisplay:
+        effect = "redraws (no restart)";
+        break;
       case E::kCamera:
-      case E::kImage: effect = "restarts the image"; break;
-      case E::kResize: effect = "restarts at the new size"; break;
-      case E::kGpu: effect = "speed only (no restart)"; break;
-      case E::kStop: effect = "stop condition (no restart)"; break;
-      case E::kBackend: effect = "new renderer, restarts"; break;
+      case E::kImage:
+        effect = "restarts the image";
+        break;
+      case E::kResize:
+        effect = "restarts at the new size";
+        break;
+      case E::kGpu:
+        effect = "speed only (no restart)";
+        break;
+      case E::kStop:
+        effect = "stop condition (no restart)";
+        break;
+      case E::kBackend:
+        effect = "new renderer, restarts";
+        break;
     }
     out += "| `" + s.key + "` | " + (s.flag.empty() ? "" : "`" + s.flag + "`") + " | " + value +
            " | `" + def + "` | " + s.help + " | " + effect + " |\n";

@@ -44,7 +44,9 @@ inline bool operator==(const GpuOptions& a, const GpuOptions& b) {
          a.sort_materials == b.sort_materials && a.first_bounce_cache == b.first_bounce_cache &&
          a.flat_list == b.flat_list && a.tail_fraction == b.tail_fraction;
 }
-inline bool operator!=(const GpuOptions& a, const GpuOptions& b) { return !(a == b); }
+inline bool operator!=(const GpuOptions& a, const GpuOptions& b) {
+  return !(a == b);
+}
 
 // Which renderer runs: the GPU when there is one (kAuto), or the one named.
 enum class BackendChoice { kAuto, kCpu, kCuda };
