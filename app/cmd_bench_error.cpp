@@ -26,6 +26,7 @@
 #include "image/flip.h"
 #include "image/image.h"
 #include "image/svg_plot.h"
+#include "integrator/sidecar.h"
 #include "scene/compiled_scene.h"
 #include "scene/loader.h"
 
@@ -185,9 +186,11 @@ void collect_flips(FlipJobs& jobs, Sweep& sw, size_t keep) {
 }
 
 // Loads the reference (and its variance image when present) or renders it with `r`.
-bool obtain_reference(const std::string& path, int spp, const tracer::CompiledScene& cs,
-                      tracer::IntegratorSettings cfg, tracer::Renderer& r,
-                      const nlohmann::json& settings, tracer::ReferenceImage* ref) {
+// `settings` (what a reference must match) is kept in its sidecar as "reference_settings".
+bool obtain_reference(const std::string& path, int spp, const tracer::Scene& scene,
+                      const tracer::CompiledScene& cs, tracer::IntegratorSettings cfg,
+                      tracer::Renderer& r, const nlohmann::json& settings,
+                      tracer::ReferenceImage* ref) {
   const std::string var_path = tracer::variance_path_for(path);
   if (std::filesystem::exists(path)) {
     ref->mean = tracer::read_image(path);
@@ -200,9 +203,11 @@ bool obtain_reference(const std::string& path, int spp, const tracer::CompiledSc
     std::ifstream side(path + ".json");
     if (side) {
       const nlohmann::json j = nlohmann::json::parse(side, nullptr, false);
-      if (!j.is_discarded() && j.contains("settings") && j["settings"] != settings) {
+      // "reference_settings"; "settings" in sidecars of older versions.
+      const char* key = j.contains("reference_settings") ? "reference_settings" : "settings";
+      if (!j.is_discarded() && j.contains(key) && j[key] != settings) {
         std::cerr << "warning: " << path << ".json: the reference was rendered with settings "
-                  << j["settings"].dump() << ", the bench uses " << settings.dump()
+                  << j[key].dump() << ", the bench uses " << settings.dump()
                   << "; errors include that difference\n";
       }
     }
@@ -246,14 +251,28 @@ bool obtain_reference(const std::string& path, int spp, const tracer::CompiledSc
   // than a mean beside a stale variance image.
   tracer::write_image(var_path, ref->variance);
   tracer::write_image(path, ref->mean);
-  nlohmann::json side = {{"settings", settings},
-                         {"spp", spp},
-                         {"seed", cfg.seed},
-                         {"sampler", tracer::sampler_name(cfg.sampler)},
-                         {"backend", r.backend_name()},
-                         {"device", r.device_name()},
-                         {"seconds", seconds},
-                         {"nonfinite_samples", nonfinite}};
+  // The one sidecar (integrator/sidecar.h), with the reference's own seed and sampler.
+  tracer::Scene as_rendered;
+  as_rendered.source = scene.source;
+  as_rendered.camera = scene.camera;
+  as_rendered.settings = scene.settings;
+  as_rendered.settings.seed = cfg.seed;
+  as_rendered.settings.sampler = cfg.sampler;
+  as_rendered.settings.spp = spp;
+  as_rendered.gpu = scene.gpu;
+  as_rendered.display = scene.display;
+  as_rendered.materials = scene.materials;
+  as_rendered.diagnostics = scene.diagnostics;
+  tracer::SidecarRun run;
+  run.output = path;
+  run.backend = r.backend_name();
+  run.device = r.device_name();
+  run.spp = uint32_t(spp);
+  run.wall_time_s = seconds;
+  run.nonfinite = nonfinite;
+  run.features = tracer::describe_features(cs.features());
+  nlohmann::json side = tracer::make_sidecar(as_rendered, run);
+  side["reference_settings"] = settings;
   tracer::write_text_atomic(path + ".json", side.dump(2) + "\n");
   std::printf("reference: %s (%d spp on %s in %.1f s; variance in %s)\n", path.c_str(), spp,
               r.device_name().c_str(), seconds, var_path.c_str());
@@ -557,7 +576,8 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
     tracer::Renderer& rr = gpu ? *gpu : static_cast<tracer::Renderer&>(cpu);
     if (gpu) gpu->set_gpu_options(tracer::GpuOptions{});
     const int ref_spp = o.reference_spp > 0 ? o.reference_spp : (gpu ? 32768 : 1024);
-    if (!obtain_reference(ref_path, ref_spp, cs, cfg, rr, settings, &ref)) return kExitInputError;
+    if (!obtain_reference(ref_path, ref_spp, scene, cs, cfg, rr, settings, &ref))
+      return kExitInputError;
   } catch (const std::exception& e) {  // bad files, and GPU failures while rendering it
     std::cerr << "error: reference " << ref_path << ": " << e.what() << "\n";
     return kExitInputError;
