@@ -8,6 +8,7 @@
 #include "core/features.h"
 #include "integrator/path.h"
 #include "scene/compiled_scene.h"
+#include "scene/scene.h"
 
 namespace tracer {
 namespace {
@@ -70,30 +71,17 @@ std::string fraction_text(float f) {
 
 }  // namespace
 
-const char* kernel_mode_name(KernelMode k) {
-  switch (k) {
-    case KernelMode::kAuto:
-      return "auto";
-    case KernelMode::kWavefront:
-      return "wavefront";
-    case KernelMode::kMegakernel:
-      return "megakernel";
-  }
-  return "?";
+// The names are the settings table's (gpu.kernel, gpu.compaction), read back through it.
+std::string kernel_mode_name(KernelMode k) {
+  Scene s;
+  s.gpu.kernel = k;
+  return setting_text(s, *find_setting("gpu.kernel"));
 }
 
-const char* compaction_name(Compaction c) {
-  switch (c) {
-    case Compaction::kOff:
-      return "off";
-    case Compaction::kAuto:
-      return "auto";
-    case Compaction::kShade:
-      return "shade";
-    case Compaction::kCub:
-      return "cub";
-  }
-  return "?";
+std::string compaction_name(Compaction c) {
+  Scene s;
+  s.gpu.compaction = c;
+  return setting_text(s, *find_setting("gpu.compaction"));
 }
 
 std::string gpu_build_variant() {

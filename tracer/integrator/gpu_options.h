@@ -16,8 +16,8 @@ struct IntegratorSettings;
 struct SceneView;
 
 // The names the settings table gives them (gpu.kernel, gpu.compaction), for messages.
-const char* kernel_mode_name(KernelMode k);  // auto, wavefront, megakernel
-const char* compaction_name(Compaction c);   // off, auto, shade, cub
+std::string kernel_mode_name(KernelMode k);  // auto, wavefront, megakernel
+std::string compaction_name(Compaction c);   // auto, shade, cub, off
 
 // Build variants: the engineering baselines that measurements settled (PERFORMANCE.md) are no
 // switches; a bench build compiled with one of these macros (in CMAKE_CXX_FLAGS, as they are read
