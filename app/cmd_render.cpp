@@ -72,6 +72,12 @@ int run_render(const RenderOptions& o) {
                 << "nothing was rendered\n";
       return kExitUsage;
     }
+    try {  // and an output it cannot create (a missing or unwritable folder)
+      tracer::check_writable(o.out);
+    } catch (const std::exception& e) {
+      std::cerr << "error: " << e.what() << "\n";
+      return kExitInputError;
+    }
   }
   const tracer::ToneMap op = scene.display.tone_map;
   const tracer::BackendChoice choice = rs.backend;

@@ -95,6 +95,27 @@ TEST(Cli, BadFlagsAndInputsFail) {
   EXPECT_NE(log.find("did you mean"), std::string::npos) << log;
 }
 
+// An output that cannot be created is found before the render, not after it.
+TEST(Cli, UnwritableOutputFailsBeforeRendering) {
+  std::string log;
+  // /proc takes no new files, even for root; the render would take minutes at this size.
+  EXPECT_EQ(test::run_command(exe() + " render --spp 100000 --width 2048 --height 2048 --out "
+                                      "/proc/pathtracer_test/x.png",
+                              &log),
+            1)
+      << log;
+  EXPECT_NE(log.find("/proc/pathtracer_test/x.png"), std::string::npos) << log;
+  EXPECT_NE(log.find("nothing was rendered"), std::string::npos) << log;
+  EXPECT_EQ(log.find("render:"), std::string::npos) << "no progress: nothing rendered\n" << log;
+  // A missing folder is made, as the writer would.
+  const std::string out = tmpdir() + "/new/folder/y.png";
+  ASSERT_EQ(test::run_command(exe() + " render -q --spp 1 --width 8 --height 8 --out " + out, &log),
+            0)
+      << log;
+  std::ifstream f(out);
+  EXPECT_TRUE(f.good());
+}
+
 TEST(Cli, HelpOnEverySubcommand) {
   for (const char* sub : {"", "render", "info", "compare"}) {
     std::string log;

@@ -59,6 +59,9 @@ void write_png_rgba8(const std::string& path, int width, int height, const uint8
                      bool bottom_up);
 // Writes any text file atomically the same way (the JSON sidecar, saved scenes).
 void write_text_atomic(const std::string& path, const std::string& text);
+// Before a long render: creates the missing directories of `path` and checks that a file can be
+// created beside it (as the atomic writers will); throws std::runtime_error with the reason.
+void check_writable(const std::string& path);
 
 // Reads PNG/JPEG/BMP/TGA (stb_image; 8- or 16-bit sRGB decoded to linear), Radiance .hdr (already
 // linear) or OpenEXR (tinyexr: R, G, B channels of float, half or uint, or one grey channel). The

@@ -389,6 +389,30 @@ void write_png_rgba8(const std::string& path, int width, int height, const uint8
   write_bytes_atomic(path, png.data(), png.size());
 }
 
+void check_writable(const std::string& path) {
+  const fs::path target(path);
+  if (!target.has_filename()) fail(path, "is not a file name", "nothing was rendered");
+  const fs::path dir = target.parent_path();
+  if (!dir.empty()) {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec || !fs::is_directory(dir)) {
+      const std::string why = ec ? ec.message() : std::string("not a directory");
+      fail(path, "cannot create directory '" + dir.string() + "': " + why, "nothing was rendered");
+    }
+  }
+  // The same kind of temporary file the atomic writer makes, made and removed at once.
+  const std::string tmp = (dir / ("." + target.filename().string().substr(0, 200) + ".check." +
+                                  std::to_string(::getpid())))
+                              .string();
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+  if (fd < 0) {
+    fail(path, std::string("cannot be written: ") + std::strerror(errno), "nothing was rendered");
+  }
+  ::close(fd);
+  ::unlink(tmp.c_str());
+}
+
 void write_text_atomic(const std::string& path, const std::string& text) {
   write_bytes_atomic(path, text.data(), text.size());
 }
