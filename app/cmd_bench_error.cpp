@@ -20,6 +20,7 @@
 #include "backends/backend_select.h"
 #include "bench_error.h"
 #include "commands.h"
+#include "settings_cli.h"
 #include "core/diagnostics.h"
 #include "cpu/cpu_backend.h"
 #include "image/convergence.h"
@@ -467,7 +468,7 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
       ->check(CLI::Range(1, 1 << 24))
       ->group(g);
   cmd.add_option("--time-limit", o->time_limit, "Seconds of rendering per configuration")
-      ->check(CLI::Range(0.001, 1e6))
+      ->check(finite_number() & CLI::Range(0.001, 1e6))
       ->capture_default_str()
       ->group(g);
   cmd.add_option("--out", o->out_dir, "Directory for the CSVs, plots and JSON")

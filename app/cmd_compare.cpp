@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "settings_cli.h"
 #include "image/flip.h"
 #include "image/image.h"
 
@@ -85,10 +86,11 @@ Runner add_compare_command(CLI::App& cmd) {
   cmd.add_option("--ppd", o->ppd,
                  "FLIP's pixels per degree of visual angle (default: a 0.7 m wide 4K monitor "
                  "seen from 0.7 m)")
-      ->check(CLI::Range(0.1, 10000.0))
+      ->check(finite_number() & CLI::Range(0.1, 10000.0))
       ->capture_default_str();
   cmd.add_option("--flip-exposure", o->flip_exposure,
                  "Exposure in stops applied to both images before FLIP clamps them to [0, 1]")
+      ->check(finite_number() & CLI::Range(-20.0, 20.0))
       ->capture_default_str();
   return [o] { return run_compare(*o); };
 }

@@ -2,9 +2,23 @@
 #include "settings_cli.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 
 namespace app {
+
+CLI::Validator finite_number() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double d = std::strtod(text.c_str(), &end);
+        if (end == text.c_str() || *end != '\0') return "\"" + text + "\" is not a number";
+        if (!std::isfinite(d)) return "\"" + text + "\" is not a finite number";
+        return "";
+      },
+      "FINITE");
+}
 
 std::string setting_flag_help(const tracer::Setting& s) {
   return s.help + " [" + tracer::setting_values_text(s) + (s.unit.empty() ? "" : " " + s.unit) +

@@ -27,6 +27,10 @@ void add_setting_options(CLI::App& cmd, SettingArgs* args, const std::vector<std
 // "--max-depth 0: ..." or "--set \"KEY=VALUE\": ..." in *error.
 bool apply_setting_args(const SettingArgs& args, tracer::Scene* scene, std::string* error);
 
+// For the few numeric options outside the table: refuses NaN and infinities (CLI11's Range lets
+// NaN through, as every comparison with it is false).
+CLI::Validator finite_number();
+
 // The table's help for a flag: its text, the accepted values and the default.
 std::string setting_flag_help(const tracer::Setting& s);
 

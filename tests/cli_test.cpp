@@ -116,6 +116,20 @@ TEST(Cli, UnwritableOutputFailsBeforeRendering) {
   EXPECT_TRUE(f.good());
 }
 
+// Numeric options outside the settings table refuse NaN and infinities too (the table's own are
+// checked in settings_test).
+TEST(Cli, NonFiniteNumbersAreRefused) {
+  std::string log;
+  const std::string files = " " + exe() + " " + exe();  // they exist: only the number is wrong
+  for (const std::string& args : std::vector<std::string>{"compare --ppd nan" + files, "compare --flip-exposure inf" + files,
+                                 "bench --error --backend cpu --time-limit nan",
+                                 "render --exposure nan", "render --clamp inf", "render --time nan",
+                                 "render --tail nan", "render --set display.exposure=-inf"}) {
+    EXPECT_EQ(test::run_command(exe() + " " + args, &log), 2) << args << "\n" << log;
+    EXPECT_NE(log.find("finite"), std::string::npos) << args << "\n" << log;
+  }
+}
+
 TEST(Cli, HelpOnEverySubcommand) {
   for (const char* sub : {"", "render", "info", "compare"}) {
     std::string log;
