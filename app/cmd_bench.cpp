@@ -42,6 +42,8 @@ struct Config {
 
 struct Result {
   std::string name, kernel, specialization, note;
+  tracer::GpuOptions requested;  // the row's settings
+  bool compacted = false;        // its wavefront compacted the live paths (effective options)
   std::string gpu_options;  // EffectiveGpuOptions::describe() (GPU only)
   // ms_per_spp: one call of `spp` samples, back to back as a progressive render runs them;
   // ms_per_frame: the median of one-sample calls, each waited for (what one display update of
@@ -54,7 +56,7 @@ struct Result {
   std::vector<uint32_t> finished;  // paths that ended without one, per bounce (the same)
 };
 
-// Bytes each wavefront stage reads and writes per path it processes (see kernels.cu's layout);
+// Bytes each wavefront stage reads and writes per path it processes (see the wavefront kernels' layout);
 // scene data (BVH, triangles, materials) is left out: it is small and mostly cache-resident.
 // A queued stage reads its 4-byte slot and no alive flag (a queue holds live paths only); the
 // pass over every path reads the 1-byte flag of each, live or not (counted apart, per slot).
@@ -94,6 +96,7 @@ Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
   std::vector<double> ms;
   Result res;
   res.name = c.name;
+  res.requested = c.gpu;
   tracer::RayCounts total;
   for (int i = 0; i < spp; ++i) {
     const tracer::FrameStats st = r.render(1);
@@ -110,6 +113,7 @@ Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
       res.specialization = st.specialization;
       res.note = st.note;
       if (st.gpu) res.gpu_options = st.gpu->describe();
+      res.compacted = st.gpu ? st.gpu->compaction() : c.gpu.compaction != tracer::Compaction::kOff;
     }
   }
   std::sort(ms.begin(), ms.end());
@@ -301,7 +305,7 @@ int run_bench(const BenchOptions& o) {
     const double copy_gbs_measured = out["copy_bandwidth_GBps"].get<double>();
     for (const auto& r : results) {
       if (r.kernel != "wavefront" || r.alive.empty()) continue;
-      const bool queued = r.name.find("compaction") != std::string::npos;
+      const bool queued = r.compacted;
       const size_t compactions = cub_compactions(r.stages);
       const bool in_shade = queued && compactions == 0 &&
                             (r.stages.bounces.size() > 1 || r.stages.tail_from > 0);
@@ -472,8 +476,9 @@ int run_bench(const BenchOptions& o) {
     const Result* in_shade = nullptr;
     const Result* by_cub = nullptr;
     for (const auto& r : results) {
-      if (r.name == "wavefront+compaction (in shade)" + label) in_shade = &r;
-      if (r.name == "wavefront+compaction (CUB)" + label) by_cub = &r;
+      if (r.kernel != "wavefront" || r.requested.sort_materials) continue;
+      if (!in_shade && r.requested.compaction == tracer::Compaction::kShade) in_shade = &r;
+      if (!by_cub && r.requested.compaction == tracer::Compaction::kCub) by_cub = &r;
     }
     // (Only when both ran the same bounces through their stages.)
     if (in_shade && by_cub && in_shade->alive.size() > 1 && by_cub->stages.compact > 0 &&
@@ -549,7 +554,7 @@ Runner add_bench_command(CLI::App& cmd) {
   for (const tracer::Setting& s : tracer::settings_table())
     if (s.key != "render.nee" && s.key != "gpu.tail") skip.push_back(s.key);
   add_setting_options(cmd, &o->settings, {"render", "gpu"}, skip);
-  // The speed bench's own options mean nothing to --error (its configurations carry no-nee,
+  // The speed bench's own options mean nothing to --error (its configurations carry nee=off,
   // its sweep its sample counts, --out its files): combining them is a usage error.
   CLI::Option* error = add_error_bench_options(cmd, &o->error);
   for (CLI::Option* opt : {spp, cpu_spp, json}) opt->excludes(error);

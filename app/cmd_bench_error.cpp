@@ -58,15 +58,16 @@ const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto
 // Modifiers that are no setting of the settings table.
 const std::vector<std::string> kOwnModifiers = {"schlick", "scalar-bvh"};
 
-// The settings a configuration may change: a setting of the table's "render" or "gpu" section
-// that shapes the estimate or the design (not the image size, the stop condition or the
-// backend, which the bench fixes). Named by key ("render.nee"), name ("nee") or flag ("rr").
+// The settings a configuration may change: those of the table that shape the estimate or the GPU
+// design (not the image size, the stop condition, the seed or the backend, which the bench
+// fixes). Named by key ("render.nee"), name ("nee") or flag ("rr").
 const tracer::Setting* modifier_setting(const std::string& name) {
-  for (const tracer::Setting& s : tracer::settings_table()) {
-    if (s.section() != "render" && s.section() != "gpu") continue;
-    if (s.key == "gpu.kernel" || s.effect == tracer::SettingEffect::kResize ||
-        s.effect == tracer::SettingEffect::kStop || s.effect == tracer::SettingEffect::kBackend)
-      continue;
+  static const std::vector<std::string> kKeys = {
+      "render.nee",   "render.mis",     "render.russian_roulette", "render.max_depth",
+      "render.clamp", "render.sampler", "gpu.compaction",          "gpu.sort",
+      "gpu.cache",    "gpu.flat",       "gpu.tail"};
+  for (const std::string& key : kKeys) {
+    const tracer::Setting& s = *tracer::find_setting(key);
     if (name == s.key || name == s.name() || (!s.flag.empty() && "--" + name == s.flag)) return &s;
   }
   return nullptr;
