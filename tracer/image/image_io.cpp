@@ -38,6 +38,20 @@ constexpr const char* kNotLoaded = "the image was not loaded";
   throw InputError(SourceLoc{path, 0}, problem, action);
 }
 
+// Creates the folders of `path` that are missing and returns its folder ("" for a bare name).
+fs::path make_parent_directories(const std::string& path, const char* action) {
+  const fs::path dir = fs::path(path).parent_path();
+  if (!dir.empty()) {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec || !fs::is_directory(dir)) {
+      const std::string why = ec ? ec.message() : std::string("not a directory");
+      fail(path, "cannot create directory '" + dir.string() + "': " + why, action);
+    }
+  }
+  return dir;
+}
+
 std::string lower_extension(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -63,15 +77,7 @@ bool write_all(int fd, const unsigned char* data, size_t size) {
 void write_bytes_atomic(const std::string& path, const void* data, size_t size) {
   const fs::path target(path);
   if (!target.has_filename()) fail(path, "is not a file name", kNotSaved);
-  const fs::path dir = target.parent_path();
-  if (!dir.empty()) {
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    if (ec || !fs::is_directory(dir)) {
-      const std::string why = ec ? ec.message() : std::string("not a directory");
-      fail(path, "cannot create directory '" + dir.string() + "': " + why, kNotSaved);
-    }
-  }
+  const fs::path dir = make_parent_directories(path, kNotSaved);
 
   // Name: hidden, derived from the target (shortened to stay under NAME_MAX), made unique by the
   // pid and a counter so that concurrent writers in one or several processes never collide.
@@ -392,15 +398,7 @@ void write_png_rgba8(const std::string& path, int width, int height, const uint8
 void check_writable(const std::string& path) {
   const fs::path target(path);
   if (!target.has_filename()) fail(path, "is not a file name", "nothing was rendered");
-  const fs::path dir = target.parent_path();
-  if (!dir.empty()) {
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    if (ec || !fs::is_directory(dir)) {
-      const std::string why = ec ? ec.message() : std::string("not a directory");
-      fail(path, "cannot create directory '" + dir.string() + "': " + why, "nothing was rendered");
-    }
-  }
+  const fs::path dir = make_parent_directories(path, "nothing was rendered");
   // The same kind of temporary file the atomic writer makes, made and removed at once.
   const std::string tmp = (dir / ("." + target.filename().string().substr(0, 200) + ".check." +
                                   std::to_string(::getpid())))

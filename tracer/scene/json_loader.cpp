@@ -100,20 +100,6 @@ class JsonSceneReader {
     return float(number(obj[key], json_pointer_child(ptr, key), in_quotes(key) + " in " + where));
   }
 
-  int64_t get_int(const json& obj, const std::string& ptr, const char* key, int64_t def, int64_t lo,
-                  int64_t hi, const std::string& where) const {
-    if (!obj.contains(key)) return def;
-    const std::string p = json_pointer_child(ptr, key);
-    const std::string what = in_quotes(key) + " in " + where;
-    const double d = number(obj[key], p, what);
-    if (d != std::floor(d)) fail(p, what + " must be a whole number");
-    if (d < double(lo) || d > double(hi)) {
-      fail(p, what + " is " + obj[key].dump() + ", outside the allowed range " +
-                  std::to_string(lo) + ".." + std::to_string(hi));
-    }
-    return int64_t(d);
-  }
-
   bool get_bool(const json& obj, const std::string& ptr, const char* key, bool def,
                 const std::string& where) const {
     if (!obj.contains(key)) return def;
