@@ -2,6 +2,7 @@
 // out, and which renderer features it needs.
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
@@ -28,6 +29,19 @@ std::string gpu_design_head(const tracer::EffectiveGpuOptions& e) {
   return end == std::string::npos ? d : d.substr(0, end);
 }
 
+std::string vec_text(tracer::vec3 v) {
+  std::ostringstream ss;
+  ss << std::setprecision(4) << "[" << v.x << ", " << v.y << ", " << v.z << "]";
+  return ss.str();
+}
+
+// True when the loader chose the camera (a mesh file without one); its note says why.
+bool framed(const tracer::Scene& scene) {
+  for (const std::string& n : scene.diagnostics.notes)
+    if (n.find("camera at") != std::string::npos) return true;
+  return false;
+}
+
 int run_info(const InfoOptions& o) {
   tracer::Scene scene;
   if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
@@ -36,7 +50,7 @@ int run_info(const InfoOptions& o) {
     std::cerr << "error: " << problem << "\n";
     return kExitUsage;
   }
-  for (const auto& w : scene.diagnostics.warnings) std::cerr << "warning: " << w << "\n";
+  if (!report_scene_messages(scene, false)) return kExitInputError;
   const tracer::CompiledScene cs(scene, scene.settings.width, scene.settings.height);
   const tracer::SceneView& v = cs.view();
   int by_type[tracer::kMaterialTypeCount] = {};
@@ -52,12 +66,21 @@ int run_info(const InfoOptions& o) {
   j["primitives"] = v.tri_count + v.sphere_count;
   j["triangles"] = v.tri_count;
   j["spheres"] = v.sphere_count;
-  j["materials"] = {{"total", scene.materials.size()},
-                    {"diffuse", by_type[int(tracer::MaterialType::kDiffuse)]},
-                    {"mirror", by_type[int(tracer::MaterialType::kMirror)]},
-                    {"dielectric", by_type[int(tracer::MaterialType::kDielectric)]},
-                    {"emissive", emissive}};
+  // Every type, named as the scene format names it, so the counts add up to the total.
+  std::string by_type_text;
+  j["materials"] = {{"total", scene.materials.size()}, {"emissive", emissive}};
+  for (int t = 0; t < tracer::kMaterialTypeCount; ++t) {
+    const char* name = tracer::material_type_name(tracer::MaterialType(t));
+    j["materials"][name] = by_type[t];
+    by_type_text += (t ? ", " : "") + std::to_string(by_type[t]) + " " + name;
+  }
   j["lights"] = v.light_count;
+  const tracer::CameraDesc& cam = scene.camera;
+  auto vec = [](tracer::vec3 p) { return nlohmann::json::array({p.x, p.y, p.z}); };
+  j["camera"] = {{"position", vec(cam.position)}, {"look_at", vec(cam.look_at)},
+                 {"up", vec(cam.up)}, {"vfov", cam.vfov_deg}};
+  j["warnings"] = scene.diagnostics.warnings;
+  j["notes"] = scene.diagnostics.notes;  // e.g. why a mesh file got this camera and light
   j["bvh"] = {{"nodes", st.node_count},
               {"width", tracer::kBvhWidth},
               {"binary_nodes", st.binary_node_count},
@@ -99,10 +122,13 @@ int run_info(const InfoOptions& o) {
             << "objects     " << scene.objects.size() << "\n"
             << "primitives  " << v.tri_count + v.sphere_count << " (" << v.tri_count
             << " triangles, " << v.sphere_count << " spheres)\n"
-            << "materials   " << scene.materials.size() << " (" << by_type[0] << " diffuse, "
-            << by_type[1] << " mirror, " << by_type[2] << " dielectric; " << emissive
-            << " emissive)\n"
+            << "materials   " << scene.materials.size() << " (" << by_type_text << "; "
+            << emissive << " emissive)\n"
             << "lights      " << v.light_count << " emissive primitives\n"
+            << "camera      " << vec_text(cam.position) << " looking at "
+            << vec_text(cam.look_at) << ", " << cam.vfov_deg << " degree field of view"
+            << (framed(scene) ? " (framed; the note above says why)" : "")
+            << "\n"
             << "bvh         " << st.node_count << " " << tracer::kBvhWidth << "-wide nodes ("
             << st.leaf_count << " leaves, " << st.node_count * sizeof(tracer::BvhNode) / 1024.0
             << " KiB), depth " << st.max_depth << ", SAH cost " << std::fixed

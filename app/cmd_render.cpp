@@ -40,7 +40,6 @@ int run_render(const RenderOptions& o) {
   const auto t_start = clock::now();
   tracer::Scene scene;
   if (!load_scene_or_report(o.scene, &scene)) return kExitInputError;
-  for (const auto& w : scene.diagnostics.warnings) std::cerr << "warning: " << w << "\n";
 
   std::string problem;
   if (o.settings.flags.count("render.spp") && o.settings.flags.count("render.time_limit_s")) {
@@ -63,6 +62,7 @@ int run_render(const RenderOptions& o) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInputError;
   }
+  if (!report_scene_messages(scene, o.quiet)) return kExitInputError;
   {  // Refuse an output the writer cannot produce before spending the render on it.
     const std::string ext = o.out.size() > 4 ? o.out.substr(o.out.size() - 4) : "";
     std::string lower = ext;

@@ -19,6 +19,19 @@ bool load_scene_or_report(const std::string& path, tracer::Scene* scene) {
   }
   return true;
 }
+
+bool report_scene_messages(const tracer::Scene& scene, bool quiet) {
+  const std::vector<std::string>& warnings = scene.diagnostics.warnings;
+  for (const std::string& w : warnings)
+    std::cerr << (scene.settings.strict ? "error: " : "warning: ") << w << "\n";
+  if (!quiet)
+    for (const std::string& n : scene.diagnostics.notes) std::cerr << "note: " << n << "\n";
+  if (!scene.settings.strict || warnings.empty()) return true;
+  std::cerr << "error: --strict (render.strict): " << warnings.size()
+            << (warnings.size() == 1 ? " warning" : " warnings")
+            << " about the input; nothing was rendered\n";
+  return false;
+}
 }  // namespace app
 
 int main(int argc, char** argv) {

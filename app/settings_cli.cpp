@@ -35,6 +35,13 @@ void add_setting_options(CLI::App& cmd, SettingArgs* args, const std::vector<std
     const std::string group = s.section() == "gpu"       ? "GPU (CUDA backend)"
                               : s.section() == "display" ? "Display and PNG export"
                                                          : "Render settings";
+    if (s.bare_flag) {
+      cmd.add_flag_function(
+             s.flag, [args, key](std::int64_t) { args->flags[key] = "on"; },
+             s.help + " [--set " + s.key + "=off undoes a scene file's setting]")
+          ->group(group);
+      continue;
+    }
     cmd.add_option_function<std::string>(
            s.flag, [args, key](const std::string& v) { args->flags[key] = v; },
            setting_flag_help(s))
@@ -46,7 +53,10 @@ void add_setting_options(CLI::App& cmd, SettingArgs* args, const std::vector<std
   cmd.add_option("--set", args->sets,
                  "Set any setting, KEY=VALUE (repeatable; after the flags), e.g. "
                  "render.max_depth=4 or camera.vfov=30; docs/CLI.md lists the keys")
-      ->type_name("KEY=VALUE");
+      ->type_name("KEY=VALUE")
+      ->expected(1)  // one assignment per --set, so a scene path after it stays positional
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
 }
 
 bool apply_setting_args(const SettingArgs& args, tracer::Scene* scene, std::string* error) {

@@ -179,7 +179,9 @@ TEST(Settings, RenderCommandRecordsEverySettingItWasGiven) {
     if (s.key == "render.time_limit_s") continue;       // --spp and --time exclude each other
     const std::string v = as_text(s, expected[s.section()][s.name()]);
     // Alternate between the flag and --set where a setting has both.
-    if (!s.flag.empty() && use_flag)
+    if (s.bare_flag && v == "on" && use_flag)
+      cmd += " " + s.flag;  // a flag without a value (--strict)
+    else if (!s.flag.empty() && !s.bare_flag && use_flag)
       cmd += " " + s.flag + " '" + v + "'";
     else
       cmd += " --set '" + s.key + "=" + v + "'";
@@ -269,7 +271,7 @@ TEST(Settings, BadValuesGetTheSameMessageFromEveryEntryPoint) {
 TEST(Settings, FlagsGiveTheTablesMessage) {
   // One run per flag: the command refuses the value before rendering, with the table's words.
   for (const Setting& s : tracer::settings_table()) {
-    if (s.flag.empty()) continue;
+    if (s.flag.empty() || s.bare_flag) continue;  // a bare flag takes no value to refuse
     const std::string bad = s.type == SettingType::kBool     ? "maybe"
                             : s.type == SettingType::kChoice ? "bogus"
                             : s.hi < 1e30                    ? std::to_string(s.hi + 1)

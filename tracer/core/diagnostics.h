@@ -22,11 +22,17 @@ class InputError : public std::runtime_error {
       : std::runtime_error(loc.str() + ": " + problem + "; " + action) {}
 };
 
-// Collects non-fatal warnings; each is printed once by the front end (stderr or UI).
+// Collects non-fatal warnings (something in the input was wrong or dropped; --strict makes them
+// errors) and notes (a choice the loader made for the user, such as a framing camera); each is
+// printed once by the front end (stderr or UI).
 struct Diagnostics {
   std::vector<std::string> warnings;
+  std::vector<std::string> notes;
   void warn(const SourceLoc& loc, const std::string& problem, const std::string& action) {
     warnings.push_back(loc.str() + ": " + problem + "; " + action);
+  }
+  void note(const SourceLoc& loc, const std::string& text) {
+    notes.push_back(loc.str() + ": " + text);
   }
 };
 

@@ -16,7 +16,7 @@ std::string describe_features(uint32_t f) {
   } kNames[] = {{kFeatureDepthOfField, "depth of field"},
                 {kFeatureDielectric, "dielectrics"},
                 {kFeatureAbsorption, "absorption"},
-                {kFeatureMirror, "mirrors"},
+                {kFeatureMirror, "mirrors and conductors"},
                 {kFeatureSubsurface, "subsurface"},
                 {kFeatureTextures, "textures"},
                 {kFeatureEmissiveMeshes, "emissive meshes"},

@@ -162,15 +162,22 @@ class JsonSceneReader {
   }
 
   void read_material(const std::string& name, const json& m, const std::string& ptr) {
-    const std::string where = "material " + in_quotes(name);
     if (name.empty()) fail(ptr, "a material name must not be empty");
+    scene_.add_material(name, parse_material("material " + in_quotes(name), m, ptr, nullptr));
+  }
+
+  // A material definition. With a `base` (a mesh file's material being overridden), the keys
+  // given replace the base's values and the rest, textures included, are kept.
+  Material parse_material(const std::string& where, const json& m, const std::string& ptr,
+                          const Material* base) {
     require_object(m, ptr, where);
     check_keys(m, ptr,
                {"type", "albedo", "emission", "emission_strength", "two_sided", "ior", "fresnel",
                 "absorption", "roughness", "scattering", "mean_free_path", "g"},
                where);
-    Material mat;
-    const std::string type = get_string(m, ptr, "type", "diffuse", where);
+    Material mat = base ? *base : Material();
+    const std::string type =
+        get_string(m, ptr, "type", base ? material_type_name(base->type) : "diffuse", where);
     const std::vector<std::string> types = {"diffuse", "mirror", "dielectric", "conductor",
                                             "subsurface"};
     if (type == "diffuse") {
@@ -194,7 +201,7 @@ class JsonSceneReader {
     const bool dielectric = mat.type == MaterialType::kDielectric;
     const bool subsurface = mat.type == MaterialType::kSubsurface;
     const bool has_boundary = dielectric || subsurface;  // ior and fresnel apply
-    const vec3 default_albedo = dielectric ? vec3(1.0f) : vec3(0.8f);
+    const vec3 default_albedo = base ? base->albedo : dielectric ? vec3(1.0f) : vec3(0.8f);
     mat.albedo = get_vec3(m, ptr, "albedo", default_albedo, where);
     const vec3 clamped = glm::clamp(mat.albedo, vec3(0.0f), vec3(1.0f));
     if (clamped != mat.albedo) {
@@ -205,7 +212,7 @@ class JsonSceneReader {
           "clamped to " + vec3_str(clamped));
       mat.albedo = clamped;
     }
-    const vec3 emission = get_vec3(m, ptr, "emission", vec3(0.0f), where);
+    const vec3 emission = get_vec3(m, ptr, "emission", base ? base->emission : vec3(0.0f), where);
     if (glm::any(glm::lessThan(emission, vec3(0.0f))))
       fail(json_pointer_child(ptr, "emission"), "\"emission\" in " + where + " must be >= 0");
     const float strength = get_float(m, ptr, "emission_strength", 1.0f, where);
@@ -214,7 +221,15 @@ class JsonSceneReader {
            "\"emission_strength\" in " + where + " must be >= 0");
     }
     mat.emission = emission * strength;
-    if (get_bool(m, ptr, "two_sided", false, where)) mat.flags |= kMaterialTwoSidedEmission;
+    if (m.contains("emission_strength") && !glm::any(glm::greaterThan(emission, vec3(0.0f)))) {
+      scene_.diagnostics.warn(at(json_pointer_child(ptr, "emission_strength")),
+                              "\"emission_strength\" in " + where +
+                                  " scales an emission of zero (give \"emission\")",
+                              "no light is emitted");
+    }
+    const bool two_sided = base && (base->flags & kMaterialTwoSidedEmission);
+    mat.flags &= ~uint32_t(kMaterialTwoSidedEmission | kMaterialSchlickFresnel);
+    if (get_bool(m, ptr, "two_sided", two_sided, where)) mat.flags |= kMaterialTwoSidedEmission;
 
     auto ignored = [&](const char* key, bool applies) {
       if (!applies && m.contains(key)) {
@@ -229,7 +244,7 @@ class JsonSceneReader {
     ignored("roughness", dielectric || mat.type == MaterialType::kConductor);
     for (const char* key : {"scattering", "mean_free_path", "g"}) ignored(key, subsurface);
 
-    mat.ior = get_float(m, ptr, "ior", subsurface ? 1.4f : 1.5f, where);
+    mat.ior = get_float(m, ptr, "ior", base ? base->ior : subsurface ? 1.4f : 1.5f, where);
     if (has_boundary && !(mat.ior >= 1.0f && mat.ior <= 4.0f)) {
       fail(json_pointer_child(ptr, "ior"), "\"ior\" in " + where + " must be in [1, 4]");
     }
@@ -237,7 +252,8 @@ class JsonSceneReader {
       scene_.diagnostics.warn(at(json_pointer_child(ptr, "ior")),
                               "\"ior\" 1 makes " + where + " invisible", "rendered as given");
     }
-    const std::string fresnel = get_string(m, ptr, "fresnel", "exact", where);
+    const bool schlick = base && (base->flags & kMaterialSchlickFresnel);
+    const std::string fresnel = get_string(m, ptr, "fresnel", schlick ? "schlick" : "exact", where);
     if (fresnel == "schlick") {
       if (has_boundary) mat.flags |= kMaterialSchlickFresnel;
     } else if (fresnel != "exact") {
@@ -247,16 +263,16 @@ class JsonSceneReader {
                in_quotes(fresnel) +
                (guess.empty() ? "" : " (did you mean " + in_quotes(guess) + "?)"));
     }
-    mat.roughness = get_float(m, ptr, "roughness", 0.0f, where);
+    mat.roughness = get_float(m, ptr, "roughness", base ? base->roughness : 0.0f, where);
     if (!(mat.roughness >= 0.0f && mat.roughness <= 1.0f))
       fail(json_pointer_child(ptr, "roughness"), "\"roughness\" in " + where + " must be in [0, 1]");
-    mat.absorption = get_vec3(m, ptr, "absorption", vec3(0.0f), where);
+    mat.absorption = get_vec3(m, ptr, "absorption", base ? base->absorption : vec3(0.0f), where);
     if (glm::any(glm::lessThan(mat.absorption, vec3(0.0f))))
       fail(json_pointer_child(ptr, "absorption"), "\"absorption\" in " + where + " must be >= 0");
     if (subsurface) read_medium(m, ptr, where, mat);
     if (!has_boundary) mat.absorption = vec3(0.0f), mat.ior = 1.5f;
     if (!dielectric && mat.type != MaterialType::kConductor) mat.roughness = 0.0f;
-    scene_.add_material(name, mat);
+    return mat;
   }
 
   // A subsurface medium from either the physical coefficients ("scattering" and "absorption",
@@ -321,6 +337,60 @@ class JsonSceneReader {
              (guess.empty() ? (names.empty() ? " (no materials are defined)"
                                              : " (defined: " + join(names) + ")")
                             : " (did you mean " + in_quotes(guess) + "?)"));
+  }
+
+  // "materials": {"NAME": VALUE} on a mesh object: the file's material NAME (the materials from
+  // index `first` and the triangles from `first_triangle` on came from the file) is replaced by
+  // the scene material VALUE names, or edited by VALUE's keys (a material definition whose
+  // missing keys keep the file's values).
+  void override_file_materials(const json& overrides, const std::string& ptr,
+                               const std::string& where, const std::string& file, size_t first,
+                               uint32_t first_triangle) {
+    require_object(overrides, ptr, "\"materials\" of " + where);
+    std::vector<std::string> file_names;
+    for (size_t i = first; i < scene_.materials.size(); ++i)
+      file_names.push_back(scene_.materials[i].name);
+    for (auto it = overrides.begin(); it != overrides.end(); ++it) {
+      const std::string key_ptr = json_pointer_child(ptr, it.key());
+      // add_material renames a file's "x" to "x#2" when the scene already has an "x".
+      auto matches = [&](const std::string& name) {
+        if (name == it.key()) return true;
+        const std::string prefix = it.key() + "#";
+        return name.compare(0, prefix.size(), prefix) == 0 && name.size() > prefix.size() &&
+               name.find_first_not_of("0123456789", prefix.size()) == std::string::npos &&
+               scene_.find_material(it.key()) < first;
+      };
+      size_t index = scene_.materials.size();
+      for (size_t i = first; i < scene_.materials.size(); ++i)
+        if (matches(scene_.materials[i].name)) index = i;
+      if (index == scene_.materials.size()) {
+        const std::string guess = did_you_mean(it.key(), file_names);
+        fail(key_ptr, "mesh file " + in_quotes(file) + " of " + where + " has no material " +
+                          in_quotes(it.key()) +
+                          (!guess.empty() ? " (did you mean " + in_quotes(guess) + "?)"
+                           : file_names.empty() ? " (it has no materials)"
+                                                : " (its materials: " + join(file_names) + ")"));
+      }
+      if (it.value().is_string()) {
+        const std::string name = it.value().get<std::string>();
+        const uint32_t id = scene_.find_material(name);
+        if (id == kInvalid || id >= first) {
+          std::vector<std::string> names;
+          for (size_t i = 0; i < first; ++i) names.push_back(scene_.materials[i].name);
+          const std::string guess = did_you_mean(name, names);
+          fail(key_ptr, "unknown material " + in_quotes(name) + " in " + where +
+                            (guess.empty() ? " (give a material defined in \"materials\" or a "
+                                             "definition {...})"
+                                           : " (did you mean " + in_quotes(guess) + "?)"));
+        }
+        for (size_t t = first_triangle; t < scene_.mesh.materials.size(); ++t)
+          if (scene_.mesh.materials[t] == index) scene_.mesh.materials[t] = id;
+      } else {
+        Material& target = scene_.materials[index].material;
+        target = parse_material("material " + in_quotes(it.key()) + " of " + where, it.value(),
+                                key_ptr, &target);
+      }
+    }
   }
 
   // scale -> rotate (X, then Y, then Z, degrees) -> translate, or a row-major "matrix".
@@ -438,17 +508,26 @@ class JsonSceneReader {
       info.first = append_part(scene_, q, xform);
       info.count = 2;
     } else {  // mesh
-      check_keys(o, ptr, {"type", "name", "file", "material", "transform"}, where);
+      check_keys(o, ptr, {"type", "name", "file", "material", "materials", "transform"}, where);
       if (!o.contains("file")) fail(ptr, where + " has no \"file\"");
       const std::string file = get_string(o, ptr, "file", "", where);
       const uint32_t mat = object_material(o, ptr, where, false);
+      if (o.contains("material") && o.contains("materials")) {
+        fail(json_pointer_child(ptr, "materials"),
+             where + " has both \"material\" (replaces all of the file's materials) and "
+                     "\"materials\" (overrides some by name): give one");
+      }
       const std::string full = path_join(path_directory(path_), file);
       const SourceLoc from = at(json_pointer_child(ptr, "file"));
       if (!file_exists(full))
         throw InputError(from, "mesh file " + in_quotes(file) + " of " + where +
                                    " not found (looked for " + in_quotes(full) + ")");
       const uint32_t before = uint32_t(scene_.mesh.indices.size());
+      const size_t materials_before = scene_.materials.size();
       append_mesh_file(scene_, full, xform, mat, from);
+      if (o.contains("materials"))
+        override_file_materials(o["materials"], json_pointer_child(ptr, "materials"), where,
+                                file, materials_before, before);
       info.first = before;
       info.count = uint32_t(scene_.mesh.indices.size()) - before;
     }

@@ -126,44 +126,143 @@ std::string vec3_str(vec3 v) {
   return ss.str();
 }
 
-void frame_mesh_scene(Scene& scene, bool keep_camera) {
-  vec3 lo(kInfinity), hi(-kInfinity);
-  for (const uvec3& t : scene.mesh.indices) {
-    for (int k = 0; k < 3; ++k) {
-      if (t[k] >= scene.mesh.positions.size()) continue;
-      const vec3 p = scene.mesh.positions[t[k]];
-      if (!is_finite(p)) continue;
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
-    }
+namespace {
+
+std::string fmt(float x) {
+  std::ostringstream ss;
+  ss.precision(3);
+  ss << x;
+  return ss.str();
+}
+
+// The bounds, total area, area-weighted normal sum and emitted power of the scene's triangles.
+struct MeshSurvey {
+  vec3 lo = vec3(kInfinity), hi = vec3(-kInfinity);
+  double area = 0.0;
+  glm::dvec3 normal_sum = glm::dvec3(0.0);  // sum of area * unit normal, by winding
+  double power = 0.0;             // emitted flux, from the materials' emission factors
+};
+
+// The mean linear luminance of a texture's texels (an emissive map scales the emission factor).
+double mean_luminance(const TextureImage& t) {
+  if (t.rgba8.empty()) return 1.0;
+  double sum = 0.0;
+  for (size_t i = 0; i + 3 < t.rgba8.size(); i += 4) {
+    vec3 c(t.rgba8[i] / 255.0f, t.rgba8[i + 1] / 255.0f, t.rgba8[i + 2] / 255.0f);
+    if (t.srgb) c = vec3(srgb_to_linear(c.x), srgb_to_linear(c.y), srgb_to_linear(c.z));
+    sum += double(luminance(c));
   }
-  if (!(lo.x <= hi.x)) return;  // nothing to frame; validate_scene reports the empty scene
-  const vec3 centre = 0.5f * (lo + hi);
-  const float radius = std::max(0.5f * glm::length(hi - lo), 1e-3f);
-  if (!keep_camera) {
-    // Fit the bounding sphere into a 40 degree field of view, with a little margin.
+  return sum / double(t.rgba8.size() / 4);
+}
+
+MeshSurvey survey(const Scene& scene) {
+  MeshSurvey s;
+  const TriangleMesh& mesh = scene.mesh;
+  std::vector<double> emission(scene.materials.size(), 0.0);  // per material, per unit area
+  for (size_t i = 0; i < scene.materials.size(); ++i) {
+    const Material& m = scene.materials[i].material;
+    emission[i] = kPi * double(luminance(m.emission)) *
+                  ((m.flags & kMaterialTwoSidedEmission) ? 2.0 : 1.0);
+    if (emission[i] > 0.0 && m.emissive_tex < scene.textures.size())
+      emission[i] *= mean_luminance(scene.textures[m.emissive_tex]);
+  }
+  for (size_t t = 0; t < mesh.indices.size(); ++t) {
+    const uvec3 tri = mesh.indices[t];
+    if (tri.x >= mesh.positions.size() || tri.y >= mesh.positions.size() ||
+        tri.z >= mesh.positions.size())
+      continue;  // validate_scene reports it
+    const vec3 p0 = mesh.positions[tri.x], p1 = mesh.positions[tri.y], p2 = mesh.positions[tri.z];
+    if (!is_finite(p0) || !is_finite(p1) || !is_finite(p2)) continue;
+    s.lo = glm::min(s.lo, glm::min(p0, glm::min(p1, p2)));
+    s.hi = glm::max(s.hi, glm::max(p0, glm::max(p1, p2)));
+    const glm::dvec3 c = 0.5 * glm::cross(glm::dvec3(p1 - p0), glm::dvec3(p2 - p0));
+    const double a = glm::length(c);
+    if (!(a > 0.0) || !std::isfinite(a)) continue;
+    s.area += a;
+    s.normal_sum += c;
+    if (mesh.materials[t] < emission.size()) s.power += a * emission[mesh.materials[t]];
+  }
+  return s;
+}
+
+// A unit vector at `deg` degrees from `axis`, tilted towards `towards` (or any perpendicular).
+vec3 tilt(vec3 axis, vec3 towards, float deg) {
+  vec3 t = towards - glm::dot(towards, axis) * axis;
+  if (glm::length(t) < 1e-3f) t = std::abs(axis.y) < 0.9f ? vec3(0, 1, 0) : vec3(1, 0, 0);
+  t = glm::normalize(t - glm::dot(t, axis) * axis);
+  const float r = glm::radians(deg);
+  return glm::normalize(std::cos(r) * axis + std::sin(r) * t);
+}
+
+}  // namespace
+
+void frame_mesh_scene(Scene& scene, bool keep_camera) {
+  const MeshSurvey s = survey(scene);
+  if (!(s.lo.x <= s.hi.x)) return;  // nothing to frame; validate_scene reports the empty scene
+  const vec3 centre = 0.5f * (s.lo + s.hi);
+  const float radius = std::max(0.5f * glm::length(s.hi - s.lo), 1e-3f);
+  const SourceLoc file{scene.source, 0};
+
+  // The view direction (from the model towards the camera). A model viewer's default: a
+  // three-quarter view from above the front (+z is the front in glTF, and by convention in OBJ),
+  // which shows three sides of a closed model. When the surface is open to one side (its
+  // area-weighted normals do not cancel: a room without its front wall, a single plane, an
+  // edge-on polygon), the faces point to where the model is meant to be seen from, so the camera
+  // looks from that side instead, 20 degrees off the axis so that depth still shows.
+  const vec3 three_quarter = glm::normalize(vec3(std::sin(glm::radians(35.0f)), std::tan(glm::radians(25.0f)), std::cos(glm::radians(35.0f))));
+  vec3 view = three_quarter;
+  std::string why = "no camera in the file: a three-quarter view from above the front (+z)";
+  const double openness = s.area > 0.0 ? glm::length(s.normal_sum) / s.area : 0.0;
+  if (openness > 0.1) {
+    const vec3 facing = vec3(glm::normalize(s.normal_sum));
+    view = tilt(facing, three_quarter, 20.0f);
+    why = "no camera in the file; " + fmt(float(100.0 * openness)) +
+          "% of the surface's area-weighted normals point to " + vec3_str(facing) +
+          " (an open or one-sided model), so the camera looks from that side";
+  }
+  if (keep_camera) {
+    view = glm::normalize(scene.camera.position - centre);
+    if (!is_finite(view)) view = three_quarter;
+  } else {
+    // Fit the bounding sphere into the narrower of the two fields of view, with a margin.
     scene.camera = CameraDesc();
     scene.camera.vfov_deg = 40.0f;
-    const float dist = 1.1f * radius / std::sin(glm::radians(0.5f * scene.camera.vfov_deg));
+    const float aspect = float(scene.settings.width) / float(std::max(scene.settings.height, 1));
+    float half = glm::radians(0.5f * scene.camera.vfov_deg);
+    if (aspect < 1.0f) half = std::atan(aspect * std::tan(half));
+    const float dist = 1.1f * radius / std::sin(half);
     scene.camera.look_at = centre;
-    scene.camera.position = centre + vec3(0.0f, 0.0f, dist);
+    scene.camera.position = centre + dist * view;
+    if (std::abs(view.y) > 0.98f) scene.camera.up = vec3(0.0f, 0.0f, view.y > 0.0f ? -1.0f : 1.0f);
+    scene.diagnostics.note(file, why + "; camera at " + vec3_str(scene.camera.position) +
+                                     " looking at " + vec3_str(centre) + " (the bounding sphere, radius " + fmt(radius) +
+                                     ", fills the " + fmt(scene.camera.vfov_deg) + " degree field of view)");
   }
-  bool lit = false;
-  for (const NamedMaterial& m : scene.materials) lit |= m.material.is_emissive();
-  if (lit) return;
-  // A horizontal square light of side 2r, r above the top of the bounds and shifted towards the
-  // camera, facing down. Radiance 4 gives an irradiance of about 3 at the model, so a white
-  // diffuse surface shows up near 0.8 before tone mapping.
+
+  // The default light is as strong as a 2r x 2r square of radiance 7 at 3r: it lights the model
+  // with an irradiance near 3, so white diffuse surfaces show up near 0.8 before tone mapping.
+  // The file's own emitters replace it unless their power is under a tenth of it (a few tiny
+  // emissive labels must not leave the model in the dark).
+  const float side = 2.0f * radius, light_radiance = 7.0f;
+  const double default_power = kPi * double(light_radiance) * double(side) * double(side);
+  if (s.power > 0.1 * default_power) return;
   Material light;
   light.albedo = vec3(0.0f);
-  light.emission = vec3(4.0f);
+  light.emission = vec3(light_radiance);
   const uint32_t mat = scene.add_material("default light", light);
-  const float side = 2.0f * radius;
-  const vec3 corner(centre.x - radius, hi.y + radius, centre.z - 0.5f * radius);
+  // Above and to the left of the camera as the camera sees it, facing the model's centre; outside
+  // the field of view.
+  const vec3 up = std::abs(view.y) > 0.98f ? vec3(0.0f, 0.0f, view.y > 0.0f ? -1.0f : 1.0f)
+                                           : vec3(0.0f, 1.0f, 0.0f);
+  const vec3 right = glm::normalize(glm::cross(-view, up));
+  const vec3 cam_up = glm::cross(right, -view);
+  const vec3 dir = glm::normalize(view + 0.8f * cam_up - 0.5f * right);
+  const vec3 at = centre + 3.0f * radius * dir;
+  const vec3 a = glm::normalize(glm::cross(dir, cam_up)), b = glm::cross(a, dir);
   MeshPart quad;
-  // Edges (side,0,0) then (0,0,side): cross((1,0,0),(0,0,1)) = (0,-1,0), so the front faces down.
-  quad.positions = {corner, corner + vec3(side, 0, 0), corner + vec3(side, 0, side),
-                    corner + vec3(0, 0, side)};
+  // cross(a, b) = cross(a, cross(a, dir)) = -dir: the front faces the model.
+  quad.positions = {at - radius * a - radius * b, at + radius * a - radius * b,
+                    at + radius * a + radius * b, at - radius * a + radius * b};
   quad.indices = {uvec3(0, 1, 2), uvec3(0, 2, 3)};
   quad.materials = {mat, mat};
   ObjectInfo info;
@@ -171,10 +270,16 @@ void frame_mesh_scene(Scene& scene, bool keep_camera) {
   info.kind = "quad";
   info.first = append_part(scene, quad, mat4(1.0f));
   info.count = 2;
-  info.loc = {scene.source, 0};
+  info.loc = file;
   scene.objects.push_back(info);
-  scene.diagnostics.warn({scene.source, 0}, "no light in file",
-                         "added a default area light above the model");
+  if (s.power > 0.0) {
+    scene.diagnostics.note(
+        file, "the file's emitters give " + fmt(float(100.0 * s.power / default_power)) +
+                  "% of the power of a light for a model of this size (under 10%); added a default area "
+                  "light above and left of the camera");
+  } else {
+    scene.diagnostics.note(file, "no light in the file; added a default area light above and left of the camera");
+  }
 }
 
 }  // namespace tracer

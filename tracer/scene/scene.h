@@ -39,6 +39,7 @@ struct RenderSettings {
   BackendChoice backend = BackendChoice::kAuto;
   int threads = 0;            // CPU backend threads (0: all cores)
   int samples_per_frame = 0;  // workbench on the GPU: samples per window frame (0: adapted)
+  bool strict = false;        // every warning about the input is an error (headless: exit 1)
 };
 
 // "random" / "sobol" / "sobol-pairs", as the scene format, the CLI and the workbench spell

@@ -202,6 +202,12 @@ std::vector<Setting> make_table() {
                     "Workbench, GPU: samples added per window frame (0: adapted to the frame "
                     "rate).",
                     E::kStop, [](Scene& s) -> int& { return s.settings.samples_per_frame; }));
+  t.push_back(field("render.strict", "--strict", T::kBool, 0, 0, "",
+                    "Every warning about the input is an error (exit 1): missing or corrupt "
+                    "textures, truncated meshes, dropped geometry, unsupported extensions. For "
+                    "pipelines.",
+                    E::kStop, [](Scene& s) -> bool& { return s.settings.strict; }));
+  t.back().bare_flag = true;
   // ---- gpu ----
   t.push_back(choice<KernelMode>(
       "gpu.kernel", "--kernel", {"auto", "wavefront", "megakernel"},

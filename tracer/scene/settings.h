@@ -76,6 +76,7 @@ struct Setting {
   std::string unit;                  // for the docs and tooltips ("px", "s", "stops", ...)
   std::string help;
   SettingEffect effect = SettingEffect::kImage;
+  bool bare_flag = false;  // kBool: the command-line flag takes no value and means "on"
   std::function<nlohmann::json(const Scene&)> get;
   std::function<void(Scene&, const nlohmann::json&)> put;  // the value is already checked
 
