@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "backends/backend_select.h"
@@ -14,7 +15,9 @@
 #include "integrator/sidecar.h"
 #include "settings_cli.h"
 #include "image/image.h"
+#include "integrator/black_image.h"
 #include "integrator/renderer.h"
+#include "image/display.h"
 #include "scene/compiled_scene.h"
 #include "scene/loader.h"
 
@@ -172,6 +175,29 @@ int run_render(const RenderOptions& o) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInputError;
   }
+  // An all-black result is almost never what was wanted: say why it is black, and count it as a
+  // warning (--strict: exit 1).
+  std::vector<std::string> late_warnings;
+  {
+    bool any_light = false, any_shown = false;
+    const float scale = std::exp2(scene.display.exposure);
+    for (size_t i = 0; i + 2 < img.pixels.size() && !any_shown; i += 3) {
+      const tracer::vec3 c(img.pixels[i], img.pixels[i + 1], img.pixels[i + 2]);
+      if (!(c.x > 0.0f || c.y > 0.0f || c.z > 0.0f)) continue;
+      any_light = true;
+      any_shown = (tracer::display_rgba8(c, scale, op) & 0xffffffu) != 0;
+    }
+    if (!any_light) {
+      late_warnings.push_back(o.out + ": the image is entirely black: " +
+                              tracer::explain_black_image(scene, compiled));
+    } else if (!any_shown && o.out.size() > 4 && o.out.substr(o.out.size() - 4) != ".exr") {
+      std::ostringstream stops;
+      stops << scene.display.exposure;
+      late_warnings.push_back(o.out + ": the image is black after the display transform "
+                              "(display.exposure " + stops.str() +
+                              " stops): raise --exposure; the linear image is not black");
+    }
+  }
   std::string clamp_report;
   if (rs.clamp > 0.0f) {
     clamp_report = "clamp " + std::to_string(rs.clamp) + ": " + std::to_string(clamped) +
@@ -185,12 +211,24 @@ int run_render(const RenderOptions& o) {
     if (nonfinite) std::cerr << "; " << nonfinite << " NaN/Inf samples rejected";
     std::cerr << "\n";
     if (!clamp_report.empty()) std::cerr << "note: " << clamp_report << "\n";
-    if (rays.walk_capped)
-      std::cerr << "warning: " << rays.walk_capped << " subsurface random walks stopped at "
-                << tracer::kMaxWalkSteps << " steps (their paths end there: energy is lost)\n";
-    if (rays.medium_leaks)
-      std::cerr << "warning: " << rays.medium_leaks << " paths left a subsurface medium without "
-                << "crossing its boundary: a mesh with subsurface material is not closed\n";
+  }
+  if (rays.walk_capped)
+    late_warnings.push_back(std::to_string(rays.walk_capped) +
+                            " subsurface random walks stopped at " +
+                            std::to_string(tracer::kMaxWalkSteps) +
+                            " steps (their paths end there: energy is lost)");
+  if (rays.medium_leaks)
+    late_warnings.push_back(std::to_string(rays.medium_leaks) +
+                            " paths left a subsurface medium without crossing its boundary: a "
+                            "mesh with subsurface material is not closed");
+  // Warnings are shown even with --quiet: they are about the result, not progress.
+  const char* kind = rs.strict ? "error: " : "warning: ";
+  for (const std::string& w : late_warnings) std::cerr << kind << w << "\n";
+  if (rs.strict && !late_warnings.empty()) {
+    std::cerr << "error: --strict (render.strict): the render ended with "
+              << late_warnings.size() << (late_warnings.size() == 1 ? " warning" : " warnings")
+              << " (the image was written)\n";
+    return kExitInputError;
   }
   return 0;
 }

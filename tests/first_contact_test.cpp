@@ -229,6 +229,53 @@ TEST(Strict, EveryWarningBecomesAnErrorBeforeRendering) {
   EXPECT_NE(log.find("note: "), std::string::npos) << log;
 }
 
+// Renders `scene` (8x8, 2 spp, CPU) with `flags` and returns the exit status and stderr.
+int render_log(const std::string& scene, const std::string& flags, std::string* log) {
+  return test::run_command(test::pathtracer_exe() + " render -q --backend cpu --width 8 " +
+                               "--height 8 --spp 2 --out " + tmpdir() + "/black.png " + flags +
+                               " " + scene,
+                           log);
+}
+
+TEST(BlackImage, AnEntirelyBlackRenderSaysWhy) {
+  std::string log;
+  // The camera inside a closed box, the light outside.
+  const std::string inside = write_file("inside.json", R"({
+    "camera": {"position": [0, 0, 0], "look_at": [0, 0, -1]},
+    "materials": {"grey": {}, "lamp": {"emission": [5, 5, 5]}},
+    "objects": [{"type": "box", "name": "crate", "min": [-1, -1, -1], "max": [1, 1, 1],
+                 "material": "grey"},
+                {"type": "sphere", "center": [0, 5, 0], "radius": 1, "material": "lamp"}]})");
+  EXPECT_EQ(render_log(inside, "", &log), 0) << log;
+  EXPECT_NE(log.find("entirely black: the camera at [0, 0, 0] is inside a closed object (\"crate\")"),
+            std::string::npos) << log;
+  EXPECT_EQ(render_log(inside, "--strict", &log), 1) << log;  // a warning, so --strict fails
+  // A one-sided lamp above a floor, facing the sky.
+  const std::string away = write_file("away.json", R"({
+    "camera": {"position": [0, 1, 3], "look_at": [0, 0, 0]},
+    "materials": {"grey": {}, "lamp": {"emission": [5, 5, 5]}},
+    "objects": [{"type": "quad", "corner": [-2, 0, 2], "edge1": [4, 0, 0], "edge2": [0, 0, -4],
+                 "material": "grey"},
+                {"type": "quad", "corner": [-0.5, 2, -0.5], "edge1": [0, 0, 1],
+                 "edge2": [1, 0, 0], "material": "lamp"}]})");
+  EXPECT_EQ(render_log(away, "", &log), 0) << log;
+  EXPECT_NE(log.find("every light faces away"), std::string::npos) << log;
+  // The same lamp facing down lights the floor: no warning.
+  std::string lit_text = R"({
+    "camera": {"position": [0, 1, 3], "look_at": [0, 0, 0]},
+    "materials": {"grey": {}, "lamp": {"emission": [5, 5, 5]}},
+    "objects": [{"type": "quad", "corner": [-2, 0, 2], "edge1": [4, 0, 0], "edge2": [0, 0, -4],
+                 "material": "grey"},
+                {"type": "quad", "corner": [-0.5, 2, -0.5], "edge1": [1, 0, 0],
+                 "edge2": [0, 0, 1], "material": "lamp"}]})";
+  EXPECT_EQ(render_log(write_file("lit.json", lit_text), "", &log), 0) << log;
+  EXPECT_EQ(log.find("black"), std::string::npos) << log;
+  // Light arrives, but the exposure hides it in the PNG.
+  EXPECT_EQ(render_log("", "--exposure -20", &log), 0) << log;
+  EXPECT_NE(log.find("black after the display transform (display.exposure -20"),
+            std::string::npos) << log;
+}
+
 TEST(Info, CountsEveryMaterialTypeAndShowsTheCamera) {
   const std::string scene = write_file("types.json", R"({
     "materials": {"a": {"type": "conductor", "roughness": 0.2}, "b": {"type": "conductor"},
