@@ -171,6 +171,9 @@ TEST(Settings, RenderCommandRecordsEverySettingItWasGiven) {
   expected["render"]["backend"] = "cpu";
   expected["render"]["threads"] = 1;
   expected["render"]["max_depth"] = 3;
+  // These settings render a black image, a warning that --strict would make fatal (the flag
+  // itself is tested in first_contact_test).
+  expected["render"]["strict"] = false;
   const std::string out = testing::TempDir() + "/settings_cli.png";
   std::string cmd = test::pathtracer_exe() + " render -q --out " + out;
   bool use_flag = true;
