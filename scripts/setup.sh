@@ -15,6 +15,10 @@ PACKAGES=(
 scripts/install-packages.sh setup "${PACKAGES[@]}"
 
 BUILD_DIR=${BUILD_DIR:-build}
+# TRACER_CUDA=ON/OFF chooses whether the CUDA backend is built (default: whenever nvcc is found);
+# an existing build folder is reconfigured only when the choice changes.
+cuda=()
+[ -z "${TRACER_CUDA:-}" ] || cuda=(-DTRACER_ENABLE_CUDA="$TRACER_CUDA")
 if [ ! -f "$BUILD_DIR/build.ninja" ]; then
   launcher=()
   if command -v ccache >/dev/null; then
@@ -24,5 +28,9 @@ if [ ! -f "$BUILD_DIR/build.ninja" ]; then
   if ! command -v nvcc >/dev/null && [ -x /usr/local/cuda/bin/nvcc ]; then
     launcher+=(-DCMAKE_CUDA_COMPILER=/usr/local/cuda/bin/nvcc)
   fi
-  cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" >/dev/null
+  cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" "${cuda[@]}" \
+    >/dev/null
+elif [ -n "${TRACER_CUDA:-}" ] &&
+     ! grep -qx "TRACER_ENABLE_CUDA:BOOL=$TRACER_CUDA" "$BUILD_DIR/CMakeCache.txt"; then
+  cmake -S . -B "$BUILD_DIR" "${cuda[@]}" >/dev/null
 fi
