@@ -521,7 +521,8 @@ int run_bench(const BenchOptions& o) {
   out["results"] = arr;
   if (!o.json_out.empty()) {
     try {
-      tracer::write_text_atomic(o.json_out, out.dump(2) + "\n");
+      tracer::write_text_atomic(
+          o.json_out, out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
     } catch (const std::exception& e) {
       std::cerr << "error: " << e.what() << "\n";
       return kExitInputError;

@@ -115,7 +115,8 @@ int run_info(const InfoOptions& o) {
       scene.gpu, tracer::gpu_scene_traits(cs, tracer::make_integrator_settings(scene.settings)));
   j["gpu_design"] = tracer::effective_gpu_json(gpu);
   if (o.json) {
-    std::cout << j.dump(2) << "\n";
+    // Names from files are not always UTF-8: invalid bytes become U+FFFD rather than an error.
+    std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     return 0;
   }
   std::cout << "scene       " << scene.source << "\n"
