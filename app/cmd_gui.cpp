@@ -1,7 +1,8 @@
 // `pathtracer gui`: the workbench window. The frame loop reads top to bottom: poll, run due script
 // commands, render this frame's samples, update the display texture (through CUDA/GL interop on
 // the GPU, a texture upload on the CPU), build the panels, draw, swap. --frames, --set, --script
-// and --screenshot run it without a person (CI uses them under xvfb-run).
+// and --screenshot run it without a person (CI uses them under xvfb-run). Every error, warning and
+// note of the workbench goes to stderr too, once.
 #define GL_GLEXT_PROTOTYPES
 #include <GL/gl.h>
 #include <GL/glext.h>
@@ -28,6 +29,7 @@ struct GuiOptions {
   std::string scene;
   int width = 1600, height = 900;
   int frames = 0;  // 0: run until closed
+  int until_spp = 0;     // 0: no sample-count stop
   SettingArgs settings;  // the table's flags and --set, applied to the scene before the window opens
   std::string script, screenshot, export_path, stats_json;
   bool egl = false;
@@ -42,6 +44,32 @@ struct ScriptStep {
   std::string command, argument;
   int line = 0;
 };
+
+// The script's commands, declared once: the parser, its message and --help read this list.
+struct ScriptCommand {
+  const char* name;
+  const char* argument;  // "" when it takes none
+  const char* help;
+};
+constexpr ScriptCommand kScriptCommands[] = {
+    {"set", "KEY=VALUE", "any --set key, checked as in the window"},
+    {"export", "FILE", "the image (.png/.exr) and its .json sidecar"},
+    {"screenshot", "FILE", "the window as PNG"},
+    {"save", "FILE", "the scene as JSON"},
+    {"load", "FILE", "another scene"},
+    {"reference", "FILE", "a reference image for the relMSE"},
+    {"reset", "", "restart the accumulator"},
+    {"select", "OBJECT", "select the object of that name (the Material panel opens its material)"},
+    {"expand", "", "open every panel and tree node (to look at the layout)"},
+    {"quit", "", "quit after this frame (--screenshot and --export are still written)"},
+};
+
+std::string script_command_names() {
+  std::string out;
+  for (const ScriptCommand& c : kScriptCommands)
+    out += (out.empty() ? "" : ", ") + std::string(c.name);
+  return out;
+}
 
 bool parse_script(const std::string& path, std::vector<ScriptStep>* steps, std::string* error) {
   std::ifstream f(path);
@@ -82,18 +110,31 @@ bool parse_script(const std::string& path, std::vector<ScriptStep>* steps, std::
     const size_t sp = rest.find(' ');
     s.command = rest.substr(0, sp);
     s.argument = sp == std::string::npos ? "" : rest.substr(sp + 1);
-    static const char* kCommands[] = {"set", "export", "screenshot", "save", "reset", "quit",
-                                      "load", "reference"};
     bool known = false;
-    for (const char* c : kCommands) known |= s.command == c;
+    for (const ScriptCommand& c : kScriptCommands) known |= s.command == c.name;
     if (!known) {
-      *error = path + ":" + std::to_string(line_no) + ": unknown command \"" + s.command +
-               "\" (set, export, screenshot, save, load, reference, reset, quit); nothing was run";
+      *error = path + ":" + std::to_string(line_no) + ": unknown command \"" + s.command + "\" (" +
+               script_command_names() + "); nothing was run";
       return false;
     }
     steps->push_back(s);
   }
   return true;
+}
+
+bool select_by_name(ui::Workbench& wb, const std::string& name, std::string* error) {
+  std::vector<std::string> names;
+  for (const tracer::ObjectInfo& o : wb.scene().objects) {
+    if (o.name == name) {
+      wb.select_object(int(names.size()));
+      return true;
+    }
+    names.push_back(o.name);
+  }
+  const std::string guess = tracer::did_you_mean(name, names);
+  *error = "no object named \"" + name + "\"" +
+           (guess.empty() ? "" : " (did you mean \"" + guess + "\"?)") + "; nothing was selected";
+  return false;
 }
 
 void take_screenshot(const std::string& path, const GuiPlatform& platform) {
@@ -152,28 +193,28 @@ int run_gui(const GuiOptions& o) {
     std::cerr << "error: " << error << "\n";
     return kExitInputError;
   }
-  std::vector<std::string> startup_messages;
+  const bool scripted = o.frames > 0 || o.until_spp > 0;
+  std::string load_error;
   tracer::Scene scene;
   try {
     scene = o.scene.empty() ? tracer::builtin_default_scene() : tracer::load_scene(o.scene);
   } catch (const tracer::InputError& e) {
-    if (o.frames > 0) {  // scripted: a bad scene is an error, not something to look at
+    if (scripted) {  // a bad scene is an error, not something to look at
       std::cerr << "error: " << e.what() << "\n";
       return kExitInputError;
     }
-    startup_messages.push_back(std::string("error: ") + e.what() +
-                               " (showing the built-in Cornell box instead)");
-    std::cerr << "error: " << e.what() << "\n";
+    load_error = std::string(e.what()) + " (showing the built-in Cornell box instead)";
     scene = tracer::builtin_default_scene();
   }
   if (!apply_setting_args(o.settings, &scene, &error)) {
     std::cerr << "error: " << error << "\n";
     return kExitUsage;
   }
+  if (o.until_spp > 0) scene.settings.spp = o.until_spp;  // the accumulator stops there
 
   std::unique_ptr<GuiPlatform> platform =
       o.egl ? make_egl_platform(o.width, o.height, &error)
-            : make_glfw_platform(o.width, o.height, o.vsync && o.frames == 0, &error);
+            : make_glfw_platform(o.width, o.height, o.vsync && !scripted, &error);
   if (!platform) {
     std::cerr << "error: " << error << "; use `pathtracer render` for a headless image\n";
     return kExitInputError;
@@ -181,7 +222,14 @@ int run_gui(const GuiOptions& o) {
   const tracer::BackendChoice backend = scene.settings.backend;
   const int threads = scene.settings.threads;
   ui::Workbench wb(std::move(scene), backend, threads);
-  for (auto& m : startup_messages) wb.messages.insert(wb.messages.begin(), m);
+  if (!load_error.empty()) wb.messages.error(load_error);
+  // The log's new errors, warnings (the scene's too) and notes, each once; results of actions
+  // ("exported ...") stay in the window.
+  auto report = [&wb] {
+    for (const ui::Message& m : wb.messages.take_unreported())
+      if (m.severity != ui::Severity::kInfo) std::cerr << ui::to_string(m) << "\n";
+  };
+  report();
   ui::PanelState ps;
   if (!o.export_path.empty()) snprintf(ps.export_path, sizeof ps.export_path, "%s", o.export_path.c_str());
   std::ofstream stats_out;
@@ -210,8 +258,10 @@ int run_gui(const GuiOptions& o) {
         if (!wb.apply(s.argument, &err)) err = where + err;
       } else if (s.command == "export") {
         err = wb.export_image(s.argument);
+        if (!err.empty()) err = where + err;
       } else if (s.command == "save") {
         err = wb.save_scene(s.argument);
+        if (!err.empty()) err = where + err;
       } else if (s.command == "load") {
         if (!wb.load_scene(s.argument, &err)) err = where + err;
       } else if (s.command == "reference") {
@@ -220,12 +270,15 @@ int run_gui(const GuiOptions& o) {
         screenshot_now = s.argument;
       } else if (s.command == "reset") {
         wb.changed(ui::Edit::kSettings);
+      } else if (s.command == "select") {
+        if (!select_by_name(wb, s.argument, &err)) err = where + err;
+      } else if (s.command == "expand") {
+        ps.expand_all = true;
       } else if (s.command == "quit") {
-        quit = true;
+        quit = true;  // after this frame, which is the last one
       }
       if (!err.empty()) {
-        std::cerr << "error: " << err << "\n";
-        wb.messages.push_back("error: " + err);
+        wb.messages.error(err);
         exit_code = kExitInputError;
       }
       // An edit takes effect in update(): later steps wait for the frame that shows it.
@@ -246,8 +299,8 @@ int run_gui(const GuiOptions& o) {
         }
       } catch (const std::exception& e) {
         interop_failed = true;
-        wb.messages.push_back(std::string("note: CUDA/OpenGL interop unavailable (") + e.what() +
-                              "); the image goes through host memory");
+        wb.messages.note(std::string("CUDA/OpenGL interop unavailable (") + e.what() +
+                         "); the image goes through host memory");
       }
       if (interop && gpu->samples_done() > 0) {
         try {
@@ -258,8 +311,8 @@ int run_gui(const GuiOptions& o) {
         } catch (const std::exception& e) {
           interop.reset();
           interop_failed = true;
-          wb.messages.push_back(std::string("error: CUDA/OpenGL interop failed (") + e.what() +
-                                "); the image goes through host memory");
+          wb.messages.error(std::string("CUDA/OpenGL interop failed (") + e.what() +
+                            "); the image goes through host memory");
         }
       }
     } else {
@@ -280,7 +333,18 @@ int run_gui(const GuiOptions& o) {
     glClearColor(0.1f, 0.1f, 0.1f, 1.0f);
     glClear(GL_COLOR_BUFFER_BIT);
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-    const bool last = o.frames > 0 && frame + 1 >= o.frames;
+    // The last frame: --frames reached, a script's quit, or --until-spp's samples in the image
+    // with every script step run (the render may also stop short of them, e.g. at
+    // render.time_limit_s: then it says so).
+    bool last = quit || (o.frames > 0 && frame + 1 >= o.frames);
+    if (o.until_spp > 0 && next_step == steps.size() && wb.stats().spp > 0 &&
+        (wb.stats().spp >= uint32_t(o.until_spp) || wb.converged())) {
+      if (wb.stats().spp < uint32_t(o.until_spp))
+        wb.messages.warning("the render stopped at " + std::to_string(wb.stats().spp) +
+                            " spp, before --until-spp " + std::to_string(o.until_spp) +
+                            " (render.time_limit_s or a script's render.spp)");
+      last = true;
+    }
     if (!screenshot_now.empty()) take_screenshot(screenshot_now, *platform);
     if (last && !o.screenshot.empty()) take_screenshot(o.screenshot, *platform);
     platform->end_frame();
@@ -301,19 +365,29 @@ int run_gui(const GuiOptions& o) {
           {"kernel", st.last.kernel},
           {"interop", ps.interop},
           {"exposure", wb.display().exposure},
-          {"relmse_halves", st.relmse_halves}};
+          {"relmse_halves", st.relmse_halves},
+          {"selected_object",
+           wb.selected_object < 0
+               ? nlohmann::json(nullptr)
+               : nlohmann::json(wb.scene().objects[size_t(wb.selected_object)].name)},
+          {"material",
+           wb.selected_material < 0 || size_t(wb.selected_material) >= wb.scene().materials.size()
+               ? nlohmann::json(nullptr)
+               : nlohmann::json(wb.scene().materials[size_t(wb.selected_material)].name)},
+          {"layout_problems", ps.layout_problems}};
       stats_out << j.dump() << "\n";
     }
     if (last) {
       if (!o.export_path.empty()) {
         const std::string err = wb.export_image(o.export_path);
         if (!err.empty()) {
-          std::cerr << "error: " << err << "\n";
+          wb.messages.error(err);
           exit_code = kExitInputError;
         }
       }
       quit = true;
     }
+    report();
   }
   return exit_code;
 }
@@ -325,11 +399,24 @@ Runner add_gui_command(CLI::App& cmd) {
   cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in Cornell box");
   cmd.add_option("--window", o->width, "Window width")->check(CLI::Range(320, 16384));
   cmd.add_option("--window-height", o->height, "Window height")->check(CLI::Range(240, 16384));
-  cmd.add_option("--frames", o->frames, "Quit after this many frames (for scripts and tests)")
+  cmd.add_option("--frames", o->frames, "Quit after this many frames (window frames, not samples)")
       ->check(CLI::Range(1, 100000000));
-  cmd.add_option("--script", o->script, "Script of timed edits: lines \"FRAME: COMMAND\" or \"converged: COMMAND\"")
+  cmd.add_option("--until-spp", o->until_spp,
+                 "Quit once the image has N samples per pixel (sets render.spp to N; "
+                 "--screenshot and --export show that image)")
+      ->check(CLI::Range(1, 1 << 30));
+  std::string commands;
+  for (const ScriptCommand& c : kScriptCommands)
+    commands +=
+        std::string("\n  ") + c.name + (c.argument[0] ? " " : "") + c.argument + ": " + c.help;
+  cmd.add_option("--script", o->script,
+                 "Script of timed edits: lines \"FRAME: COMMAND\" or \"converged: COMMAND\"; "
+                 "commands:" +
+                     commands)
       ->check(CLI::ExistingFile);
-  cmd.add_option("--screenshot", o->screenshot, "Save the window as PNG at the last frame");
+  cmd.add_option(
+      "--screenshot", o->screenshot,
+      "Save the window as PNG at the last frame (--frames, --until-spp or a script's quit)");
   cmd.add_option("--export", o->export_path, "Export the image (.png/.exr + .json) at the last frame");
   cmd.add_option("--stats-json", o->stats_json, "Write one JSON line of statistics per frame");
   cmd.add_flag("--egl", o->egl, "Draw into an off-screen EGL pbuffer instead of a window");

@@ -1,6 +1,7 @@
 // The workbench model without a window: edits by name, what resets the accumulator and what does
 // not, re-convergence after an edit, export, scene saving that reloads every edit, navigation and
-// picking.
+// picking, the message log, the selection that opens a material; and the panels drawn by ImGui
+// without a window (no GL): they fit at 1280x720 and 1600x900, a new error opens the Messages.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -10,6 +11,7 @@
 #include "image/image.h"
 #include "scene/loader.h"
 #include "test_util.h"
+#include "ui/panels.h"
 #include "ui/workbench.h"
 
 namespace {
@@ -206,6 +208,157 @@ TEST(Workbench, ErrorCurveAgainstAReferenceFallsAsOneOverTime) {
   ASSERT_TRUE(wb->apply("render.width=40", &err)) << err;
   EXPECT_FALSE(wb->load_reference(ref, &err));
   EXPECT_NE(err.find("48x48"), std::string::npos) << err;
+}
+
+TEST(UiMessages, SceneWarningsAreLoggedAndHandedOutOnce) {
+  const std::string file = test::data_dir() + "/bad/missing_mtl.obj";  // two warnings
+  ui::Workbench wb(tracer::load_scene(file), tracer::BackendChoice::kCpu);
+  EXPECT_EQ(wb.messages.count(ui::Severity::kWarning), 2u);
+  EXPECT_EQ(wb.messages.summary(), "2 warnings");
+  auto fresh = wb.messages.take_unreported();
+  size_t warnings = 0;
+  for (const auto& m : fresh) warnings += m.severity == ui::Severity::kWarning ? 1 : 0;
+  EXPECT_EQ(warnings, 2u);
+  EXPECT_NE(ui::to_string(fresh.front()).find("warning: "), std::string::npos);
+  wb.update();
+  wb.update();
+  EXPECT_TRUE(wb.messages.take_unreported().empty()) << "each message is handed out once";
+  // A later warning of the scene (validation after an edit, say) is logged at the next frame.
+  wb.scene().diagnostics.warnings.push_back("later.json:3: something; continued");
+  wb.update();
+  fresh = wb.messages.take_unreported();
+  ASSERT_EQ(fresh.size(), 1u);
+  EXPECT_EQ(fresh[0].text, "later.json:3: something; continued");
+  // Loading a scene logs its warnings (again, for this load); an error counts in the summary.
+  std::string err;
+  ASSERT_TRUE(wb.load_scene(file, &err)) << err;
+  wb.update();
+  EXPECT_EQ(wb.messages.take_unreported().size(), 2u);
+  wb.messages.error("out/x.png: cannot be written");
+  EXPECT_EQ(wb.messages.summary(), "1 error, 5 warnings");
+  wb.messages.info("exported out/y.png");
+  EXPECT_EQ(wb.messages.summary(), "1 error, 5 warnings") << "results of actions are not counted";
+}
+
+TEST(UiSelection, TheMaterialPanelOpensOnTheSelectedObjectsMaterial) {
+  ui::Workbench wb(tracer::builtin_default_scene(), tracer::BackendChoice::kCpu);
+  const auto& scene = wb.scene();
+  auto name_of = [&](int material) { return scene.materials[size_t(material)].name; };
+  // On start, the first object and its material.
+  ASSERT_EQ(wb.selected_object, 0);
+  EXPECT_EQ(scene.objects[0].name, "floor");
+  EXPECT_EQ(name_of(wb.selected_material), "white");
+  int red_wall = -1, light = -1;
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    if (scene.objects[i].name == "red wall") red_wall = int(i);
+    if (scene.objects[i].name == "light") light = int(i);
+  }
+  ASSERT_GE(red_wall, 0);
+  ASSERT_GE(light, 0);
+  wb.select_object(red_wall);
+  EXPECT_EQ(name_of(wb.selected_material), "red");
+  wb.select_object(light);
+  EXPECT_EQ(name_of(wb.selected_material), "light");
+  // Picking in the viewport selects through the same call.
+  wb.update();
+  wb.select_object(wb.pick_object(0.05f, 0.5f));
+  EXPECT_EQ(name_of(wb.selected_material), "red");
+  // Nothing selected: the material stays where it was (the user may pick any in the combo).
+  wb.select_object(-1);
+  EXPECT_EQ(wb.selected_object, -1);
+  EXPECT_EQ(name_of(wb.selected_material), "red");
+  // A new scene selects its first object.
+  std::string err;
+  ASSERT_TRUE(wb.load_scene(test::source_dir() + "/assets/scenes/subsurface.json", &err)) << err;
+  EXPECT_EQ(wb.selected_object, 0);
+  EXPECT_EQ(wb.selected_material, wb.material_of(0));
+}
+
+// Dear ImGui without a window or GL: the panels are built and laid out, not drawn.
+class HeadlessImGui {
+ public:
+  HeadlessImGui(float width, float height) {
+    context_ = ImGui::CreateContext();
+    ImGuiIO& io = ImGui::GetIO();
+    io.IniFilename = nullptr;
+    io.DisplaySize = ImVec2(width, height);
+    io.DeltaTime = 1.0f / 60.0f;
+    unsigned char* pixels = nullptr;
+    int w = 0, h = 0;
+    io.Fonts->GetTexDataAsRGBA32(&pixels, &w, &h);  // the default font, as in the window
+    ImGui::StyleColorsDark();
+  }
+  ~HeadlessImGui() { ImGui::DestroyContext(context_); }
+  // A few frames: the column's width is checked against the previous frame's content.
+  void frames(ui::Workbench& wb, ui::PanelState& ps, int n = 3) {
+    for (int i = 0; i < n; ++i) {
+      ImGui::NewFrame();
+      ui::draw_workbench(wb, ps);
+      ImGui::Render();
+    }
+  }
+
+ private:
+  ImGuiContext* context_;
+};
+
+std::string joined(const std::vector<std::string>& v) {
+  std::string out;
+  for (const auto& s : v) out += s + "\n";
+  return out;
+}
+
+TEST(UiPanels, FitAt1280x720And1600x900WithEveryPanelOpen) {
+  for (const ImVec2 size : {ImVec2(1280, 720), ImVec2(1600, 900)}) {
+    SCOPED_TRACE(std::to_string(int(size.x)) + "x" + std::to_string(int(size.y)));
+    ui::Workbench wb(tracer::builtin_default_scene(), tracer::BackendChoice::kCpu);
+    std::string err;
+    ASSERT_TRUE(wb.apply("render.spp=1", &err)) << err;
+    wb.update();
+    wb.messages.error(std::string(300, 'x') + ": a long error that has to wrap; nothing was done");
+    HeadlessImGui imgui(size.x, size.y);
+    ui::PanelState ps;
+    ps.status = "error: " + std::string(200, 'y');
+    ps.expand_all = true;
+    // Every material type shows other widgets; the selected object's material is the floor's.
+    for (const char* type : {"diffuse", "mirror", "dielectric", "conductor", "subsurface"}) {
+      ASSERT_TRUE(wb.apply(std::string("materials.white.type=") + type, &err)) << err;
+      wb.update();
+      imgui.frames(wb, ps);
+      EXPECT_TRUE(ps.layout_problems.empty()) << type << ":\n" << joined(ps.layout_problems);
+      EXPECT_FALSE(ps.expand_all) << "expand opens the panels once";
+    }
+  }
+}
+
+TEST(UiPanels, TheLayoutCheckSeesClippedLabels) {
+  // The check above is not vacuous: with twice the font size the labels no longer fit.
+  ui::Workbench wb(tracer::builtin_default_scene(), tracer::BackendChoice::kCpu);
+  HeadlessImGui imgui(1280, 720);
+  ImGui::GetIO().FontGlobalScale = 2.0f;
+  ui::PanelState ps;
+  ps.expand_all = true;
+  imgui.frames(wb, ps);
+  EXPECT_FALSE(ps.layout_problems.empty());
+}
+
+TEST(UiPanels, ANewErrorOpensTheMessagesAndItsSelectionStays) {
+  ui::Workbench wb(tracer::builtin_default_scene(), tracer::BackendChoice::kCpu);
+  HeadlessImGui imgui(1280, 720);
+  ui::PanelState ps;
+  wb.messages.warning("a.json:1: a warning; continued");
+  imgui.frames(wb, ps);
+  EXPECT_FALSE(ps.show_messages) << "warnings are counted in the status line, not opened";
+  wb.messages.error("out/x.png: cannot be written; nothing was exported");
+  imgui.frames(wb, ps, 1);
+  EXPECT_TRUE(ps.show_messages) << "an error opens the list";
+  ps.show_messages = false;  // the user closes it
+  imgui.frames(wb, ps);
+  EXPECT_FALSE(ps.show_messages) << "the same error does not reopen it";
+  // Drawing the panels does not move the material away from the user's choice.
+  wb.selected_material = 3;
+  imgui.frames(wb, ps);
+  EXPECT_EQ(wb.selected_material, 3);
 }
 
 }  // namespace

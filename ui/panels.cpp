@@ -1,5 +1,7 @@
 // ImGui panels of the workbench. Layout: the viewport fills the window left of a fixed-width
-// control column; the column holds one collapsing section per panel.
+// control column; the column opens with the status line (message counts, the last action's
+// result, the Messages list), then one collapsing section per panel. Widgets fill the column but
+// a fixed label column on their right, so no label and no value is clipped at 1280x720.
 #include "ui/panels.h"
 
 #include <algorithm>
@@ -7,84 +9,14 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
+#include "ui/widgets.h"
+
 namespace ui {
 namespace {
 
 constexpr float kColumnWidth = 460.0f;
+constexpr float kMessagesHeight = 150.0f;  // the Messages list scrolls beyond this
 // Letter keys: ImGui 1.86's key indices are the platform's, and GLFW's are upper-case ASCII.
-
-// One setting of the settings table as a widget of its type, with the table's help, range and
-// key as its tooltip; an edit goes through Workbench::set (the table's check, then the reset the
-// setting's effect asks for). `speed` (drags) 0: a hundredth of the range or of the value;
-// `view_hi` narrows a slider's range for the hand (typed values may go up to the table's).
-bool setting_widget(Workbench& wb, PanelState& ps, const char* key, const char* label,
-                    float speed = 0.0f, const char* format = nullptr, double view_hi = 0.0) {
-  using T = tracer::SettingType;
-  const tracer::Setting* s = tracer::find_setting(key);
-  if (!s) return false;
-  const nlohmann::json v = s->get(wb.scene());
-  nlohmann::json next = v;
-  bool edited = false;
-  const double hi = view_hi > 0.0 ? std::min(view_hi, s->hi) : s->hi;
-  switch (s->type) {
-    case T::kBool: {
-      bool b = v.get<bool>();
-      edited = ImGui::Checkbox(label, &b);
-      next = b;
-      break;
-    }
-    case T::kChoice: {
-      std::string items;
-      int current = 0;
-      for (size_t i = 0; i < s->choices.size(); ++i) {
-        items += s->choices[i] + '\0';
-        if (s->choices[i] == v.get<std::string>()) current = int(i);
-      }
-      edited = ImGui::Combo(label, &current, items.c_str());
-      next = s->choices[size_t(current)];
-      break;
-    }
-    case T::kInt: {
-      int i = int(v.get<double>());
-      if (s->effect == tracer::SettingEffect::kResize || s->hi - s->lo > 1e6)
-        edited = ImGui::InputInt(label, &i, 1, 100, ImGuiInputTextFlags_EnterReturnsTrue);
-      else
-        edited = ImGui::SliderInt(label, &i, int(s->lo), int(hi));
-      next = i;
-      break;
-    }
-    case T::kFloat: {
-      float f = float(v.get<double>());
-      const float step = speed > 0.0f ? speed
-                         : hi < 1e30   ? float(hi - s->lo) / 200.0f
-                                       : 0.01f * std::max(1.0f, std::fabs(f));
-      edited = ImGui::DragFloat(label, &f, step, float(s->lo), float(hi), format ? format : "%.3f",
-                                ImGuiSliderFlags_AlwaysClamp);
-      next = f;
-      break;
-    }
-    case T::kVec3: {
-      float f[3] = {float(v[0].get<double>()), float(v[1].get<double>()), float(v[2].get<double>())};
-      edited = ImGui::DragFloat3(label, f, speed > 0.0f ? speed : 0.01f, 0.0f, 0.0f,
-                                 format ? format : "%.3f");
-      next = nlohmann::json::array({f[0], f[1], f[2]});
-      break;
-    }
-  }
-  if (ImGui::IsItemHovered()) {
-    ImGui::SetTooltip("%s\n%s (--set %s%s%s)", s->help.c_str(),
-                      s->unit.empty() ? "" : ("unit: " + s->unit).c_str(), s->key.c_str(),
-                      s->flag.empty() ? "" : ", ", s->flag.c_str());
-  }
-  if (!edited || next == v) return false;
-  std::string err;
-  if (!wb.set(*s, next, &err)) {
-    ps.status = "error: " + err;
-    wb.messages.push_back("error: " + err);
-    return false;
-  }
-  return true;
-}
 
 void viewport(Workbench& wb, PanelState& ps, ImVec2 pos, ImVec2 size) {
   ImGui::SetNextWindowPos(pos);
@@ -119,7 +51,7 @@ void viewport(Workbench& wb, PanelState& ps, ImVec2 pos, ImVec2 size) {
       if (io.KeyCtrl) {
         if (wb.focus_at(u, v)) ps.status = "focus set to the surface under the cursor";
       } else {
-        wb.selected_object = wb.pick_object(u, v);
+        wb.select_object(wb.pick_object(u, v));
       }
     }
     if (ImGui::IsMouseClicked(ImGuiMouseButton_Middle) && wb.focus_at(u, v))
@@ -138,44 +70,52 @@ void viewport(Workbench& wb, PanelState& ps, ImVec2 pos, ImVec2 size) {
   }
   // The frame's figures over the image, so they stay visible with the panels hidden.
   char line[256];
-  std::snprintf(line, sizeof line, "%u spp  %.1f spp/s  %.0f Mrays/s  %s", wb.stats().spp,
-                wb.stats().samples_per_s, wb.stats().mrays_per_s, wb.backend_name().c_str());
+  const std::string counts = wb.messages.summary();
+  std::snprintf(line, sizeof line, "%u spp  %.1f spp/s  %.0f Mrays/s  %s%s%s", wb.stats().spp,
+                wb.stats().samples_per_s, wb.stats().mrays_per_s, wb.backend_name().c_str(),
+                counts.empty() ? "" : "  ", counts.c_str());
   ImGui::GetWindowDrawList()->AddText(ImVec2(origin.x + 8, origin.y + 8), IM_COL32(255, 255, 0, 255),
                                       line);
   ImGui::End();
 }
 
 void scene_panel(Workbench& wb, PanelState& ps) {
-  if (!ImGui::CollapsingHeader("Scene", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  if (!section(ps, "Scene", ImGuiTreeNodeFlags_DefaultOpen)) return;
   ImGui::TextWrapped("%s", wb.scene().source.c_str());
+  ImGui::SetNextItemWidth(-width_beside("Load"));
   ImGui::InputText("##scenepath", ps.scene_path, sizeof ps.scene_path);
   ImGui::SameLine();
   if (ImGui::Button("Load")) {
     std::string err;
     ps.status = wb.load_scene(ps.scene_path, &err) ? std::string("loaded ") + ps.scene_path
                                                     : "error: " + err;
-    if (!err.empty()) wb.messages.push_back("error: " + err);
+    if (!err.empty()) wb.messages.error(err);
   }
-  if (ImGui::BeginListBox("##objects", ImVec2(-1, 120))) {
-    const auto& objects = wb.scene().objects;
+  check_fit(ps, "Load");
+  const auto& objects = wb.scene().objects;
+  // As tall as the list up to 8 lines, then it scrolls.
+  const float list_h =
+      ImGui::GetTextLineHeightWithSpacing() * float(std::clamp<size_t>(objects.size(), 2, 8)) +
+      2.0f * ImGui::GetStyle().FramePadding.y;
+  if (ImGui::BeginListBox("##objects", ImVec2(-FLT_MIN, list_h))) {
     for (size_t i = 0; i < objects.size(); ++i) {
       const std::string label = objects[i].name + "  (" + objects[i].kind + ")";
-      if (ImGui::Selectable(label.c_str(), wb.selected_object == int(i))) wb.selected_object = int(i);
+      if (ImGui::Selectable(label.c_str(), wb.selected_object == int(i))) wb.select_object(int(i));
+      // An object selected elsewhere (a click in the viewport, a script) scrolls into view.
+      if (wb.selected_object == int(i) && ps.listed_selection != int(i)) ImGui::SetScrollHereY();
     }
+    ps.listed_selection = wb.selected_object;
     ImGui::EndListBox();
   }
-  if (wb.selected_object >= 0 && wb.selected_object < int(wb.scene().objects.size())) {
-    const auto& o = wb.scene().objects[size_t(wb.selected_object)];
-    const uint32_t mat = o.is_sphere ? wb.scene().spheres[o.first].material
-                                     : (o.count ? wb.scene().mesh.materials[o.first] : 0u);
-    ImGui::Text("selected: %s, material \"%s\"", o.name.c_str(),
-                wb.scene().materials[mat].name.c_str());
-    wb.selected_material = int(mat);
-  }
+  const int mat = wb.material_of(wb.selected_object);
+  if (mat >= 0)
+    ImGui::TextWrapped("selected: %s, material \"%s\"",
+                       wb.scene().objects[size_t(wb.selected_object)].name.c_str(),
+                       wb.scene().materials[size_t(mat)].name.c_str());
 }
 
-void material_panel(Workbench& wb) {
-  if (!ImGui::CollapsingHeader("Material", ImGuiTreeNodeFlags_DefaultOpen)) return;
+void material_panel(Workbench& wb, PanelState& ps) {
+  if (!section(ps, "Material", ImGuiTreeNodeFlags_DefaultOpen)) return;
   auto& mats = wb.scene().materials;
   if (mats.empty()) return;
   wb.selected_material = std::clamp(wb.selected_material, 0, int(mats.size()) - 1);
@@ -185,6 +125,7 @@ void material_panel(Workbench& wb) {
         wb.selected_material = int(i);
     ImGui::EndCombo();
   }
+  check_fit(ps, "material");
   tracer::Material& m = mats[size_t(wb.selected_material)].material;
   bool changed = false;
   int type = int(m.type);
@@ -192,52 +133,61 @@ void material_panel(Workbench& wb) {
     m.type = tracer::MaterialType(type);
     changed = true;
   }
+  check_fit(ps, "type");
   const bool sss = m.type == tracer::MaterialType::kSubsurface;
   if (!sss) {
     changed |= ImGui::ColorEdit3(m.type == tracer::MaterialType::kDiffuse     ? "base colour"
                                  : m.type == tracer::MaterialType::kConductor ? "F0 colour"
                                                                               : "tint",
                                  &m.albedo.x);
+    check_fit(ps, "base colour");
   }
   if (m.type == tracer::MaterialType::kDielectric || m.type == tracer::MaterialType::kConductor)
-    changed |= ImGui::SliderFloat("roughness", &m.roughness, 0.0f, 1.0f, "%.3f");
+    changed |= slider(ps, "roughness", &m.roughness, 1, 0.0f, 1.0f, "%.3f");
   if (sss) {
     // Edited as the artist's pair (surface colour, mean free path) and shown as coefficients.
     const vec3 sigma_t = m.scattering + m.absorption;
     vec3 mfp = 1.0f / glm::max(sigma_t, vec3(1e-6f));
     vec3 single = m.scattering / glm::max(sigma_t, vec3(1e-12f));
-    bool e = ImGui::DragFloat3("mean free path", &mfp.x, 0.01f * tracer::max_component(mfp),
-                               1e-4f, 1e6f, "%.4g");
-    e |= ImGui::SliderFloat3("single-scattering albedo", &single.x, 0.0f, 1.0f, "%.4f");
+    bool e = drag(ps, "mean free path", &mfp.x, 3, 0.01f * tracer::max_component(mfp), 1e-4f, 1e6f,
+                  "%.4g");
+    e |= slider(ps, "scatter albedo", &single.x, 3, 0.0f, 1.0f, "%.4f");
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("single-scattering albedo: scattering / (scattering + absorption)");
     if (e) {
       const vec3 st = 1.0f / glm::max(mfp, vec3(1e-4f));
       m.scattering = glm::clamp(single, vec3(0.0f), vec3(1.0f)) * st;
       m.absorption = st - m.scattering;
       changed = true;
     }
-    changed |= ImGui::SliderFloat("anisotropy g", &m.g, -0.95f, 0.95f, "%.2f");
-    changed |= ImGui::SliderFloat("IOR", &m.ior, 1.0f, 3.0f, "%.3f");
+    changed |= slider(ps, "anisotropy g", &m.g, 1, -0.95f, 0.95f, "%.2f");
+    changed |= slider(ps, "IOR", &m.ior, 1, 1.0f, 3.0f, "%.3f");
   }
   if (m.type == tracer::MaterialType::kDielectric) {
-    changed |= ImGui::SliderFloat("IOR", &m.ior, 1.01f, 3.0f, "%.3f");
+    changed |= slider(ps, "IOR", &m.ior, 1, 1.01f, 3.0f, "%.3f");
     bool schlick = m.flags & tracer::kMaterialSchlickFresnel;
-    if (ImGui::Checkbox("Schlick Fresnel (else exact)", &schlick)) {
+    const bool toggled = ImGui::Checkbox("Schlick Fresnel (else exact)", &schlick);
+    check_fit(ps, "Schlick Fresnel (else exact)");
+    if (toggled) {
       m.flags = schlick ? (m.flags | tracer::kMaterialSchlickFresnel)
                         : (m.flags & ~tracer::kMaterialSchlickFresnel);
       changed = true;
     }
-    changed |= ImGui::DragFloat3("absorption", &m.absorption.x, 0.001f, 0.0f, 1e3f, "%.4f");
+    changed |= drag(ps, "absorption", &m.absorption.x, 3, 0.001f, 0.0f, 1e3f, "%.4f");
   }
   float strength = tracer::max_component(m.emission);
   vec3 colour = strength > 0.0f ? m.emission / strength : vec3(1.0f);
   bool e = ImGui::ColorEdit3("emission colour", &colour.x);
-  e |= ImGui::DragFloat("emission strength", &strength, 0.05f, 0.0f, 1e6f, "%.3f");
+  check_fit(ps, "emission colour");
+  e |= drag(ps, "emission strength", &strength, 1, 0.05f, 0.0f, 1e6f, "%.3f");
   if (e) {
     m.emission = colour * std::max(strength, 0.0f);
     changed = true;
   }
   bool two = m.flags & tracer::kMaterialTwoSidedEmission;
-  if (ImGui::Checkbox("two-sided emission", &two)) {
+  const bool toggled = ImGui::Checkbox("two-sided emission", &two);
+  check_fit(ps, "two-sided emission");
+  if (toggled) {
     m.flags = two ? (m.flags | tracer::kMaterialTwoSidedEmission)
                   : (m.flags & ~tracer::kMaterialTwoSidedEmission);
     changed = true;
@@ -248,7 +198,7 @@ void material_panel(Workbench& wb) {
 }
 
 void camera_panel(Workbench& wb, PanelState& ps) {
-  if (!ImGui::CollapsingHeader("Camera")) return;
+  if (!section(ps, "Camera")) return;
   const tracer::CameraDesc& c = wb.scene().camera;
   const float dist = std::max(1e-6f, glm::length(c.look_at - c.position));
   setting_widget(wb, ps, "camera.position", "position", 0.01f * dist);
@@ -263,7 +213,7 @@ void camera_panel(Workbench& wb, PanelState& ps) {
 }
 
 void render_panel(Workbench& wb, PanelState& ps) {
-  if (!ImGui::CollapsingHeader("Render", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  if (!section(ps, "Render", ImGuiTreeNodeFlags_DefaultOpen)) return;
   setting_widget(wb, ps, "render.backend", "backend");
   ImGui::TextDisabled("%s: %s", wb.backend_name().c_str(), wb.device_name().c_str());
   setting_widget(wb, ps, "render.max_depth", "max depth", 0.0f, nullptr, 64);
@@ -272,7 +222,9 @@ void render_panel(Workbench& wb, PanelState& ps) {
   setting_widget(wb, ps, "render.mis", "MIS");
   setting_widget(wb, ps, "render.russian_roulette", "Russian roulette");
   ImGui::SameLine();
-  ImGui::SetNextItemWidth(100);
+  ImGui::SetNextItemWidth(std::max(40.0f, ImGui::GetContentRegionAvail().x -
+                                              ImGui::CalcTextSize("from depth").x -
+                                              ImGui::GetStyle().ItemInnerSpacing.x));
   setting_widget(wb, ps, "render.rr_start_depth", "from depth", 0.0f, nullptr, 16);
   setting_widget(wb, ps, "render.jitter", "pixel jitter");
   setting_widget(wb, ps, "render.sampler", "sampler");
@@ -285,10 +237,10 @@ void render_panel(Workbench& wb, PanelState& ps) {
   ImGui::Checkbox("pause", &wb.paused);
   ImGui::SameLine();
   if (ImGui::Button("Reset accumulator (R)")) wb.changed(Edit::kSettings);
-  if (ImGui::TreeNode("GPU")) {
+  if (tree_node(ps, "GPU")) {
     setting_widget(wb, ps, "gpu.kernel", "kernel");
     setting_widget(wb, ps, "gpu.compaction", "compaction");
-    setting_widget(wb, ps, "gpu.tail", "tail below", 0.01f, "%.2f of the pixels");
+    setting_widget(wb, ps, "gpu.tail", "tail below", 0.01f, "%.2f of paths");
     setting_widget(wb, ps, "gpu.sort", "material sorting");
     setting_widget(wb, ps, "gpu.cache", "first-bounce cache");
     setting_widget(wb, ps, "gpu.flat", "flat list (small scenes)");
@@ -348,7 +300,7 @@ void error_curve_plot(const std::vector<tracer::Checkpoint>& curve) {
 }
 
 void stats_panel(Workbench& wb, PanelState& ps) {
-  if (!ImGui::CollapsingHeader("Stats", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  if (!section(ps, "Stats", ImGuiTreeNodeFlags_DefaultOpen)) return;
   const WorkbenchStats& s = wb.stats();
   ImGui::Text("%u spp%s, %.1f s, %.1f spp/s", s.spp, wb.converged() ? " (done)" : "", s.elapsed_s,
               s.samples_per_s);
@@ -356,7 +308,7 @@ void stats_panel(Workbench& wb, PanelState& ps) {
               ImGui::GetIO().Framerate);
   ImGui::Text("NaN/Inf samples rejected: %llu", (unsigned long long)s.nonfinite);
   if (s.relmse_halves >= 0) {
-    ImGui::Text("relMSE between half buffers: %.3g", s.relmse_halves);
+    ImGui::Text("half-buffer relMSE: %.3g", s.relmse_halves);
     if (!tracer::independent_halves(wb.settings().sampler)) {
       ImGui::SameLine();
       ImGui::TextDisabled("(reads high with sobol)");
@@ -366,7 +318,8 @@ void stats_panel(Workbench& wb, PanelState& ps) {
             "halves differ more than independent estimates would: 2-3x at 16-4096 spp on\n"
             "the Cornell box. The sobol-pairs sampler makes them independent.");
     }
-  } else ImGui::TextDisabled("relMSE between half buffers: needs more samples");
+  } else
+    ImGui::TextDisabled("half-buffer relMSE: needs more samples");
   if (s.relmse_reference >= 0) ImGui::Text("relMSE against the reference: %.3g", s.relmse_reference);
   if (s.error_curve.size() >= 2) error_curve_plot(s.error_curve);
   ImGui::Text("kernel: %s%s", s.last.kernel.c_str(), ps.interop ? " (CUDA/GL interop)" : "");
@@ -380,7 +333,7 @@ void stats_panel(Workbench& wb, PanelState& ps) {
     char title[96];
     snprintf(title, sizeof title, "GPU design: %zu switch%s overridden###gpudesign", switches,
              switches == 1 ? "" : "es");
-    if (ImGui::TreeNode(title)) {
+    if (tree_node(ps, title)) {
       for (const auto& o : g.overrides)
         ImGui::TextWrapped("%s %s: %s -> %s (%s)", o.path ? "path" : "switch", o.name.c_str(),
                            o.requested.c_str(), o.effective.c_str(), o.reason.c_str());
@@ -390,13 +343,14 @@ void stats_panel(Workbench& wb, PanelState& ps) {
   }
   const tracer::StageTimes& t = s.last.stages;
   if (t.intersect > 0 || t.megakernel > 0) {
-    ImGui::Text("ms per sample: gen %.3f  isect %.3f  sort %.3f", t.generate, t.intersect, t.sort);
-    ImGui::Text("  shade %.3f  shadow %.3f  compact %.3f  mega %.3f", t.shade, t.shadow, t.compact,
-                t.megakernel);
+    ImGui::TextWrapped("ms per sample: gen %.3f  isect %.3f  sort %.3f", t.generate, t.intersect,
+                       t.sort);
+    ImGui::TextWrapped("  shade %.3f  shadow %.3f  compact %.3f  mega %.3f", t.shade, t.shadow,
+                       t.compact, t.megakernel);
     if (t.trace > 0)
-      ImGui::Text("  trace %.3f (shadow rays with the next bounce's rays)", t.trace);
+      ImGui::TextWrapped("  trace %.3f (shadow rays with the next bounce's rays)", t.trace);
     if (t.tail_from > 0)
-      ImGui::Text("  tail %.3f (the megakernel from bounce %u on)", t.tail, t.tail_from);
+      ImGui::TextWrapped("  tail %.3f (the megakernel from bounce %u on)", t.tail, t.tail_from);
   }
   if (!s.last.alive_per_bounce.empty()) {
     std::vector<float> alive(s.last.alive_per_bounce.begin(), s.last.alive_per_bounce.end());
@@ -405,7 +359,8 @@ void stats_panel(Workbench& wb, PanelState& ps) {
                          alive.data(), int(alive.size()), 0, nullptr, 0.0f, alive[0],
                          ImVec2(0, 60));
   }
-  if (ImGui::TreeNode("Reference image")) {
+  if (tree_node(ps, "Reference image")) {
+    ImGui::SetNextItemWidth(-width_beside("Load"));
     ImGui::InputText("##ref", ps.reference_path, sizeof ps.reference_path);
     ImGui::SameLine();
     if (ImGui::Button("Load##ref")) {
@@ -413,31 +368,83 @@ void stats_panel(Workbench& wb, PanelState& ps) {
       ps.status = wb.load_reference(ps.reference_path, &err)
                       ? std::string("reference ") + ps.reference_path + " loaded"
                       : "error: " + err;
-      if (!err.empty()) wb.messages.push_back("error: " + err);
+      if (!err.empty()) wb.messages.error(err);
     }
+    check_fit(ps, "Load (reference)");
     ImGui::TreePop();
   }
 }
 
 void display_panel(Workbench& wb, PanelState& ps) {
-  if (!ImGui::CollapsingHeader("Display", ImGuiTreeNodeFlags_DefaultOpen)) return;
-  setting_widget(wb, ps, "display.exposure", "exposure (stops)", 0.05f, "%.2f", 8.0);
+  if (!section(ps, "Display", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  setting_widget(wb, ps, "display.exposure", "exposure", 0.05f, "%+.2f stops", 8.0);
   setting_widget(wb, ps, "display.tonemap", "tone map");
 }
 
-void export_panel(Workbench& wb, PanelState& ps) {
-  if (!ImGui::CollapsingHeader("Export", ImGuiTreeNodeFlags_DefaultOpen)) return;
-  ImGui::InputText("image (.png/.exr)", ps.export_path, sizeof ps.export_path);
-  if (ImGui::Button("Export image (Ctrl+S)")) {
-    const std::string err = wb.export_image(ps.export_path);
-    ps.status = err.empty() ? std::string("saved ") + ps.export_path + " (+ .json)" : "error: " + err;
-    if (!err.empty()) wb.messages.push_back("error: " + err);
+void export_now(Workbench& wb, PanelState& ps) {
+  const std::string err = wb.export_image(ps.export_path);
+  ps.status = err.empty() ? std::string("saved ") + ps.export_path + " (+ .json)" : "error: " + err;
+  if (!err.empty()) wb.messages.error(err);
+}
+
+// The column's first lines, never scrolled away: the message counts (a button that opens the
+// Messages list; a new error opens it by itself), the last action's result, and the list.
+void status_line(Workbench& wb, PanelState& ps) {
+  const MessageLog& log = wb.messages;
+  const size_t errors = log.count(Severity::kError);
+  if (errors > ps.errors_seen) ps.show_messages = true;
+  ps.errors_seen = errors;
+  const std::string counts = log.summary();
+  const ImU32 colour = errors                          ? IM_COL32(255, 90, 90, 255)
+                       : log.count(Severity::kWarning) ? IM_COL32(255, 200, 60, 255)
+                                                       : IM_COL32(200, 200, 200, 255);
+  ImGui::PushStyleColor(ImGuiCol_Text, colour);
+  const std::string button = (counts.empty() ? std::string("no warnings") : counts) +
+                             (log.empty()        ? ""
+                              : ps.show_messages ? " (hide)"
+                                                 : " (show)") +
+                             "###messages";
+  if (ImGui::SmallButton(button.c_str())) ps.show_messages = !ps.show_messages;
+  ImGui::PopStyleColor();
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("Messages: errors, warnings, notes, results");
+  if (!ps.status.empty()) {
+    const bool error = ps.status.rfind("error", 0) == 0;
+    if (error) ImGui::PushStyleColor(ImGuiCol_Text, IM_COL32(255, 90, 90, 255));
+    ImGui::TextWrapped("%s", ps.status.c_str());
+    if (error) ImGui::PopStyleColor();
   }
-  ImGui::InputText("scene (.json)", ps.save_path, sizeof ps.save_path);
+  if (ps.show_messages && !log.empty()) {
+    // As tall as its lines up to kMessagesHeight, then it scrolls; newest first.
+    const float line = ImGui::GetTextLineHeightWithSpacing();
+    const float h = std::min(kMessagesHeight, line * float(log.all().size() + 1));
+    ImGui::BeginChild("Messages", ImVec2(0, h), true);
+    for (auto it = log.all().rbegin(); it != log.all().rend(); ++it) {
+      const ImU32 c = it->severity == Severity::kError     ? IM_COL32(255, 90, 90, 255)
+                      : it->severity == Severity::kWarning ? IM_COL32(255, 200, 60, 255)
+                                                           : IM_COL32(200, 200, 200, 255);
+      ImGui::PushStyleColor(ImGuiCol_Text, c);
+      ImGui::TextWrapped("%s", to_string(*it).c_str());
+      ImGui::PopStyleColor();
+    }
+    ImGui::EndChild();
+  }
+  ImGui::Separator();
+}
+
+void export_panel(Workbench& wb, PanelState& ps) {
+  if (!section(ps, "Export", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  ImGui::InputText("image", ps.export_path, sizeof ps.export_path);
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip(".png (tone-mapped) or .exr (linear), with a .json sidecar");
+  check_fit(ps, "image");
+  if (ImGui::Button("Export image (Ctrl+S)")) export_now(wb, ps);
+  ImGui::InputText("scene", ps.save_path, sizeof ps.save_path);
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip(".json that reloads every edit");
+  check_fit(ps, "scene");
   if (ImGui::Button("Save scene")) {
     const std::string err = wb.save_scene(ps.save_path);
     ps.status = err.empty() ? std::string("saved ") + ps.save_path : "error: " + err;
-    if (!err.empty()) wb.messages.push_back("error: " + err);
+    if (!err.empty()) wb.messages.error(err);
   }
 }
 
@@ -449,36 +456,35 @@ bool draw_workbench(Workbench& wb, PanelState& ps) {
     if (ImGui::IsKeyPressed(ImGui::GetKeyIndex(ImGuiKey_Tab)) || ImGui::IsKeyPressed('H')) ps.show_ui = !ps.show_ui;
     if (ImGui::IsKeyPressed('R')) wb.changed(Edit::kSettings);
     if (ImGui::IsKeyPressed('F')) wb.reset_view();
-    if (io.KeyCtrl && ImGui::IsKeyPressed('S')) {
-      const std::string err = wb.export_image(ps.export_path);
-      ps.status = err.empty() ? std::string("saved ") + ps.export_path : "error: " + err;
-    }
+    if (io.KeyCtrl && ImGui::IsKeyPressed('S')) export_now(wb, ps);
   }
+  ps.layout_problems.clear();
   const ImVec2 display = io.DisplaySize;
   const float column = ps.show_ui ? kColumnWidth : 0.0f;
   viewport(wb, ps, ImVec2(0, 0), ImVec2(display.x - column, display.y));
   if (!ps.show_ui) return false;
   ImGui::SetNextWindowPos(ImVec2(display.x - column, 0));
   ImGui::SetNextWindowSize(ImVec2(column, display.y));
-  ImGui::Begin("Workbench", nullptr, ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoMove);
+  // The scroll bar always shows, so opening a panel never reflows the column.
+  ImGui::Begin("Workbench", nullptr,
+               ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoMove |
+                   ImGuiWindowFlags_AlwaysVerticalScrollbar);
+  // Anything wider than the column (last frame's content) makes it scroll sideways.
+  if (ImGui::GetScrollMaxX() > 0.0f)
+    ps.layout_problems.push_back("the panel column's content is wider than the column");
+  status_line(wb, ps);
+  ImGui::PushItemWidth(-label_column());
   scene_panel(wb, ps);
-  material_panel(wb);
+  material_panel(wb, ps);
   camera_panel(wb, ps);
   render_panel(wb, ps);
   stats_panel(wb, ps);
   display_panel(wb, ps);
   export_panel(wb, ps);
-  if (!ps.status.empty()) ImGui::TextWrapped("%s", ps.status.c_str());
-  if (!wb.messages.empty() && ImGui::CollapsingHeader("Messages", ImGuiTreeNodeFlags_DefaultOpen)) {
-    for (auto it = wb.messages.rbegin(); it != wb.messages.rend(); ++it) {
-      const bool error = it->rfind("error", 0) == 0;
-      if (error) ImGui::PushStyleColor(ImGuiCol_Text, IM_COL32(255, 90, 90, 255));
-      ImGui::TextWrapped("%s", it->c_str());
-      if (error) ImGui::PopStyleColor();
-    }
-  }
+  ImGui::PopItemWidth();
   ImGui::TextDisabled("Tab/H hides the panels, R resets, Ctrl+S exports");
   ImGui::End();
+  ps.expand_all = false;
   return false;
 }
 

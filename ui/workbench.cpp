@@ -35,10 +35,11 @@ Workbench::Workbench(tracer::Scene scene, tracer::BackendChoice backend, int cpu
   scene_.settings.threads = cpu_threads;
   initial_camera_ = scene_.camera;
   if (scene_.settings.samples_per_frame > 0) samples_per_frame = scene_.settings.samples_per_frame;
-  for (const auto& w : scene_.diagnostics.warnings) messages.push_back("warning: " + w);
+  take_scene_warnings();
+  select_object(scene_.objects.empty() ? -1 : 0);
   std::string error;
   if (!set_backend(backend, &error)) {
-    messages.push_back("error: " + error + "; using the CPU backend");
+    messages.error(error + "; using the CPU backend");
     set_backend(tracer::BackendChoice::kCpu, &error);
   }
 }
@@ -64,7 +65,7 @@ bool Workbench::set_backend(tracer::BackendChoice b, std::string* error) {
   stop_worker();
   renderer_ = std::move(r);
   scene_.settings.backend = b;
-  if (!note.empty()) messages.push_back("note: " + note);
+  if (!note.empty()) messages.note(note);
   async_ = renderer_->backend_name() == "cpu";
   if (async_) {
     static_cast<tracer::CpuRenderer*>(renderer_.get())->set_cancel_flag(&cancel_);
@@ -137,7 +138,30 @@ bool Workbench::converged() const {
   return false;
 }
 
+void Workbench::take_scene_warnings() {
+  const std::vector<std::string>& w = scene_.diagnostics.warnings;
+  for (; scene_warnings_taken_ < w.size(); ++scene_warnings_taken_)
+    messages.warning(w[scene_warnings_taken_]);
+}
+
+void Workbench::select_object(int i) {
+  selected_object = i >= 0 && i < int(scene_.objects.size()) ? i : -1;
+  const int m = material_of(selected_object);
+  if (m >= 0) selected_material = m;
+}
+
+int Workbench::material_of(int object) const {
+  if (object < 0 || object >= int(scene_.objects.size())) return -1;
+  const tracer::ObjectInfo& o = scene_.objects[size_t(object)];
+  // A mesh object's material is its first triangle's (an OBJ or glTF file may use several).
+  if (o.is_sphere)
+    return o.first < scene_.spheres.size() ? int(scene_.spheres[o.first].material) : -1;
+  if (o.count == 0 || o.first >= scene_.mesh.materials.size()) return -1;
+  return int(scene_.mesh.materials[o.first]);
+}
+
 void Workbench::update() {
+  take_scene_warnings();  // e.g. validation's, after an edit
   if (dirty_) {
     rebuild(geometry_dirty_);
     dirty_ = geometry_dirty_ = false;
@@ -382,9 +406,10 @@ bool Workbench::load_scene(const std::string& path, std::string* error) {
     return false;
   }
   initial_camera_ = scene_.camera;
-  selected_object = -1;
+  scene_warnings_taken_ = 0;
+  take_scene_warnings();
   selected_material = 0;
-  for (const auto& w : scene_.diagnostics.warnings) messages.push_back("warning: " + w);
+  select_object(scene_.objects.empty() ? -1 : 0);
   changed(Edit::kScene);
   return true;
 }
@@ -410,7 +435,7 @@ bool Workbench::load_reference(const std::string& path, std::string* error) {
     reference_ = std::move(ref);
     const std::string warn = tracer::reference_independence_warning(
         path, scene_.settings.seed, tracer::sampler_name(scene_.settings.sampler));
-    if (!warn.empty()) messages.push_back("warning: " + warn);
+    if (!warn.empty()) messages.warning(warn);
   } catch (const std::exception& e) {
     if (error) *error = e.what();
     return false;
@@ -449,7 +474,8 @@ std::string Workbench::export_image(const std::string& path) {
   } catch (const std::exception& e) {
     return e.what();
   }
-  messages.push_back("exported " + path);
+  take_scene_warnings();
+  messages.info("exported " + path);
   return "";
 }
 
@@ -478,9 +504,9 @@ std::string Workbench::save_scene(const std::string& path) {
       }
     } else {
       j["objects"] = nlohmann::json::array({{{"type", "mesh"}, {"file", src}}});
-      messages.push_back("note: material edits of " + src +
-                         " are not saved (the JSON format cannot override a mesh file's own "
-                         "materials)");
+      messages.note("material edits of " + src +
+                    " are not saved (the JSON format cannot override a mesh file's own "
+                    "materials)");
     }
     // Every setting of the table but the machine's choices (backend, threads), so that the
     // file opens the same way anywhere.
@@ -498,7 +524,7 @@ std::string Workbench::save_scene(const std::string& path) {
   } catch (const std::exception& e) {
     return e.what();
   }
-  messages.push_back("saved scene " + path);
+  messages.info("saved scene " + path);
   return "";
 }
 

@@ -9,16 +9,17 @@
 #include <condition_variable>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <thread>
 #include <vector>
-#include <nlohmann/json_fwd.hpp>
 
 #include "backends/backend_select.h"
 #include "image/convergence.h"
 #include "integrator/renderer.h"
 #include "scene/compiled_scene.h"
 #include "scene/scene.h"
+#include "ui/messages.h"
 
 namespace ui {
 
@@ -67,8 +68,13 @@ class Workbench {
   uint32_t target_spp() const { return uint32_t(std::max(0, scene_.settings.spp)); }
   double target_seconds() const { return scene_.settings.time_limit_s; }
   bool paused = false;
+  // The object selected in the list or the viewport (-1: none) and the material the Material
+  // panel edits: the selected object's when one is selected, else any the user picks.
   int selected_object = -1;
   int selected_material = 0;
+  // Selects object i (-1: none) and opens its material. A new scene selects its first object.
+  void select_object(int i);
+  int material_of(int object) const;  // index into scene().materials, or -1
 
   void changed(Edit e);
 
@@ -111,8 +117,8 @@ class Workbench {
   int pick_object(float u, float v) const;   // index into scene().objects, or -1
   bool focus_at(float u, float v);          // sets focus_distance to the hit under (u, v)
 
-  // Messages for the UI (errors and warnings), newest last.
-  std::vector<std::string> messages;
+  // Messages for the UI and stderr (errors, warnings with the scene's own, notes), newest last.
+  MessageLog messages;
 
  private:
   void rebuild(bool geometry);
@@ -120,10 +126,12 @@ class Workbench {
   void stop_worker();
   void worker_loop();
   void reset_stats();
+  void take_scene_warnings();  // the scene's diagnostics not yet in `messages`
   tracer::Ray camera_ray(float u, float v) const;
 
   tracer::Scene scene_;
   tracer::CameraDesc initial_camera_;
+  size_t scene_warnings_taken_ = 0;
   std::unique_ptr<tracer::Renderer> renderer_;
   std::shared_ptr<tracer::CompiledScene> compiled_;
   bool dirty_ = true, geometry_dirty_ = true, display_dirty_ = true;
