@@ -211,6 +211,10 @@ int run_gui(const GuiOptions& o) {
     return kExitUsage;
   }
   if (o.until_spp > 0) scene.settings.spp = o.until_spp;  // the accumulator stops there
+  // --strict fails a scripted run on the scene's warnings, as `render` does; an interactive
+  // window shows them instead.
+  if (scripted && scene.settings.strict && !report_scene_messages(scene, true))
+    return kExitInputError;
 
   std::unique_ptr<GuiPlatform> platform =
       o.egl ? make_egl_platform(o.width, o.height, &error)

@@ -164,14 +164,15 @@ TEST(Gui, WarningsGoToStderrOnceAndTheStatusLineShowsThem) {
   if (!have_xvfb()) GTEST_SKIP() << "xvfb-run is not installed (scripts/setup.sh installs xvfb)";
   const std::string dir = tmpdir(), file = test::data_dir() + "/bad/missing_mtl.obj";
   const std::string small = " --set render.width=64 --set render.height=64 ";
-  // The file's two warnings, each once on stderr, however many frames run; the status line at
+  // The file's warning and notes, each once on stderr, however many frames run; the status line at
   // the top of the column counts them in the warning colour.
   std::string log;
   ASSERT_EQ(run_gui("--frames 12" + small + "--screenshot " + dir + "/warned.png " + file, &log,
                     1280, 720), 0) << log;
-  EXPECT_EQ(occurrences(log, "warning: "), 2u) << log;
+  EXPECT_EQ(occurrences(log, "warning: "), 1u) << log;
   EXPECT_EQ(occurrences(log, "\"nowhere.mtl\" not found"), 1u) << log;
-  EXPECT_EQ(occurrences(log, "no light in file"), 1u) << log;
+  EXPECT_EQ(occurrences(log, "note: "), 2u) << log;  // the framing camera and the default light
+  EXPECT_EQ(occurrences(log, "no light in the file"), 1u) << log;
   StatusColours c = status_colours(tracer::read_image(dir + "/warned.png"));
   EXPECT_GT(c.warning, 20) << "no warning count at the top of the panels";
   EXPECT_LT(c.error, 5);

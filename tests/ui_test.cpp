@@ -211,14 +211,16 @@ TEST(Workbench, ErrorCurveAgainstAReferenceFallsAsOneOverTime) {
 }
 
 TEST(UiMessages, SceneWarningsAreLoggedAndHandedOutOnce) {
-  const std::string file = test::data_dir() + "/bad/missing_mtl.obj";  // two warnings
+  // One warning (the missing library) and two notes (the framing camera, the default light).
+  const std::string file = test::data_dir() + "/bad/missing_mtl.obj";
   ui::Workbench wb(tracer::load_scene(file), tracer::BackendChoice::kCpu);
-  EXPECT_EQ(wb.messages.count(ui::Severity::kWarning), 2u);
-  EXPECT_EQ(wb.messages.summary(), "2 warnings");
+  EXPECT_EQ(wb.messages.count(ui::Severity::kWarning), 1u);
+  EXPECT_EQ(wb.messages.count(ui::Severity::kNote), 2u);
+  EXPECT_EQ(wb.messages.summary(), "1 warning, 2 notes");
   auto fresh = wb.messages.take_unreported();
   size_t warnings = 0;
   for (const auto& m : fresh) warnings += m.severity == ui::Severity::kWarning ? 1 : 0;
-  EXPECT_EQ(warnings, 2u);
+  EXPECT_EQ(warnings, 1u);
   EXPECT_NE(ui::to_string(fresh.front()).find("warning: "), std::string::npos);
   wb.update();
   wb.update();
@@ -233,11 +235,11 @@ TEST(UiMessages, SceneWarningsAreLoggedAndHandedOutOnce) {
   std::string err;
   ASSERT_TRUE(wb.load_scene(file, &err)) << err;
   wb.update();
-  EXPECT_EQ(wb.messages.take_unreported().size(), 2u);
+  EXPECT_EQ(wb.messages.take_unreported().size(), 3u);
   wb.messages.error("out/x.png: cannot be written");
-  EXPECT_EQ(wb.messages.summary(), "1 error, 5 warnings");
+  EXPECT_EQ(wb.messages.summary(), "1 error, 3 warnings, 4 notes");
   wb.messages.info("exported out/y.png");
-  EXPECT_EQ(wb.messages.summary(), "1 error, 5 warnings") << "results of actions are not counted";
+  EXPECT_EQ(wb.messages.summary(), "1 error, 3 warnings, 4 notes") << "results of actions are not counted";
 }
 
 TEST(UiSelection, TheMaterialPanelOpensOnTheSelectedObjectsMaterial) {

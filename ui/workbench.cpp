@@ -142,6 +142,10 @@ void Workbench::take_scene_warnings() {
   const std::vector<std::string>& w = scene_.diagnostics.warnings;
   for (; scene_warnings_taken_ < w.size(); ++scene_warnings_taken_)
     messages.warning(w[scene_warnings_taken_]);
+  // Notes: the loader's choices (a framing camera, a default light), shown once like warnings.
+  const std::vector<std::string>& n = scene_.diagnostics.notes;
+  for (; scene_notes_taken_ < n.size(); ++scene_notes_taken_)
+    messages.note(n[scene_notes_taken_]);
 }
 
 void Workbench::select_object(int i) {
@@ -406,7 +410,7 @@ bool Workbench::load_scene(const std::string& path, std::string* error) {
     return false;
   }
   initial_camera_ = scene_.camera;
-  scene_warnings_taken_ = 0;
+  scene_warnings_taken_ = scene_notes_taken_ = 0;
   take_scene_warnings();
   selected_material = 0;
   select_object(scene_.objects.empty() ? -1 : 0);
@@ -520,7 +524,8 @@ std::string Workbench::save_scene(const std::string& path) {
         if (idx != tracer::kInvalid) it.value() = tracer::material_to_json(scene_.materials[idx].material);
       }
     }
-    tracer::write_text_atomic(path, j.dump(2) + "\n");
+    tracer::write_text_atomic(
+        path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
   } catch (const std::exception& e) {
     return e.what();
   }

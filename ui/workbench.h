@@ -132,6 +132,7 @@ class Workbench {
   tracer::Scene scene_;
   tracer::CameraDesc initial_camera_;
   size_t scene_warnings_taken_ = 0;
+  size_t scene_notes_taken_ = 0;
   std::unique_ptr<tracer::Renderer> renderer_;
   std::shared_ptr<tracer::CompiledScene> compiled_;
   bool dirty_ = true, geometry_dirty_ = true, display_dirty_ = true;
