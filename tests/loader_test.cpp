@@ -394,3 +394,48 @@ TEST(LoaderGltfMaterials, VolumesBecomeSubsurfaceAndMetalsConductors) {
   EXPECT_EQ(subsurface, 2);
   EXPECT_EQ(conductor, 1);
 }
+
+// ---- Issue 20: magnitudes, degenerate-only meshes, truncated OBJ files ----
+
+namespace {
+
+// Writes `text` to a fresh file `name` in a temporary folder; returns its path.
+std::string temp_file(const std::string& name, const std::string& text) {
+  char tmpl[] = "/tmp/pathtracer_loader_XXXXXX";
+  const std::string path = std::string(mkdtemp(tmpl)) + "/" + name;
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
+
+}  // namespace
+
+// A sphere of radius 2e38 is a finite float, but past what the intersection code can take: the
+// error names the object's line and the bound (it crashed `render` and made `info` print a NaN
+// SAH cost).
+TEST(LoaderMagnitudes, HugeSphereIsRejectedWithItsLineAndTheBound) {
+  const std::string msg = load_error(bad("huge_sphere.json"));
+  EXPECT_EQ(msg.rfind(bad("huge_sphere.json") + ":9: ", 0), 0u) << msg;
+  for (const char* w : {"\"big\"", "reaches 2e+38", "supported 1e+12", "nothing was rendered"})
+    EXPECT_NE(msg.find(w), std::string::npos) << w << " in " << msg;
+}
+
+// A whole scene smaller than the ray offset is rejected, not rendered black; a mesh far past
+// the bound as well, blamed on the mesh rather than on the camera framed around it.
+TEST(LoaderMagnitudes, TinySceneAndHugeMeshAreRejected) {
+  try {
+    load_scene_from_json(R"({"camera": {"position": [0, 0, -1e-20], "look_at": [0, 0, 0]},
+      "materials": {"m": {"emission": [1, 1, 1]}},
+      "objects": [{"type": "sphere", "center": [0, 0, 0], "radius": 1e-21, "material": "m"}]})",
+                         "tiny.json");
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("tiny.json: the scene (geometry and camera) spans 1.1e-20"),
+              std::string::npos)
+        << msg;
+    EXPECT_NE(msg.find("64 ray offsets"), std::string::npos) << msg;
+  }
+  const std::string path = temp_file("huge.obj", "v -1e13 0 0\nv 1e13 0 0\nv 0 1e13 0\nf 1 2 3\n");
+  const std::string msg = load_error(path);
+  EXPECT_EQ(msg.rfind(path + ": object \"huge.obj\" reaches 1e+13", 0), 0u) << msg;
+}

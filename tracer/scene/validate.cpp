@@ -34,8 +34,8 @@ SourceLoc where(const Scene& scene, const ObjectInfo* o) {
   return o ? o->loc : SourceLoc{scene.source, 0};
 }
 
-std::string object_name(const ObjectInfo* o) {
-  return o ? "object \"" + o->name + "\"" : "an unnamed triangle";
+std::string object_name(const ObjectInfo* o, const char* unnamed = "an unnamed triangle") {
+  return o ? "object \"" + o->name + "\"" : unnamed;
 }
 
 void validate_camera_and_settings(const Scene& scene) {
@@ -107,6 +107,35 @@ void validate_materials(Scene& scene) {
   }
 }
 
+// How far from the origin geometry and the camera may reach. Every ray starts at the camera or on
+// a surface, so with everything within E of the origin each coordinate difference p - o of the
+// watertight triangle test (bvh/geometry.h) is within 2E, the sheared differences within 4E
+// (|sx|, |sy| <= 1), the edge functions U, V, W within 2 (4E)^2 = 32 E^2, and
+// T = U az + V bz + W cz within 3 * 32 E^2 * 2 sqrt(3) E < 333 E^3 (|sz| <= sqrt(3): a unit
+// direction's largest component is at least 1 / sqrt(3)). T must stay below the float maximum
+// 3.4e38, hence E <= 1e12; past it hits are lost (inf) and the ray offset of 256 ulps overflows
+// into NaN near 3.4e38. Squared distances (light sampling: at most 12 E^2) stay far in range.
+constexpr double kMaxReach = 1e12;
+
+std::string number_str(double x) {
+  std::ostringstream out;
+  out.precision(3);
+  out << x;
+  return out.str();
+}
+
+void check_reach(const SourceLoc& loc, const std::string& what, double reach) {
+  if (reach <= kMaxReach) return;
+  throw InputError(loc, what + " reaches " + number_str(reach) +
+                            " from the origin, beyond the supported " + number_str(kMaxReach) +
+                            " (the ray-triangle test multiplies three coordinate differences, "
+                            "which would overflow a float); scale the scene down");
+}
+
+double reach_of(vec3 p) {
+  return std::max(std::fabs(double(p.x)), std::max(std::fabs(double(p.y)), std::fabs(double(p.z))));
+}
+
 void validate_geometry(Scene& scene) {
   TriangleMesh& mesh = scene.mesh;
   const size_t nmat = scene.materials.size();
@@ -121,6 +150,8 @@ void validate_geometry(Scene& scene) {
     if (s.material >= nmat)
       throw InputError(where(scene, o), object_name(o) + " has material index " +
                                             std::to_string(s.material) + " out of range");
+    check_reach(where(scene, o), object_name(o, "an unnamed sphere"),
+                reach_of(s.center) + double(s.radius));
   }
   if (mesh.materials.size() != mesh.indices.size())
     throw InputError({scene.source, 0}, "triangle mesh has " + std::to_string(mesh.indices.size()) +
@@ -159,6 +190,10 @@ void validate_geometry(Scene& scene) {
         const ObjectInfo* o = owner_of(scene, t);
         throw InputError(where(scene, o), object_name(o) + " has a non-finite vertex position " +
                                               vec3_str(mesh.positions[tri[k]]));
+      }
+      if (reach_of(mesh.positions[tri[k]]) > kMaxReach) {
+        const ObjectInfo* o = owner_of(scene, t);
+        check_reach(where(scene, o), object_name(o), reach_of(mesh.positions[tri[k]]));
       }
       if (mesh.normals.empty()) continue;
       vec3& n = mesh.normals[tri[k]];
@@ -220,14 +255,58 @@ void validate_geometry(Scene& scene) {
   }
 }
 
+// The camera's reach, and the scene's span against the ray offset. offset_ray_origin moves a
+// spawned ray's origin by a fixed 2^-16 near the origin and by 256 ulps elsewhere; a scene not
+// much larger than that offset is skipped over by its own rays (the Cornell box scaled by 1e-8
+// renders black). Require the span of geometry and camera to be at least 64 offsets (the offset at
+// most 1.6% of it), the offset taken at the scene's reach: a scene far from the origin needs to be
+// larger, a tiny one must sit near the origin.
+void validate_extent(const Scene& scene) {
+  const CameraDesc& cam = scene.camera;
+  const double lens = double(cam.aperture_radius);
+  check_reach({scene.source, 0}, "the camera", reach_of(cam.position) + lens);
+  glm::dvec3 lo(cam.position), hi(cam.position);
+  lo -= lens;
+  hi += lens;
+  for (const SphereDesc& s : scene.spheres) {
+    lo = glm::min(lo, glm::dvec3(s.center) - double(s.radius));
+    hi = glm::max(hi, glm::dvec3(s.center) + double(s.radius));
+  }
+  for (const uvec3& tri : scene.mesh.indices) {
+    for (int k = 0; k < 3; ++k) {
+      lo = glm::min(lo, glm::dvec3(scene.mesh.positions[tri[k]]));
+      hi = glm::max(hi, glm::dvec3(scene.mesh.positions[tri[k]]));
+    }
+  }
+  const glm::dvec3 size = hi - lo;
+  const double span = std::max(size.x, std::max(size.y, size.z));
+  const double reach = std::max(std::max(std::fabs(lo.x), std::fabs(hi.x)),
+                                std::max(std::max(std::fabs(lo.y), std::fabs(hi.y)),
+                                         std::max(std::fabs(lo.z), std::fabs(hi.z))));
+  const float at = float(reach);
+  const double offset = double(offset_ray_origin(vec3(at), vec3(1.0f, 0.0f, 0.0f)).x) - double(at);
+  if (span < 64.0 * offset) {
+    throw InputError({scene.source, 0},
+                     "the scene (geometry and camera) spans " + number_str(span) +
+                         ", less than the supported 64 ray offsets (" + number_str(64.0 * offset) +
+                         "): at " + number_str(reach) +
+                         " from the origin a ray leaving a surface starts " + number_str(offset) +
+                         " from it and would skip the scene's surfaces; scale the scene up" +
+                         (reach >= 1.0 / 32.0 ? " or move it nearer the origin" : ""));
+  }
+}
+
 }  // namespace
 
 void validate_scene(Scene& scene) {
-  validate_camera_and_settings(scene);
+  // Geometry before the camera: a mesh's framing camera derives from its bounds, and a mesh out
+  // of range should be named as the cause rather than the camera placed beyond it.
   validate_materials(scene);
   validate_geometry(scene);
   if (scene.spheres.empty() && scene.mesh.indices.empty())
     throw InputError({scene.source, 0}, "the scene has no geometry");
+  validate_camera_and_settings(scene);
+  validate_extent(scene);
   bool lit = false;
   for (const SphereDesc& s : scene.spheres)
     lit |= scene.materials[s.material].material.is_emissive();
