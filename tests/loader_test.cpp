@@ -439,3 +439,47 @@ TEST(LoaderMagnitudes, TinySceneAndHugeMeshAreRejected) {
   const std::string msg = load_error(path);
   EXPECT_EQ(msg.rfind(path + ": object \"huge.obj\" reaches 1e+13", 0), 0u) << msg;
 }
+
+namespace {
+
+std::vector<std::string> warnings_with(const Scene& s, const std::string& text) {
+  std::vector<std::string> out;
+  for (const std::string& w : s.diagnostics.warnings)
+    if (w.find(text) != std::string::npos) out.push_back(w);
+  return out;
+}
+
+}  // namespace
+
+// An OBJ whose every triangle is degenerate is an error, as an empty one is; it rendered its
+// default light alone with exit 0.
+TEST(LoaderDegenerate, ObjOfOnlyDegenerateTrianglesIsAnError) {
+  const std::string path = temp_file("flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n");
+  const std::string msg = load_error(path);
+  EXPECT_EQ(msg.rfind(path + ": all 2 triangles of the file have zero area", 0), 0u) << msg;
+  const std::string empty = temp_file("empty.obj", "");
+  EXPECT_NE(load_error(empty).find("contains no triangles"), std::string::npos);
+}
+
+// Likewise a JSON scene whose objects all lose every triangle; one object losing all of them
+// among others is a warning that names it.
+TEST(LoaderDegenerate, JsonSceneOfOnlyDegenerateTrianglesIsAnError) {
+  const std::string obj = temp_file("flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n");
+  const std::string json = obj.substr(0, obj.rfind('/')) + "/scene.json";
+  try {
+    load_scene_from_json(R"({"materials": {"m": {"emission": [1, 1, 1]}}, "objects": [
+      {"type": "mesh", "name": "a", "file": "flat.obj", "material": "m"},
+      {"type": "mesh", "name": "b", "file": "flat.obj", "material": "m"}]})",
+                         json);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_EQ(msg.rfind(json + ": all 4 triangles of the scene have zero area", 0), 0u) << msg;
+    EXPECT_NE(msg.find("objects \"a\", \"b\""), std::string::npos) << msg;
+  }
+  const Scene s = load_scene_from_json(R"({"materials": {"m": {"emission": [1, 1, 1]}},
+    "objects": [{"type": "mesh", "name": "a", "file": "flat.obj", "material": "m"},
+      {"type": "sphere", "name": "ball", "center": [0, 0, 0], "radius": 1, "material": "m"}]})",
+                                       json);
+  EXPECT_EQ(warnings_with(s, "all 2 triangles of object \"a\" have zero area").size(), 1u);
+}

@@ -136,7 +136,9 @@ double reach_of(vec3 p) {
   return std::max(std::fabs(double(p.x)), std::max(std::fabs(double(p.y)), std::fabs(double(p.z))));
 }
 
-void validate_geometry(Scene& scene) {
+// Returns the number of zero-area triangles removed.
+size_t validate_geometry(Scene& scene) {
+  size_t removed = 0;
   TriangleMesh& mesh = scene.mesh;
   const size_t nmat = scene.materials.size();
   for (size_t i = 0; i < scene.spheres.size(); ++i) {
@@ -218,30 +220,29 @@ void validate_geometry(Scene& scene) {
               "dropped its normals (flat shading)");
   }
 
-  // Remove zero-area triangles: they can never be hit reliably and make light sampling divide by
-  // a zero area. Measured in double, relative to the longest edge, so tiny but valid triangles of
-  // a small-scale model survive.
+  // Remove zero-area triangles (is_zero_area_triangle says why).
   std::vector<uint32_t> kept_before(mesh.indices.size() + 1, 0);
   size_t out = 0;
   for (size_t t = 0; t < mesh.indices.size(); ++t) {
     kept_before[t] = uint32_t(out);
     const uvec3 tri = mesh.indices[t];
-    const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]),
-        p2(mesh.positions[tri.z]);
-    const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0, e3 = p2 - p1;
-    const double longest = std::max(glm::dot(e1, e1), std::max(glm::dot(e2, e2), glm::dot(e3, e3)));
-    const double area2 = glm::length(glm::cross(e1, e2));
-    if (area2 <= 1e-12 * longest || longest == 0.0) continue;
+    if (is_zero_area_triangle(mesh, tri)) continue;
     mesh.indices[out] = tri;
     mesh.materials[out] = mesh.materials[t];
     ++out;
   }
   kept_before[mesh.indices.size()] = uint32_t(out);
+  removed = mesh.indices.size() - out;
   if (out != mesh.indices.size()) {
     for (ObjectInfo& o : scene.objects) {
       if (o.is_sphere) continue;
       const uint32_t first = kept_before[o.first], last = kept_before[o.first + o.count];
-      if (last - first != o.count) {
+      if (last == first && o.count > 0) {
+        warn_once(scene, o.loc,
+                  "all " + std::to_string(o.count) + " triangles of object \"" + o.name +
+                      "\" have zero area",
+                  "removed the object");
+      } else if (last - first != o.count) {
         warn_once(scene, o.loc,
                   "object \"" + o.name + "\" has " + std::to_string(o.count - (last - first)) +
                       " zero-area triangle(s)",
@@ -253,6 +254,7 @@ void validate_geometry(Scene& scene) {
     mesh.indices.resize(out);
     mesh.materials.resize(out);
   }
+  return removed;
 }
 
 // The camera's reach, and the scene's span against the ray offset. offset_ray_origin moves a
@@ -298,13 +300,42 @@ void validate_extent(const Scene& scene) {
 
 }  // namespace
 
+// Zero-area triangles can never be hit reliably and make light sampling divide by a zero area.
+// Measured in double, relative to the longest edge, so tiny but valid triangles of a small-scale
+// model survive.
+bool is_zero_area_triangle(const TriangleMesh& mesh, uvec3 tri) {
+  const size_t nv = mesh.positions.size();
+  if (tri.x >= nv || tri.y >= nv || tri.z >= nv) return false;  // validate_scene reports these
+  const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]), p2(mesh.positions[tri.z]);
+  const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0, e3 = p2 - p1;
+  const double longest = std::max(glm::dot(e1, e1), std::max(glm::dot(e2, e2), glm::dot(e3, e3)));
+  const double area2 = glm::length(glm::cross(e1, e2));
+  return area2 <= 1e-12 * longest || longest == 0.0;
+}
+
 void validate_scene(Scene& scene) {
   // Geometry before the camera: a mesh's framing camera derives from its bounds, and a mesh out
   // of range should be named as the cause rather than the camera placed beyond it.
   validate_materials(scene);
-  validate_geometry(scene);
-  if (scene.spheres.empty() && scene.mesh.indices.empty())
+  const size_t removed = validate_geometry(scene);
+  if (scene.spheres.empty() && scene.mesh.indices.empty()) {
+    // As for a mesh file of only degenerate triangles (load_scene): an error, like an empty scene.
+    if (removed > 0) {
+      std::string names;
+      size_t n = 0;
+      for (const ObjectInfo& o : scene.objects) {
+        if (o.is_sphere || o.count > 0) continue;
+        if (n++ < 3) names += std::string(names.empty() ? "" : ", ") + "\"" + o.name + "\"";
+      }
+      if (n > 3) names += " and " + std::to_string(n - 3) + " more";
+      throw InputError({scene.source, 0}, "all " + std::to_string(removed) +
+                                              " triangles of the scene have zero area " +
+                                              "(degenerate" +
+                                              (n > 0 ? ": objects " + names : std::string()) +
+                                              "), and it has no other geometry");
+    }
     throw InputError({scene.source, 0}, "the scene has no geometry");
+  }
   validate_camera_and_settings(scene);
   validate_extent(scene);
   bool lit = false;
