@@ -48,9 +48,11 @@ Scene load_scene(const std::string& path) {
   for (uint32_t t = before; t < scene.mesh.indices.size(); ++t)
     degenerate += is_zero_area_triangle(scene.mesh, scene.mesh.indices[t]) ? 1u : 0u;
   if (degenerate == scene.mesh.indices.size() - before) {
-    throw InputError(file, "all " + std::to_string(degenerate) +
-                               " triangles of the file have zero area (degenerate: collinear or "
-                               "repeated vertices), so it has no geometry to render");
+    throw InputError(file, (degenerate == 1 ? std::string("the file's only triangle has")
+                                            : "all " + std::to_string(degenerate) +
+                                                  " triangles of the file have") +
+                               " zero area (degenerate: collinear or repeated vertices), so it "
+                               "has no geometry to render");
   }
   ObjectInfo info;
   const size_t slash = path.find_last_of('/');

@@ -239,8 +239,10 @@ size_t validate_geometry(Scene& scene) {
       const uint32_t first = kept_before[o.first], last = kept_before[o.first + o.count];
       if (last == first && o.count > 0) {
         warn_once(scene, o.loc,
-                  "all " + std::to_string(o.count) + " triangles of object \"" + o.name +
-                      "\" have zero area",
+                  (o.count == 1 ? std::string("the only triangle of object \"") + o.name + "\" has"
+                                : "all " + std::to_string(o.count) + " triangles of object \"" +
+                                      o.name + "\" have") +
+                      " zero area",
                   "removed the object");
       } else if (last - first != o.count) {
         warn_once(scene, o.loc,
@@ -328,11 +330,13 @@ void validate_scene(Scene& scene) {
         if (n++ < 3) names += std::string(names.empty() ? "" : ", ") + "\"" + o.name + "\"";
       }
       if (n > 3) names += " and " + std::to_string(n - 3) + " more";
-      throw InputError({scene.source, 0}, "all " + std::to_string(removed) +
-                                              " triangles of the scene have zero area " +
-                                              "(degenerate" +
-                                              (n > 0 ? ": objects " + names : std::string()) +
-                                              "), and it has no other geometry");
+      const std::string what =
+          removed == 1 ? std::string("the scene's only triangle has")
+                       : "all " + std::to_string(removed) + " triangles of the scene have";
+      throw InputError({scene.source, 0},
+                       what + " zero area (degenerate" +
+                           (n > 0 ? (n == 1 ? ": object " : ": objects ") + names : std::string()) +
+                           "), and it has no other geometry");
     }
     throw InputError({scene.source, 0}, "the scene has no geometry");
   }
