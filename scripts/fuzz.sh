@@ -16,10 +16,7 @@ OUT=build-fuzz
 mkdir -p "$OUT"
 clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
   -Itracer -I/usr/include/stb \
-  tests/fuzz/fuzz_loaders.cpp tracer/scene/json_loader.cpp tracer/scene/json_lines.cpp \
-  tracer/scene/loader.cpp tracer/scene/loader_util.cpp tracer/scene/obj_loader.cpp \
-  tracer/scene/gltf_loader.cpp tracer/scene/gltf_json.cpp tracer/scene/validate.cpp \
-  tracer/scene/scene.cpp tracer/scene/settings.cpp tracer/core/diagnostics.cpp \
+  tests/fuzz/fuzz_loaders.cpp tracer/scene/*.cpp tracer/bvh/*.cpp tracer/core/*.cpp \
   tracer/image/image.cpp tracer/image/image_io.cpp \
   -ltinyobjloader -ltinygltf -lstb -ltinyexr -o "$OUT/fuzz_loaders"
 status=0
