@@ -421,6 +421,14 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
                      uint32_t material_override, const SourceLoc& from) {
   const std::string suffix = from.path == path ? "" : " (mesh referenced at " + from.str() + ")";
   const std::string text = read_file_text(path, from);
+  // A UTF-16 file (a byte-order mark, or NULs between ASCII characters) reads as no statements
+  // at all; say so rather than "no faces".
+  const bool bom16 = text.size() >= 2 && ((uint8_t(text[0]) == 0xFE && uint8_t(text[1]) == 0xFF) ||
+                                          (uint8_t(text[0]) == 0xFF && uint8_t(text[1]) == 0xFE));
+  if (bom16 || text.find('\0') < std::min<size_t>(text.size(), 64)) {
+    throw InputError({path, 0}, "the file is UTF-16 (or binary), not the ASCII/UTF-8 text OBJ is"
+                                " written in; convert it, e.g. iconv -f UTF-16 -t UTF-8" + suffix);
+  }
   const ObjPrescan pre = prescan_obj(text, path, suffix, scene.diagnostics);
 
   // tinyobjloader reads the text already in memory, up to where a truncated file's reading stops
