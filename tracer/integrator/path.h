@@ -4,6 +4,7 @@
 // run trace_path. Unidirectional path tracing as in Veach (1997) ch. 9 / pbrt-v4 sec. 13.4.
 #pragma once
 
+#include "camera/filter.h"
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "integrator/lights.h"
@@ -21,6 +22,9 @@ struct IntegratorSettings {
   float clamp = 0.0f;   // > 0: scale each sample down to at most this much per channel (biased)
   // kSamplerRandom (PCG32), kSamplerSobol or kSamplerSobolPairs (core/sobol.h)
   uint32_t sampler = kSamplerSobol;
+  // The pixel filter (camera/filter.h) and its radius in pixels, applied to jittered samples.
+  PixelFilter filter = PixelFilter::kBox;
+  float filter_radius = 0.5f;
 };
 
 // The dimension pairs of the Sobol sampler: each draw of a vertex has its own (a 1D draw takes
@@ -113,6 +117,14 @@ TRACER_HD inline void generate_path(const SceneView& s, const IntegratorSettings
     Pcg32 rng = make_path_rng(pixel, sample, 0, cfg.seed);
     jitter = cfg.jitter ? rng.next_2d() : vec2(0.5f);
     lens = rng.next_2d();
+  }
+  if (cfg.jitter && (cfg.filter != PixelFilter::kBox || cfg.filter_radius != 0.5f)) {
+    // The filter moves the sample about the pixel centre; rejection draws come from a stream
+    // of their own (the "bounce" 0xfffe is never a real vertex's).
+    Pcg32 extra = make_path_rng(pixel, sample, 0xfffeu, cfg.seed);
+    auto next = [&extra]() { return extra.next_float(); };
+    jitter = vec2(0.5f + sample_filter_1d(cfg.filter, cfg.filter_radius, jitter.x, next),
+                  0.5f + sample_filter_1d(cfg.filter, cfg.filter_radius, jitter.y, next));
   }
   const uint32_t y = divide_small(pixel, cfg.width);
   st.ray = s.camera.template generate_ray<F>(pixel - y * cfg.width, y, jitter, lens);

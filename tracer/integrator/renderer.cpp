@@ -17,6 +17,8 @@ IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
   cfg.jitter = rs.jitter;
   cfg.clamp = rs.clamp;
   cfg.sampler = rs.sampler;
+  cfg.filter = rs.filter;
+  cfg.filter_radius = rs.filter_radius > 0.0f ? rs.filter_radius : default_filter_radius(rs.filter);
   return cfg;
 }
 

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/diagnostics.h"
+#include "camera/filter.h"
 #include "core/sobol.h"
 #include "materials/material.h"
 #include "materials/texture.h"
@@ -40,6 +41,8 @@ struct RenderSettings {
   int threads = 0;            // CPU backend threads (0: all cores)
   int samples_per_frame = 0;  // workbench on the GPU: samples per window frame (0: adapted)
   bool strict = false;        // every warning about the input is an error (headless: exit 1)
+  PixelFilter filter = PixelFilter::kBox;
+  float filter_radius = 0.0f;  // pixels; 0: the filter's default (camera/filter.h)
 };
 
 // "random" / "sobol" / "sobol-pairs", as the scene format, the CLI and the workbench spell

@@ -190,6 +190,18 @@ std::vector<Setting> make_table() {
       "Sample points: sobol (Owen-scrambled Sobol, stratified), sobol-pairs (two independent "
       "Sobol halves: exact half-buffer noise) or random (PCG32).",
       E::kImage, [](Scene& s) -> uint32_t& { return s.settings.sampler; }));
+  t.push_back(choice<PixelFilter>(
+      "render.filter", "--filter", {"box", "tent", "gaussian", "blackman-harris"},
+      {PixelFilter::kBox, PixelFilter::kTent, PixelFilter::kGaussian,
+       PixelFilter::kBlackmanHarris},
+      "Pixel reconstruction filter, by where samples land (no splatting, no bias): box (one "
+      "pixel), tent (Tungsten's and pbrt's triangle), gaussian (pbrt-v4's) or blackman-harris "
+      "(Cycles').",
+      E::kImage, [](Scene& s) -> PixelFilter& { return s.settings.filter; }));
+  t.push_back(field("render.filter_radius", "--filter-radius", T::kFloat, 0.0, 8.0, "pixels",
+                    "Filter radius (0: the filter's default: box 0.5, tent 1, gaussian 1.5, "
+                    "blackman-harris 1).",
+                    E::kImage, [](Scene& s) -> float& { return s.settings.filter_radius; }));
   t.push_back(
       choice<BackendChoice>("render.backend", "--backend", {"auto", "cpu", "cuda"},
                             {BackendChoice::kAuto, BackendChoice::kCpu, BackendChoice::kCuda},
