@@ -219,7 +219,10 @@ class Cursor {
 
   void skip(PlyType t, uint64_t n) {
     if (!ascii()) {
-      pos_ += size_t(n) * type_size(t);  // list_length() checked that it fits
+      // list_length() bounds n by the file's size, so the product cannot overflow.
+      const size_t bytes = size_t(n) * type_size(t);
+      if (bytes > remaining()) fail("the file ends early (truncated?)");
+      pos_ += bytes;
       return;
     }
     for (uint64_t i = 0; i < n; ++i) ascii_value(t);
