@@ -451,6 +451,8 @@ void PbrtMaterials::texture(const std::string& name, const std::string& type,
     if (p.get_bool("invert", false))
       substituted(c, "invert", "inverted image textures are not supported", "used the image as is");
     t.colour.image = load_image(file, srgb, w, loc);
+    // Without its image the material falls back to its default colour, as if untextured.
+    t.colour.present = t.colour.image != kInvalid;
   } else if (cls == "checkerboard") {
     t.colour.present = true;
     t.colour.image = bake_checkerboard(p, loc);

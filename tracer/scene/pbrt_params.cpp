@@ -66,7 +66,7 @@ double one_number(const PbrtParam& p, const std::string& owner) {
 }  // namespace
 
 float PbrtParams::get_float(const std::string& name, float def) {
-  const PbrtParam* p = find(name, {"float", "integer"});
+  const PbrtParam* p = find(name, {"float"});
   return p ? float(one_number(*p, owner_)) : def;
 }
 

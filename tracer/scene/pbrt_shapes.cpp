@@ -136,9 +136,10 @@ MeshPart pbrt_sphere_mesh(float radius, float zmin, float zmax, float phimax_deg
   for (int j = 0; j < nv; ++j) {
     for (int i = 0; i < nu; ++i) {
       const uint32_t a = uint32_t(j) * row + uint32_t(i), b = a + 1, c = a + row, d = c + 1;
-      // Rows run from the bottom (-z) up, columns counter-clockwise about +z: (a, b, d) faces out.
-      part.indices.push_back(uvec3(a, b, d));
-      part.indices.push_back(uvec3(a, d, c));
+      // Rows run from the bottom (-z) up, columns counter-clockwise about +z: (a, b, d) faces
+      // out. At a pole one of the two triangles has collapsed to a line: left out.
+      if (j > 0 || z0 > -r) part.indices.push_back(uvec3(a, b, d));
+      if (j < nv - 1 || z1 < r) part.indices.push_back(uvec3(a, d, c));
     }
   }
   return part;
