@@ -396,10 +396,12 @@ class Loader {
                            (guess.empty() ? "" : " (did you mean " + quoted(guess) + "?)"));
     }
     // Every sampler gives the same expected image; ours is the render.sampler setting.
-    int spp = p.get_int("pixelsamples", 16);
-    if (type == "stratified") spp = p.get_int("xsamples", 4) * p.get_int("ysamples", 4);
-    if (spp < 1) throw InputError(d.loc(), "Sampler: " + std::to_string(spp) + " pixel samples");
-    scene_.settings.spp = spp;
+    int64_t spp = p.get_int("pixelsamples", 16);
+    if (type == "stratified") spp = int64_t(p.get_int("xsamples", 4)) * p.get_int("ysamples", 4);
+    if (spp < 1 || spp > (int64_t(1) << 30))
+      throw InputError(d.loc(), "Sampler: " + std::to_string(spp) +
+                                    " pixel samples (expected 1 to 2^30)");
+    scene_.settings.spp = int(spp);
     const int seed = p.get_int("seed", -1);
     if (seed >= 0) scene_.settings.seed = uint32_t(seed);
     p.ignore({"jitter", "randomization"});
@@ -425,7 +427,7 @@ class Loader {
     // pbrt's maxdepth counts bounces: 0 shows emitters only, 1 direct light. Ours counts path
     // segments with the camera ray as the first: 1 shows emitters only, 2 direct light.
     const int maxdepth = p.get_int("maxdepth", 5);
-    scene_.settings.max_depth = std::clamp(maxdepth + 1, 1, 1024);
+    scene_.settings.max_depth = int(std::clamp<int64_t>(int64_t(maxdepth) + 1, 1, 1024));
     if (type == "path" || type == "volpath") {
       if (p.get_bool("regularize", false))
         warnings_.warn(d.loc(), "regularize", "path regularization is not supported",

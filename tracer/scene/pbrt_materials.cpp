@@ -604,7 +604,9 @@ uint32_t PbrtMaterials::bake_checkerboard(PbrtParams& p, const SourceLoc& loc) {
     for (int x = 0; x < w; ++x) {
       // Texel centre in our uv (v down), back to pbrt's (v up).
       const float u = (float(x) + 0.5f) / float(w), v = 1.0f - (float(y) + 0.5f) / float(h);
-      const int parity = (int(std::floor(su * u + du)) + int(std::floor(sv * v + dv))) & 1;
+      // In doubles and through fmod, so that huge scales cannot overflow an int.
+      const double cells = std::floor(double(su) * u + du) + std::floor(double(sv) * v + dv);
+      const int parity = std::fabs(std::fmod(cells, 2.0)) >= 1.0 ? 1 : 0;
       const vec3 col = parity == 0 ? c1 : c2;
       uint8_t* px = &t.rgba8[(size_t(y) * size_t(w) + size_t(x)) * 4];
       for (int k = 0; k < 3; ++k) px[k] = to_srgb8(glm::clamp(col[k], 0.0f, 1.0f));
