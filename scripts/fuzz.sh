@@ -18,9 +18,10 @@ clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-reco
   -Itracer -I/usr/include/stb \
   tests/fuzz/fuzz_loaders.cpp tracer/scene/json_loader.cpp tracer/scene/json_lines.cpp \
   tracer/scene/loader.cpp tracer/scene/loader_util.cpp tracer/scene/obj_loader.cpp \
-  tracer/scene/gltf_loader.cpp tracer/scene/validate.cpp tracer/scene/scene.cpp \
-  tracer/core/diagnostics.cpp \
-  -ltinyobjloader -ltinygltf -o "$OUT/fuzz_loaders"
+  tracer/scene/gltf_loader.cpp tracer/scene/gltf_json.cpp tracer/scene/validate.cpp \
+  tracer/scene/scene.cpp tracer/scene/settings.cpp tracer/core/diagnostics.cpp \
+  tracer/image/image.cpp tracer/image/image_io.cpp \
+  -ltinyobjloader -ltinygltf -lstb -ltinyexr -o "$OUT/fuzz_loaders"
 status=0
 for fmt in json obj gltf; do
   mkdir -p "$OUT/corpus/$fmt"

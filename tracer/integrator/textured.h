@@ -21,13 +21,16 @@ TRACER_HD TRACER_INLINE vec2 triangle_uv(const SceneView& s, uint32_t prim, floa
 // Tangent-space normal mapping (glTF 2.0 spec sec. 3.9.3; pbrt-v4 sec. 10.5.3): the tangent is
 // dp/du of the triangle, Gram-Schmidt orthogonalised against the shading normal; the bitangent
 // is n x t, flipped where the uv mapping is mirrored so that it follows -dp/dv (texture +Y points
-// up the image, and glTF's v runs down it). The result is kept on the geometric normal's side.
+// up the image, and glTF's v runs down it). The derivatives are those of the normal texture's
+// own coordinates (its uv_transform applied), so a rotated or mirrored normal map turns its frame
+// with it. The result is kept on the geometric normal's side.
 TRACER_HD inline vec3 normal_mapped(const SceneView& s, uint32_t prim, const SurfaceHit& sh,
-                                    vec3 texel, float scale) {
+                                    uint32_t tex, vec3 texel, float scale) {
   const TriangleVerts tv = load_triangle(s.tri_verts, prim);
   const TriangleUv tu = s.tri_uvs[prim];
   const vec3 dp1 = tv.v1 - tv.v0, dp2 = tv.v2 - tv.v0;
-  const vec2 duv1 = tu.uv1 - tu.uv0, duv2 = tu.uv2 - tu.uv0;
+  const glm::mat2 linear(s.textures[tex].uv_transform);  // the offset drops out of derivatives
+  const vec2 duv1 = linear * (tu.uv1 - tu.uv0), duv2 = linear * (tu.uv2 - tu.uv0);
   const float det = duv1.x * duv2.y - duv1.y * duv2.x;
   if (!(glm::abs(det) > 1e-12f)) return sh.ns;  // degenerate uv mapping: no tangent frame
   const vec3 dpdu = (duv2.y * dp1 - duv1.y * dp2) / det;
@@ -65,8 +68,8 @@ TRACER_HD inline void apply_textures(const SceneView& s, uint32_t prim, SurfaceH
   }
   if (m.emissive_tex != kInvalid) m.emission *= vec3(lookup_texture(s, m.emissive_tex, sh.uv));
   if (m.normal_tex != kInvalid && s.tri_uvs) {
-    sh.ns =
-        normal_mapped(s, prim, sh, vec3(lookup_texture(s, m.normal_tex, sh.uv)), m.normal_scale);
+    sh.ns = normal_mapped(s, prim, sh, m.normal_tex, vec3(lookup_texture(s, m.normal_tex, sh.uv)),
+                          m.normal_scale);
   }
 }
 

@@ -1,7 +1,8 @@
 // Image textures in device-readable form: every texture's RGBA8 texels live in one flat array,
-// described by a TextureDesc each. Lookups filter bilinearly and apply the glTF wrap modes;
-// colour textures are stored sRGB-encoded and decoded per texel before filtering, as GPU sRGB
-// formats do (filtering encoded values would darken edges).
+// described by a TextureDesc each. Lookups map the uv through the texture's affine transform
+// (glTF KHR_texture_transform), filter bilinearly and apply the glTF wrap modes; colour textures
+// are stored sRGB-encoded and decoded per texel before filtering, as GPU sRGB formats do
+// (filtering encoded values would darken edges).
 #pragma once
 
 #include "core/hd.h"
@@ -19,6 +20,9 @@ struct TextureDesc {
   uint32_t offset;  // first texel in the flat array
   uint32_t width, height;
   uint32_t flags;  // wrap_s | wrap_t << 2 | kTextureSrgb
+  // The lookup reads the texture at uv_transform * (uv, 1): a texture use's
+  // KHR_texture_transform (one desc per image and transform), the identity otherwise.
+  glm::mat3x2 uv_transform = glm::mat3x2(1.0f);
 };
 
 // RGBA8 storage (4 bytes a texel, a quarter of linear floats): big textures matter more than the
@@ -58,11 +62,13 @@ TRACER_HD TRACER_INLINE vec4 fetch_texel(const uint32_t* texels, const TextureDe
   return c;
 }
 
-// Bilinear lookup at uv (glTF convention: (0, 0) is the first texel of the first row, the image's
-// top-left corner); texel centres lie at (i + 0.5) / width. Returns linear RGBA.
+// Bilinear lookup at the surface's uv, after the texture's uv_transform (glTF convention: (0, 0)
+// is the first texel of the first row, the image's top-left corner); texel centres lie at
+// (i + 0.5) / width. Returns linear RGBA.
 TRACER_HD inline vec4 sample_texture(const TextureDesc* descs, const uint32_t* texels, uint32_t tex,
                                      vec2 uv) {
   const TextureDesc d = descs[tex];
+  uv = d.uv_transform * vec3(uv, 1.0f);
   const int w = int(d.width), h = int(d.height);
   // Keep the coordinates in int range; far-away uvs lose precision anyway.
   const float fx = glm::clamp(uv.x, -1e6f, 1e6f) * float(w) - 0.5f;

@@ -150,6 +150,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
       d.width = uint32_t(t.width);
       d.height = uint32_t(t.height);
       d.flags = uint32_t(t.wrap_s) | uint32_t(t.wrap_t) << 2 | (t.srgb ? kTextureSrgb : 0u);
+      d.uv_transform = t.uv_transform;
       const size_t n = size_t(t.width) * size_t(t.height);
       for (size_t i = 0; i < n; ++i) {
         const uint8_t* c = &t.rgba8[4 * i];

@@ -1,18 +1,23 @@
 // glTF 2.0 (.gltf/.glb) meshes through tinygltf. tinygltf checks little of what it reads, so every
 // index, accessor range and node link is validated here before use: a broken file gives an
-// InputError, never an out-of-bounds read or an endless node walk.
+// InputError, never an out-of-bounds read or an endless node walk. The file's JSON is also read
+// as written (scene/gltf_json.h): the version, compression extensions, texture references with
+// their KHR_texture_transform, and members of the wrong type that tinygltf would drop silently.
 #include <stb_image.h>
 #include <tiny_gltf.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
 #include <set>
+#include <tuple>
 
 #include "core/math.h"
 #include "materials/subsurface.h"
+#include "scene/gltf_json.h"
 #include "scene/loader_util.h"
 
 namespace tracer {
@@ -21,7 +26,6 @@ namespace {
 
 constexpr int kMaxTextureSide = 16384;
 
-// Decodes an encoded image (PNG, JPEG, ...) into RGBA8 with stb_image. `what` names the image.
 // Decodes an encoded image (PNG, JPEG, ...) into RGBA8 with stb_image; `what` names the image.
 // One larger than kMaxTextureSide a side is an error (returns false, says why in *err); one stb
 // cannot decode (KTX2, WebP behind an extension, a corrupt file) stays empty, and the materials
@@ -70,7 +74,8 @@ class GltfReader {
   GltfReader(Scene& scene, const std::string& path, const SourceLoc& from)
       : scene_(scene),
         path_(path),
-        suffix_(from.path == path ? "" : " (mesh referenced at " + from.str() + ")") {}
+        suffix_(from.path == path ? "" : " (mesh referenced at " + from.str() + ")"),
+        json_(path, suffix_) {}
 
   void load() {
     tinygltf::TinyGLTF loader;
@@ -79,13 +84,14 @@ class GltfReader {
     const bool binary = path_extension_lower(path_) == ".glb";
     const bool ok = binary ? loader.LoadBinaryFromFile(&model_, &err, &warn, path_)
                            : loader.LoadASCIIFromFile(&model_, &err, &warn, path_);
-    if (!ok) fail("cannot read glTF: " + trim(err.empty() ? warn : err));
+    if (!ok) fail_data("cannot read glTF: " + trim(err.empty() ? warn : err));
     if (!warn.empty())
       scene_.diagnostics.warn(file(), "tinygltf: " + trim(warn) + suffix_, "continued");
     decode_buffer_images();
+    json_.check_meshes(scene_.diagnostics);
     for (const std::string& ext : model_.extensionsRequired) {
       if (ext != "KHR_materials_emissive_strength" && ext != "KHR_materials_transmission" &&
-          ext != "KHR_materials_ior")
+          ext != "KHR_materials_ior" && ext != "KHR_texture_transform")
         approximated_.insert("required extension " + ext);
     }
   }
@@ -138,11 +144,27 @@ class GltfReader {
       scene_.diagnostics.warn(file(), "unsupported glTF features: " + list + suffix_,
                               "approximated with the closest supported materials");
     }
-    if (skipped_primitives_ > 0) {
+    if (points_or_lines_ > 0) {
+      scene_.diagnostics.warn(file(),
+                              std::to_string(points_or_lines_) +
+                                  " primitive(s) are points or lines (mode 0-3), which have no "
+                                  "surface to render" +
+                                  suffix_,
+                              "skipped them");
+    }
+    if (bad_modes_ > 0) {
       scene_.diagnostics.warn(
           file(),
-          std::to_string(skipped_primitives_) + " primitive(s) are not triangle lists" + suffix_,
+          std::to_string(bad_modes_) + " primitive(s) have a mode that is not 0-6" + suffix_,
           "skipped them");
+    }
+    if (draco_skipped_ > 0) {
+      scene_.diagnostics.warn(file(),
+                              std::to_string(draco_skipped_) +
+                                  " primitive(s) are compressed with KHR_draco_mesh_compression, "
+                                  "which is not supported, and have no uncompressed fallback" +
+                                  suffix_,
+                              "skipped them");
     }
   }
 
@@ -150,6 +172,15 @@ class GltfReader {
   SourceLoc file() const { return {path_, 0}; }
   [[noreturn]] void fail(const std::string& problem) const {
     throw InputError(file(), problem + suffix_);
+  }
+  // A problem with the geometry or image data. A file that uses a compression extension without
+  // requiring it must carry uncompressed data as well; where that cannot be read, the extension
+  // is the likely cause and is named first.
+  [[noreturn]] void fail_data(const std::string& problem) const {
+    const std::string& ext = json_.compression();
+    if (ext.empty()) fail(problem);
+    fail("the file uses " + ext + " (" + GltfJson::compression_what(ext) +
+         "), which is not supported, and its uncompressed fallback cannot be read: " + problem);
   }
   static std::string trim(std::string s) {
     while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
@@ -196,31 +227,37 @@ class GltfReader {
       if (image.bufferView < 0 || !image.image.empty()) continue;
       const std::string what = "image " + std::to_string(i);
       if (size_t(image.bufferView) >= model_.bufferViews.size())
-        fail(what + " refers to buffer view " + std::to_string(image.bufferView) +
-             ", which does not exist");
+        fail_data(what + " refers to buffer view " + std::to_string(image.bufferView) +
+                  ", which does not exist");
       const tinygltf::BufferView& view = model_.bufferViews[size_t(image.bufferView)];
       if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
-        fail(what + ": buffer view refers to buffer " + std::to_string(view.buffer) +
-             ", which does not exist");
+        fail_data(what + ": buffer view refers to buffer " + std::to_string(view.buffer) +
+                  ", which does not exist");
       const std::vector<unsigned char>& data = model_.buffers[size_t(view.buffer)].data;
       if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset)
-        fail(what + ": buffer view runs past the end of its " + std::to_string(data.size()) +
-             "-byte buffer");
+        fail_data(what + ": buffer view runs past the end of its " + std::to_string(data.size()) +
+                  "-byte buffer");
       std::string err;
       if (!decode_image(&image, data.data() + view.byteOffset, view.byteLength, what, &err))
         fail(trim(err));
     }
   }
 
-  // The scene texture for glTF texture `index` decoded as sRGB colour or as linear data; each
-  // (texture, encoding) pair is converted once. kInvalid, with a warning, when its image could
-  // not be loaded.
-  uint32_t texture(int index, bool srgb, int tex_coord, const std::string& what) {
+  // The scene texture for glTF texture `index` decoded as sRGB colour or as linear data and
+  // looked up through `transform`; each (texture, encoding, transform) is converted once (a
+  // transform a material's textures share is baked into the uvs instead, so that materials
+  // that tile one image differently share its texels). kInvalid, with a warning, when its image
+  // could not be loaded.
+  uint32_t texture(int index, bool srgb, const glm::mat3x2& transform, const std::string& what) {
     if (index < 0) return kInvalid;
     if (size_t(index) >= model_.textures.size())
       fail(what + " refers to texture " + std::to_string(index) + ", which does not exist");
-    if (tex_coord != 0) approximated_.insert("texCoord sets other than 0 (used set 0)");
-    const auto key = std::make_pair(index, srgb);
+    std::array<float, 6> t6;
+    for (int c = 0; c < 3; ++c) {
+      t6[size_t(2 * c)] = transform[c].x;
+      t6[size_t(2 * c + 1)] = transform[c].y;
+    }
+    const auto key = std::make_tuple(index, srgb, t6);
     auto found = textures_.find(key);
     if (found != textures_.end()) return found->second;
     const tinygltf::Texture& t = model_.textures[size_t(index)];
@@ -243,6 +280,7 @@ class GltfReader {
       ti.height = image.height;
       ti.rgba8 = image.image;
       ti.srgb = srgb;
+      ti.uv_transform = transform;
       ti.source = image.uri.empty() || image.uri.rfind("data:", 0) == 0
                       ? path_
                       : path_join(path_directory(path_), image.uri);
@@ -283,7 +321,7 @@ class GltfReader {
     else if (a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT && a.normalized)
       size = 2;
     if (a.type != TINYGLTF_TYPE_VEC2 || size == 0)
-      fail(what + " must be a VEC2 of floats or normalized unsigned bytes or shorts");
+      fail_data(what + " must be a VEC2 of floats or normalized unsigned bytes or shorts");
     std::vector<vec2> out(a.count, vec2(0.0f));
     if (a.count == 0) return out;
     size_t stride = 0;
@@ -344,45 +382,45 @@ class GltfReader {
   // accessor without a buffer view (all zeros per spec) and sets *stride.
   const unsigned char* accessor_data(const tinygltf::Accessor& a, size_t elem_size, size_t* stride,
                                      const std::string& what) const {
-    if (a.sparse.isSparse) fail(what + " uses a sparse accessor, which is not supported");
+    if (a.sparse.isSparse) fail_data(what + " uses a sparse accessor, which is not supported");
     if (a.bufferView < 0) return nullptr;
     if (size_t(a.bufferView) >= model_.bufferViews.size())
-      fail(what + " refers to buffer view " + std::to_string(a.bufferView) +
-           ", which does not exist");
+      fail_data(what + " refers to buffer view " + std::to_string(a.bufferView) +
+                ", which does not exist");
     const tinygltf::BufferView& view = model_.bufferViews[size_t(a.bufferView)];
     if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
-      fail(what + ": buffer view refers to buffer " + std::to_string(view.buffer) +
-           ", which does not exist");
+      fail_data(what + ": buffer view refers to buffer " + std::to_string(view.buffer) +
+                ", which does not exist");
     const std::vector<unsigned char>& data = model_.buffers[size_t(view.buffer)].data;
     *stride = view.byteStride ? view.byteStride : elem_size;
     if (*stride < elem_size)
-      fail(what + ": byte stride " + std::to_string(*stride) + " is smaller than an element");
+      fail_data(what + ": byte stride " + std::to_string(*stride) + " is smaller than an element");
     // All in 64 bits with explicit overflow guards: count and offsets come from the file.
     const uint64_t limit = uint64_t(1) << 40;
     if (a.count > limit || view.byteOffset > limit || view.byteLength > limit ||
         a.byteOffset > limit)
-      fail(what + " has absurd sizes");
+      fail_data(what + " has absurd sizes");
     if (view.byteOffset + view.byteLength > data.size())
-      fail(what + ": buffer view (bytes " + std::to_string(view.byteOffset) + ".." +
-           std::to_string(view.byteOffset + view.byteLength) + ") runs past the end of its " +
-           std::to_string(data.size()) + "-byte buffer");
+      fail_data(what + ": buffer view (bytes " + std::to_string(view.byteOffset) + ".." +
+                std::to_string(view.byteOffset + view.byteLength) + ") runs past the end of its " +
+                std::to_string(data.size()) + "-byte buffer");
     const uint64_t end = uint64_t(a.byteOffset) + uint64_t(*stride) * (a.count - 1) + elem_size;
     if (end > view.byteLength)
-      fail(what + ": accessor needs " + std::to_string(end) + " bytes but its buffer view has " +
-           std::to_string(view.byteLength));
+      fail_data(what + ": accessor needs " + std::to_string(end) +
+                " bytes but its buffer view has " + std::to_string(view.byteLength));
     return data.data() + view.byteOffset + a.byteOffset;
   }
 
   const tinygltf::Accessor& accessor(int index, const std::string& what) const {
     if (index < 0 || size_t(index) >= model_.accessors.size())
-      fail(what + " refers to accessor " + std::to_string(index) + ", which does not exist");
+      fail_data(what + " refers to accessor " + std::to_string(index) + ", which does not exist");
     return model_.accessors[size_t(index)];
   }
 
   std::vector<vec3> read_vec3(int index, const std::string& what) const {
     const tinygltf::Accessor& a = accessor(index, what);
     if (a.type != TINYGLTF_TYPE_VEC3 || a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT)
-      fail(what + " must be a VEC3 of floats");
+      fail_data(what + " must be a VEC3 of floats");
     std::vector<vec3> out(a.count, vec3(0.0f));
     if (a.count == 0) return out;
     size_t stride = 0;
@@ -406,9 +444,9 @@ class GltfReader {
         size = 4;
         break;
       default:
-        fail(what + " must be unsigned 8, 16 or 32-bit integers");
+        fail_data(what + " must be unsigned 8, 16 or 32-bit integers");
     }
-    if (a.type != TINYGLTF_TYPE_SCALAR) fail(what + " must be SCALAR");
+    if (a.type != TINYGLTF_TYPE_SCALAR) fail_data(what + " must be SCALAR");
     std::vector<uint32_t> out(a.count, 0);
     if (a.count == 0) return out;
     size_t stride = 0;
@@ -436,8 +474,50 @@ class GltfReader {
     return it->second.Get(key).GetNumberAsDouble();
   }
 
-  uint32_t material(int index) {
-    if (material_override_ != kInvalid) return material_override_;
+  // A scene material, and the texture coordinates a primitive that uses it must carry.
+  struct MaterialUse {
+    uint32_t id = kInvalid;
+    int uv_set = 0;                           // the TEXCOORD_n its textures read
+    glm::mat3x2 uv_bake = glm::mat3x2(1.0f);  // applied to the primitive's uvs
+  };
+
+  // Material `index`'s textureInfo in `slot`, as the file writes it.
+  GltfTextureRef texture_ref(int index, GltfSlot slot) {
+    if (json_.material_count() == model_.materials.size())
+      return json_.texture(size_t(index), slot, model_.textures.size(), scene_.diagnostics);
+    // The JSON pass could not read what tinygltf did: tinygltf's fields, untransformed.
+    if (std::count(model_.extensionsUsed.begin(), model_.extensionsUsed.end(),
+                   "KHR_texture_transform"))
+      approximated_.insert("KHR_texture_transform (the JSON could not be read a second time)");
+    const tinygltf::Material& g = model_.materials[size_t(index)];
+    const tinygltf::PbrMetallicRoughness& pbr = g.pbrMetallicRoughness;
+    GltfTextureRef ref;
+    switch (slot) {
+      case GltfSlot::kBaseColor:
+        std::tie(ref.index, ref.tex_coord) =
+            std::tie(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord);
+        break;
+      case GltfSlot::kMetallicRoughness:
+        std::tie(ref.index, ref.tex_coord) =
+            std::tie(pbr.metallicRoughnessTexture.index, pbr.metallicRoughnessTexture.texCoord);
+        break;
+      case GltfSlot::kEmissive:
+        std::tie(ref.index, ref.tex_coord) =
+            std::tie(g.emissiveTexture.index, g.emissiveTexture.texCoord);
+        break;
+      case GltfSlot::kNormal:
+        std::tie(ref.index, ref.tex_coord) =
+            std::tie(g.normalTexture.index, g.normalTexture.texCoord);
+        break;
+    }
+    return ref;
+  }
+
+  const MaterialUse& material(int index) {
+    if (material_override_ != kInvalid) {
+      override_use_.id = material_override_;
+      return override_use_;
+    }
     if (index < 0 || size_t(index) >= model_.materials.size()) {
       if (index >= 0) {
         scene_.diagnostics.warn(file(),
@@ -445,12 +525,13 @@ class GltfReader {
                                     ", which does not exist" + suffix_,
                                 "used grey diffuse");
       }
-      if (default_material_ == kInvalid)
-        default_material_ = scene_.add_material("default grey", Material());
-      return default_material_;
+      if (default_use_.id == kInvalid)
+        default_use_.id = scene_.add_material("default grey", Material());
+      return default_use_;
     }
     auto found = materials_.find(index);
     if (found != materials_.end()) return found->second;
+    json_.check_material(size_t(index), scene_.diagnostics);
     const tinygltf::Material& g = model_.materials[size_t(index)];
     const tinygltf::PbrMetallicRoughness& pbr = g.pbrMetallicRoughness;
     Material m;
@@ -521,25 +602,13 @@ class GltfReader {
       // A shiny non-metal's specular layer is missing; a rough one looks diffuse anyway.
       if (pbr.roughnessFactor < 0.5) approximated_.insert("glossy dielectric layer");
     }
-    const std::string mname = "material \"" + g.name + "\"";
-    if (m.type == MaterialType::kSubsurface) {
-      if (pbr.baseColorTexture.index >= 0)
-        approximated_.insert("base colour texture on a scattering volume (ignored)");
-    } else {
-      m.base_color_tex = texture(pbr.baseColorTexture.index, true, pbr.baseColorTexture.texCoord,
-                                 mname + " base colour");
-    }
-    if (pbr.metallicRoughnessTexture.index >= 0) {
-      m.metal_rough_tex =
-          texture(pbr.metallicRoughnessTexture.index, false, pbr.metallicRoughnessTexture.texCoord,
-                  mname + " metallic-roughness");
+    const std::string mname =
+        g.name.empty() ? "material " + std::to_string(index) : "material \"" + g.name + "\"";
+    MaterialUse use;
+    if (read_textures(index, mname, m, &use)) {
       m.metallic = float(std::clamp(pbr.metallicFactor, 0.0, 1.0));
       m.roughness = roughness;  // scaled by the texture's G channel per texel
     }
-    m.emissive_tex =
-        texture(g.emissiveTexture.index, true, g.emissiveTexture.texCoord, mname + " emissive");
-    m.normal_tex =
-        texture(g.normalTexture.index, false, g.normalTexture.texCoord, mname + " normal");
     m.normal_scale = std::isfinite(g.normalTexture.scale) ? float(g.normalTexture.scale) : 1.0f;
     if (g.occlusionTexture.index >= 0) approximated_.insert("occlusion texture (ignored)");
     if (!g.alphaMode.empty() && g.alphaMode != "OPAQUE") approximated_.insert("alphaMode");
@@ -550,9 +619,66 @@ class GltfReader {
         approximated_.insert(e.first);
     }
     const std::string name = g.name.empty() ? "material " + std::to_string(index) : g.name;
-    const uint32_t id = scene_.add_material(name, m);
-    materials_[index] = id;
-    return id;
+    use.id = scene_.add_material(name, m);
+    return materials_[index] = use;
+  }
+
+  // Fills m's texture slots. A primitive carries one uv set, so the slots share the first used
+  // slot's set (a warning where they differ). A transform every used slot shares is baked into
+  // the primitive's uvs (use->uv_bake), so the images stay shared with materials that transform
+  // them differently; otherwise each texture use carries its own transform. Returns whether the
+  // material names a metallic-roughness texture (loaded or not).
+  bool read_textures(int index, const std::string& mname, Material& m, MaterialUse* use) {
+    struct Slot {
+      GltfSlot slot;
+      bool srgb;
+      uint32_t* target;
+      const char* what;
+      GltfTextureRef ref;
+    };
+    Slot slots[] = {
+        {GltfSlot::kBaseColor, true, &m.base_color_tex, "base colour", {}},
+        {GltfSlot::kMetallicRoughness, false, &m.metal_rough_tex, "metallic-roughness", {}},
+        {GltfSlot::kEmissive, true, &m.emissive_tex, "emissive", {}},
+        {GltfSlot::kNormal, false, &m.normal_tex, "normal", {}}};
+    std::vector<Slot*> used;
+    for (Slot& s : slots) {
+      s.ref = texture_ref(index, s.slot);
+      if (s.ref.index < 0) continue;
+      if (s.slot == GltfSlot::kBaseColor && m.type == MaterialType::kSubsurface) {
+        approximated_.insert("base colour texture on a scattering volume (ignored)");
+        continue;
+      }
+      for (const std::string& e : s.ref.ignored_extensions)
+        approximated_.insert("texture extension " + e + " (ignored)");
+      used.push_back(&s);
+    }
+    const bool metal_rough = slots[1].ref.index >= 0;
+    if (used.empty()) return metal_rough;
+    use->uv_set = used[0]->ref.tex_coord;
+    bool shared = true;
+    std::set<int> sets;
+    for (const Slot* s : used) {
+      sets.insert(s->ref.tex_coord);
+      shared &= s->ref.transform == used[0]->ref.transform;
+    }
+    if (sets.size() > 1) {
+      std::string list;
+      size_t n = 0;
+      for (int set : sets)
+        list += (n++ == 0 ? "" : n == sets.size() ? " and " : ", ") + std::to_string(set);
+      scene_.diagnostics.warn(file(),
+                              mname + "'s textures read texture coordinate sets " + list +
+                                  ", but a primitive carries one set" + suffix_,
+                              "used set " + std::to_string(use->uv_set) + " (the " + used[0]->what +
+                                  " texture's) for all of them");
+    }
+    if (shared) use->uv_bake = used[0]->ref.transform;
+    for (const Slot* s : used) {
+      *s->target = texture(s->ref.index, s->srgb, shared ? glm::mat3x2(1.0f) : s->ref.transform,
+                           mname + " " + s->what);
+    }
+    return metal_rough;
   }
 
   void append_mesh(int mesh_index, const mat4& world) {
@@ -564,12 +690,13 @@ class GltfReader {
       const std::string what = "mesh " + std::to_string(mesh_index) +
                                (mesh.name.empty() ? "" : " (\"" + mesh.name + "\")") +
                                " primitive " + std::to_string(pi);
-      if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) {
-        ++skipped_primitives_;
+      const int mode = prim.mode == -1 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+      if (mode >= TINYGLTF_MODE_POINTS && mode < TINYGLTF_MODE_TRIANGLES) {
+        ++points_or_lines_;
         continue;
       }
-      if (prim.extensions.count("KHR_draco_mesh_compression")) {
-        approximated_.insert("Draco compression (primitives skipped)");
+      if (mode < TINYGLTF_MODE_POINTS || mode > TINYGLTF_MODE_TRIANGLE_FAN) {
+        ++bad_modes_;
         continue;
       }
       auto pos = prim.attributes.find("POSITION");
@@ -577,10 +704,17 @@ class GltfReader {
         scene_.diagnostics.warn(file(), what + " has no POSITION" + suffix_, "skipped it");
         continue;
       }
+      // A Draco primitive's accessors are the uncompressed fallback where they have buffer views
+      // (the extension not required); without, they would read as zeros.
+      if (prim.extensions.count("KHR_draco_mesh_compression") &&
+          accessor(pos->second, what + " POSITION").bufferView < 0) {
+        ++draco_skipped_;
+        continue;
+      }
       MeshPart part;
       part.positions = read_vec3(pos->second, what + " POSITION");
       for (const vec3& p : part.positions)
-        if (!is_finite(p)) fail(what + " has a non-finite vertex position " + vec3_str(p));
+        if (!is_finite(p)) fail_data(what + " has a non-finite vertex position " + vec3_str(p));
       auto nrm = prim.attributes.find("NORMAL");
       if (nrm != prim.attributes.end()) {
         part.normals = read_vec3(nrm->second, what + " NORMAL");
@@ -593,40 +727,84 @@ class GltfReader {
           part.normals.clear();
         }
       }
-      auto uv = prim.attributes.find("TEXCOORD_0");
-      if (uv != prim.attributes.end()) {
-        part.uvs = read_uvs(uv->second, what + " TEXCOORD_0");
-        bool good = part.uvs.size() == part.positions.size();
-        for (const vec2& t : part.uvs) good &= std::isfinite(t.x) && std::isfinite(t.y);
-        if (!good) {
-          scene_.diagnostics.warn(file(),
-                                  what + " has a wrong count of or non-finite TEXCOORD_0" + suffix_,
-                                  "rendered it untextured");
-          part.uvs.clear();
-        }
-      }
       std::vector<uint32_t> idx;
       if (prim.indices >= 0) {
         idx = read_indices(prim.indices, what + " indices");
         for (size_t i = 0; i < idx.size(); ++i)
           if (idx[i] >= part.positions.size())
-            fail(what + ": index " + std::to_string(idx[i]) + " (at position " + std::to_string(i) +
-                 ") is out of range; the primitive has " + std::to_string(part.positions.size()) +
-                 " vertices");
+            fail_data(what + ": index " + std::to_string(idx[i]) + " (at position " +
+                      std::to_string(i) + ") is out of range; the primitive has " +
+                      std::to_string(part.positions.size()) + " vertices");
       } else {
         idx.resize(part.positions.size());
         for (size_t i = 0; i < idx.size(); ++i) idx[i] = uint32_t(i);
       }
-      if (idx.size() % 3 != 0)
-        fail(what + " has " + std::to_string(idx.size()) + " indices, not a multiple of 3");
       if (idx.empty()) continue;
-      const uint32_t mat = material(prim.material);
-      for (size_t i = 0; i < idx.size(); i += 3) {
-        part.indices.push_back(uvec3(idx[i], idx[i + 1], idx[i + 2]));
-        part.materials.push_back(mat);
-      }
+      part.indices = triangles(mode, idx, what);
+      if (part.indices.empty()) continue;
+      const MaterialUse& mat = material(prim.material);
+      part.materials.assign(part.indices.size(), mat.id);
+      read_primitive_uvs(prim, mat, what, &part);
       append_part(scene_, part, world);
     }
+  }
+
+  // The triangle list of a primitive's vertex sequence (glTF 2.0 sec. 3.7.2.1, "Topology
+  // types"): triangles as they are; strips as {v_i, v_i+(1+i%2), v_i+(2-i%2)}, which swaps the
+  // last two of every odd triangle so that all keep the first one's winding; fans as
+  // {v_i+1, v_i+2, v_0}. A strip's or fan's triangles with a repeated vertex are the joins of
+  // stitched strips, not surfaces: dropped.
+  std::vector<uvec3> triangles(int mode, const std::vector<uint32_t>& idx,
+                               const std::string& what) const {
+    std::vector<uvec3> out;
+    if (mode == TINYGLTF_MODE_TRIANGLES) {
+      if (idx.size() % 3 != 0)
+        fail_data(what + " has " + std::to_string(idx.size()) + " indices, not a multiple of 3");
+      for (size_t i = 0; i < idx.size(); i += 3)
+        out.push_back(uvec3(idx[i], idx[i + 1], idx[i + 2]));
+      return out;
+    }
+    const bool strip = mode == TINYGLTF_MODE_TRIANGLE_STRIP;
+    if (idx.size() < 3)
+      fail_data(what + " is a triangle " + (strip ? "strip" : "fan") + " of " +
+                std::to_string(idx.size()) + " vertices, fewer than 3");
+    out.reserve(idx.size() - 2);
+    for (size_t i = 0; i + 2 < idx.size(); ++i) {
+      uvec3 t;
+      if (strip)
+        t = i % 2 == 0 ? uvec3(idx[i], idx[i + 1], idx[i + 2])
+                       : uvec3(idx[i], idx[i + 2], idx[i + 1]);
+      else
+        t = uvec3(idx[i + 1], idx[i + 2], idx[0]);
+      if (t.x != t.y && t.y != t.z && t.z != t.x) out.push_back(t);
+    }
+    return out;
+  }
+
+  // The uvs of the set the primitive's material reads, through the transform its textures share.
+  void read_primitive_uvs(const tinygltf::Primitive& prim, const MaterialUse& mat,
+                          const std::string& what, MeshPart* part) {
+    std::string set = "TEXCOORD_" + std::to_string(mat.uv_set);
+    auto uv = prim.attributes.find(set);
+    if (uv == prim.attributes.end() && mat.uv_set != 0) {
+      const auto first = prim.attributes.find("TEXCOORD_0");
+      scene_.diagnostics.warn(
+          file(), what + " has no " + set + ", which its material's textures read" + suffix_,
+          first == prim.attributes.end() ? "rendered it untextured" : "used TEXCOORD_0");
+      uv = first;
+      set = "TEXCOORD_0";
+    }
+    if (uv == prim.attributes.end()) return;
+    part->uvs = read_uvs(uv->second, what + " " + set);
+    bool good = part->uvs.size() == part->positions.size();
+    for (const vec2& t : part->uvs) good &= std::isfinite(t.x) && std::isfinite(t.y);
+    if (!good) {
+      scene_.diagnostics.warn(file(), what + " has a wrong count of or non-finite " + set + suffix_,
+                              "rendered it untextured");
+      part->uvs.clear();
+    }
+    if (mat.uv_bake != glm::mat3x2(1.0f))
+      for (vec2& t : part->uvs) t = mat.uv_bake * vec3(t, 1.0f);
   }
 
   bool read_camera(const tinygltf::Node& node, const mat4& world, CameraDesc* cam) {
@@ -666,13 +844,15 @@ class GltfReader {
   Scene& scene_;
   const std::string& path_;
   std::string suffix_;
+  GltfJson json_;
   tinygltf::Model model_;
   uint32_t material_override_ = kInvalid;
-  uint32_t default_material_ = kInvalid;
-  std::map<int, uint32_t> materials_;
-  std::map<std::pair<int, bool>, uint32_t> textures_;  // (glTF texture, sRGB) -> scene texture
+  MaterialUse default_use_, override_use_;
+  std::map<int, MaterialUse> materials_;
+  // (glTF texture, sRGB, uv transform) -> scene texture
+  std::map<std::tuple<int, bool, std::array<float, 6>>, uint32_t> textures_;
   std::set<std::string> approximated_;
-  int skipped_primitives_ = 0;
+  int points_or_lines_ = 0, bad_modes_ = 0, draco_skipped_ = 0;
 };
 
 }  // namespace

@@ -90,6 +90,7 @@ struct TextureImage {
   std::vector<uint8_t> rgba8;  // width * height * 4 bytes, rows top to bottom
   bool srgb = false;           // base colour and emissive maps; not metallic-roughness or normal
   TextureWrap wrap_s = TextureWrap::kRepeat, wrap_t = TextureWrap::kRepeat;
+  glm::mat3x2 uv_transform = glm::mat3x2(1.0f);  // TextureDesc::uv_transform
   std::string source;  // file it came from, for messages
 };
 
