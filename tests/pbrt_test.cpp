@@ -637,12 +637,16 @@ TEST(Pbrt, BitterliScenesLoadAndRenderWithTheirExpectedWarnings) {
 // InputError; nothing crashes, hangs or throws anything else.
 TEST(Pbrt, DamagedScenesFailCleanly) {
   const std::string good =
-      "Integrator \"path\" \"integer maxdepth\" [ 4 ]\nSampler \"stratified\" \"integer xsamples\" 2\n"
-      "Transform [ 1 0 0 0 0 1 0 0 0 0 -1 0 0 -1 6.8 1 ]\n" + film(16, 12) +
+      "Integrator \"path\" \"integer maxdepth\" [ 4 ]\nSampler \"stratified\" \"integer xsamples\" "
+      "2\n"
+      "Transform [ 1 0 0 0 0 1 0 0 0 0 -1 0 0 -1 6.8 1 ]\n" +
+      film(16, 12) +
       "Camera \"perspective\" \"float fov\" [ 19.5 ] \"float lensradius\" 0.01\n"
-      "WorldBegin\nTexture \"c\" \"spectrum\" \"checkerboard\" \"float uscale\" 4 \"rgb tex1\" [1 0 0]\n"
+      "WorldBegin\nTexture \"c\" \"spectrum\" \"checkerboard\" \"float uscale\" 4 \"rgb tex1\" [1 "
+      "0 0]\n"
       "MakeNamedMaterial \"m\" \"string type\" \"diffuse\" \"texture reflectance\" \"c\"\n"
-      "MakeNamedMaterial \"g\" \"string type\" \"dielectric\" \"float eta\" 1.5 \"float roughness\" 0.1\n"
+      "MakeNamedMaterial \"g\" \"string type\" \"dielectric\" \"float eta\" 1.5 \"float "
+      "roughness\" 0.1\n"
       "MakeNamedMaterial \"x\" \"string type\" \"mix\" \"string materials\" [ \"m\" \"g\" ]\n"
       "ObjectBegin \"o\"\nNamedMaterial \"m\"\nShape \"disk\" \"float radius\" 0.3\nObjectEnd\n"
       "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [ 17 12 4 ]\nTranslate 0 1.9 0\n"
@@ -663,9 +667,15 @@ TEST(Pbrt, DamagedScenesFailCleanly) {
     for (int k = 0; k < edits; ++k) {
       const size_t at = rng() % s.size();
       switch (rng() % 3) {
-        case 0: s.erase(at, 1 + rng() % 8); break;
-        case 1: s.insert(at, 1, pieces[rng() % (sizeof pieces - 1)]); break;
-        default: s[at] = pieces[rng() % (sizeof pieces - 1)]; break;
+        case 0:
+          s.erase(at, 1 + rng() % 8);
+          break;
+        case 1:
+          s.insert(at, 1, pieces[rng() % (sizeof pieces - 1)]);
+          break;
+        default:
+          s[at] = pieces[rng() % (sizeof pieces - 1)];
+          break;
       }
     }
     try {

@@ -399,8 +399,8 @@ class Loader {
     int64_t spp = p.get_int("pixelsamples", 16);
     if (type == "stratified") spp = int64_t(p.get_int("xsamples", 4)) * p.get_int("ysamples", 4);
     if (spp < 1 || spp > (int64_t(1) << 30))
-      throw InputError(d.loc(), "Sampler: " + std::to_string(spp) +
-                                    " pixel samples (expected 1 to 2^30)");
+      throw InputError(d.loc(),
+                       "Sampler: " + std::to_string(spp) + " pixel samples (expected 1 to 2^30)");
     scene_.settings.spp = int(spp);
     const int seed = p.get_int("seed", -1);
     if (seed >= 0) scene_.settings.seed = uint32_t(seed);
