@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Fuzzes the JSON, OBJ and glTF scene loaders with libFuzzer (clang from Debian) under ASan and
 # UBSan for a bounded time each: scripts/fuzz.sh [SECONDS per format, default 60].
-# The seed corpus is tests/fuzz/corpus/<format>; new inputs found go to build-fuzz/corpus/.
+# The seed corpus is tests/fuzz/corpus/<format> plus the packaged OBJ/glTF/GLB test files; new
+# inputs found go to build-fuzz/corpus/.
 # Exits non-zero on a crash, a hang (> 10 s on one input), a leak or a sanitizer report.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,17 +17,22 @@ OUT=build-fuzz
 mkdir -p "$OUT"
 clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
   -Itracer -I/usr/include/stb \
-  tests/fuzz/fuzz_loaders.cpp tracer/scene/json_loader.cpp tracer/scene/json_lines.cpp \
-  tracer/scene/loader.cpp tracer/scene/loader_util.cpp tracer/scene/obj_loader.cpp \
-  tracer/scene/gltf_loader.cpp tracer/scene/gltf_json.cpp tracer/scene/validate.cpp \
-  tracer/scene/scene.cpp tracer/scene/settings.cpp tracer/core/diagnostics.cpp \
+  tests/fuzz/fuzz_loaders.cpp tracer/scene/*.cpp tracer/bvh/*.cpp tracer/core/*.cpp \
   tracer/image/image.cpp tracer/image/image_io.cpp \
   -ltinyobjloader -ltinygltf -lstb -ltinyexr -o "$OUT/fuzz_loaders"
 status=0
-for fmt in json obj gltf; do
-  mkdir -p "$OUT/corpus/$fmt"
-  echo "fuzz: $fmt for ${SECONDS_EACH}s"
-  if ! FUZZ_FORMAT=$fmt "$OUT/fuzz_loaders" "$OUT/corpus/$fmt" "tests/fuzz/corpus/$fmt" \
+for fmt in json obj gltf glb; do
+  mkdir -p "$OUT/corpus/$fmt" "$OUT/seeds/$fmt"
+  # Seeds: the project's own (tests/fuzz/corpus) and the real files the corpus test renders
+  # (assimp-testmodels, glmark2-data) that fit the input limit, named by content.
+  find /usr/share/assimp/models /usr/share/glmark2/models -type f -iname "*.$fmt" -size -64k \
+      2>/dev/null | while read -r f; do
+    cp "$f" "$OUT/seeds/$fmt/$(md5sum < "$f" | cut -c1-16).$fmt"
+  done
+  seeds=("$OUT/seeds/$fmt")
+  [ -d "tests/fuzz/corpus/$fmt" ] && seeds+=("tests/fuzz/corpus/$fmt")
+  echo "fuzz: $fmt for ${SECONDS_EACH}s ($(ls "${seeds[@]}" | grep -c "\.") seed files)"
+  if ! FUZZ_FORMAT=$fmt "$OUT/fuzz_loaders" "$OUT/corpus/$fmt" "${seeds[@]}" \
       -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=4096 -max_len=65536 \
       -artifact_prefix="$OUT/crash-$fmt-" -print_final_stats=1 > "$OUT/$fmt.log" 2>&1; then
     echo "fuzz: $fmt FAILED; see $OUT/$fmt.log and $OUT/crash-$fmt-*"

@@ -276,6 +276,20 @@ TEST(BlackImage, AnEntirelyBlackRenderSaysWhy) {
             std::string::npos) << log;
 }
 
+TEST(ObjEncoding, Utf16FilesAreNamedAsSuch) {
+  // "v 0 0 0" in UTF-16 big endian with a byte-order mark, as assimp's box_UTF16BE.obj.
+  std::string text = "\xFE\xFF";
+  for (char c : std::string("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")) text += std::string(1, '\0') + c;
+  const std::string path = write_file("utf16.obj", text);
+  try {
+    tracer::load_scene(path);
+    FAIL() << "a UTF-16 OBJ loaded";
+  } catch (const tracer::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("utf16.obj: the file is UTF-16"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Info, CountsEveryMaterialTypeAndShowsTheCamera) {
   const std::string scene = write_file("types.json", R"({
     "materials": {"a": {"type": "conductor", "roughness": 0.2}, "b": {"type": "conductor"},

@@ -324,7 +324,7 @@ TEST(GltfTextureTransform, SampleModelLoadsEveryTransform) {
   const fs::path file = kAssimp / "glTF2/textureTransform/TextureTransformTest.gltf";
   if (!fs::exists(file)) GTEST_SKIP() << file << " is missing (apt install assimp-testmodels)";
   const Scene s = load_scene(file.string());
-  EXPECT_EQ(s.diagnostics.warnings.size(), 1u) << warnings(s);  // the added light
+  EXPECT_TRUE(s.diagnostics.warnings.empty()) << warnings(s);  // the added light is a note
   EXPECT_EQ(s.textures.size(), 5u);
   for (const TextureImage& t : s.textures) EXPECT_EQ(t.uv_transform, glm::mat3x2(1.0f));
 }

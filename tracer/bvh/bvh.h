@@ -20,7 +20,8 @@ struct Aabb {
     lo = glm::min(lo, b.lo);
     hi = glm::max(hi, b.hi);
   }
-  TRACER_HD vec3 centroid() const { return 0.5f * (lo + hi); }
+  // Halves first: lo + hi can overflow for finite bounds (the same value otherwise).
+  TRACER_HD vec3 centroid() const { return 0.5f * lo + 0.5f * hi; }
   TRACER_HD bool empty() const { return lo.x > hi.x; }
   TRACER_HD float area() const {
     if (empty()) return 0.0f;

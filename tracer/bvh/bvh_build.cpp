@@ -3,6 +3,7 @@
 // passes are iterative so that deep inputs cannot overflow the call stack.
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -20,6 +21,26 @@ constexpr uint32_t kMaxDepth = kBvhStackSize - 4;
 struct Task {
   uint32_t node, depth;
 };
+
+// Surface area in double: a box of finite float bounds can have an area (or even an extent)
+// beyond the float range, which made the SAH cost inf / inf = NaN. Infinite bounds (from callers
+// that skip validate_scene) count as the float range, so the cost stays finite for any input.
+double area_double(const Aabb& b) {
+  if (b.empty()) return 0.0;
+  const glm::dvec3 big(std::numeric_limits<float>::max());
+  const glm::dvec3 e =
+      glm::clamp(glm::dvec3(b.hi), -big, big) - glm::clamp(glm::dvec3(b.lo), -big, big);
+  return 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
+}
+
+// The bin of centroid coordinate c in [lo, lo + kBins / scale]. A NaN position (an empty or
+// non-finite primitive box from a caller that skipped validate_scene, or an extent whose scale
+// underflowed to 0 next to an infinite distance) goes to bin 0 instead of through int(NaN),
+// which is undefined and was an out-of-bounds index.
+int bin_of(float c, float lo, float scale) {
+  const float f = (c - lo) * scale;
+  return f >= 0.0f ? int(std::min(f, float(kBins - 1))) : 0;
+}
 
 // The binary tree being built. count == 0: inner node whose children are left_first and
 // left_first + 1. count > 0: leaf holding prim_indices[left_first, left_first + count).
@@ -142,8 +163,7 @@ Bvh build_bvh(const std::vector<Aabb>& bounds, int max_leaf_size) {
 
   std::vector<Task> stack;
   stack.push_back({0, 0});
-  double sah_sum = 0.0;
-  float root_area = 0.0f;
+  double sah_sum = 0.0, root_area = 0.0;
   while (!stack.empty()) {
     const Task task = stack.back();
     stack.pop_back();
@@ -155,7 +175,7 @@ Bvh build_bvh(const std::vector<Aabb>& bounds, int max_leaf_size) {
       cbox.grow(centroids[p]);
     }
     node.box = box;
-    if (task.node == 0) root_area = std::max(box.area(), 1e-30f);
+    if (task.node == 0) root_area = std::max(area_double(box), 1e-300);
 
     const float leaf_cost = kIntersectCost * float(node.count);
     int best_axis = -1, best_split = 0;
@@ -169,7 +189,7 @@ Bvh build_bvh(const std::vector<Aabb>& bounds, int max_leaf_size) {
         const float scale = float(kBins) / (hi - lo);
         for (uint32_t i = 0; i < node.count; ++i) {
           const uint32_t p = bvh.prim_indices[node.left_first + i];
-          const int b = std::min(kBins - 1, int((centroids[p][axis] - lo) * scale));
+          const int b = bin_of(centroids[p][axis], lo, scale);
           bin_count[b]++;
           bin_box[b].grow(bounds[p]);
         }
@@ -207,7 +227,7 @@ Bvh build_bvh(const std::vector<Aabb>& bounds, int max_leaf_size) {
       best_axis = 3;
     }
     if (best_axis < 0 || (node.count <= uint32_t(max_leaf_size) && best_cost >= leaf_cost)) {
-      sah_sum += double(box.area()) * kIntersectCost * node.count;
+      sah_sum += area_double(box) * kIntersectCost * node.count;
       continue;
     }
     uint32_t* first = bvh.prim_indices.data() + node.left_first;
@@ -219,14 +239,14 @@ Bvh build_bvh(const std::vector<Aabb>& bounds, int max_leaf_size) {
       const float lo = cbox.lo[best_axis];
       const float scale = float(kBins) / (cbox.hi[best_axis] - lo);
       mid = std::partition(first, last, [&](uint32_t p) {
-        return std::min(kBins - 1, int((centroids[p][best_axis] - lo) * scale)) < best_split;
+        return bin_of(centroids[p][best_axis], lo, scale) < best_split;
       });
       if (mid == first || mid == last) mid = first + node.count / 2;
     }
     const uint32_t left_count = uint32_t(mid - first);
     const uint32_t child = uint32_t(nodes.size());
     const uint32_t node_first = node.left_first, node_count = node.count;
-    sah_sum += double(box.area()) * kTraversalCost;
+    sah_sum += area_double(box) * kTraversalCost;
     BinaryNode left, right;
     left.left_first = node_first;
     left.count = left_count;

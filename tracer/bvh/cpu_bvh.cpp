@@ -261,7 +261,7 @@ inline bool leaf_hit(const TraceView& s, const Ray& ray, const SimdRay& r, const
 template <bool kAnyHit>
 Hit traverse_simd(const TraceView& s, const Ray& ray, uint32_t skip, uint32_t skip2) {
   Hit hit;
-  if (s.node_count == 0) return hit;
+  if (s.node_count == 0 || !ray_is_traceable(ray)) return hit;  // as traversal_start decides
   const vec3 inv_d = 1.0f / ray.d;
   const RayTriSetup setup(ray, inv_d);
   const SimdRay r(ray, inv_d, setup);

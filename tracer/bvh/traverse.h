@@ -186,12 +186,21 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
   return !(c.have_next || c.have_leaf);
 }
 
-TRACER_HD TRACER_INLINE TraversalCursor traversal_start(const TraceView& s) {
+// Whether a ray can be traced at all. The slab test ignores NaN on purpose (a ray lying in a
+// slab's plane), so a ray with a NaN or infinite origin or direction passes every slab test, the
+// empty slots' too, whose reference is the root: it would push without end and overflow the
+// stack. validate_scene keeps scenes in the range where spawned rays stay finite; this check
+// protects callers that skip it, once per ray rather than in the loop.
+TRACER_HD TRACER_INLINE bool ray_is_traceable(const Ray& ray) {
+  return is_finite(ray.o) && is_finite(ray.d);
+}
+
+TRACER_HD TRACER_INLINE TraversalCursor traversal_start(const TraceView& s, const Ray& ray) {
   TraversalCursor c;
   c.sp = 0;
   c.next = 0;
   c.leaf = 0;
-  c.have_next = s.node_count != 0;
+  c.have_next = s.node_count != 0 && ray_is_traceable(ray);
   c.have_leaf = false;
   return c;
 }
@@ -638,7 +647,7 @@ TRACER_HD inline Hit traverse(const TraceView& s, const Ray& ray, uint32_t skip,
   const RayTriSetup setup(ray, inv_d);
   float tmax = ray.tmax;
   uint32_t stack[kBvhStackSize];
-  TraversalCursor c = traversal_start(s);
+  TraversalCursor c = traversal_start(s, ray);
   while (!traverse_round<F, kAnyHit>(s, ray, inv_d, setup, skip, skip2, tmax, hit, stack, c)) {
   }
   return hit;

@@ -133,7 +133,7 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
   float tmax = kInfinity;
   Hit hit;
   uint32_t stack[kBvhStackSize];
-  TraversalCursor c = traversal_start(s);
+  TraversalCursor c{};  // set by traversal_start when the lane takes a ray
   for (;;) {
     const unsigned want = __ballot_sync(kFull, !active && !retired);
     const unsigned busy = __ballot_sync(kFull, active);
@@ -155,7 +155,7 @@ __global__ void __launch_bounds__(kBlock) intersect_fetch_kernel(SceneView s, Wa
             setup = RayTriSetup(ray, inv_d);
             tmax = ray.tmax;
             hit = Hit();
-            c = traversal_start(s);
+            c = traversal_start(s, ray);
             active = true;
           }
         }

@@ -26,7 +26,6 @@ ImageRGB make_image(int width, int height, vec3 fill = vec3(0.0f));
 
 // ---- Display transform ------------------------------------------------------------------------
 
-
 const char* tone_map_name(ToneMap op);  // "none", "reinhard", "aces"
 // Accepts the names above (case-insensitive); returns false and leaves *op alone otherwise.
 bool parse_tone_map(const std::string& name, ToneMap* op);
@@ -82,8 +81,10 @@ struct CompareResult {
 
 // Values where either image is NaN/Inf are counted and left out of every sum and every
 // denominator, so rmse/relmse are means over the remaining values (NaN when none remain).
-// Throws InputError if the sizes differ (the message names both sizes).
-CompareResult compare_images(const ImageRGB& test, const ImageRGB& ref);
+// `keep` (width * height, row-major), when given, leaves out every pixel where it is 0 before
+// anything is counted. Throws InputError if the sizes differ (the message names both sizes).
+CompareResult compare_images(const ImageRGB& test, const ImageRGB& ref,
+                             const std::vector<uint8_t>* keep = nullptr);
 
 // A false-colour image of the per-pixel relative squared error (mean over channels of
 // (t - r)^2 / (r + 0.01)^2) through the viridis ramp on a log scale: 1e-4 or less is the dark end

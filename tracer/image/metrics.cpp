@@ -70,8 +70,12 @@ std::string json_vec3(vec3 v) {
 
 }  // namespace
 
-CompareResult compare_images(const ImageRGB& test, const ImageRGB& ref) {
+CompareResult compare_images(const ImageRGB& test, const ImageRGB& ref,
+                             const std::vector<uint8_t>* keep) {
   check_same_size(test, ref);
+  if (keep && keep->size() != test.pixels.size() / 3) {
+    throw std::invalid_argument("compare_images: the pixel mask does not match the image size");
+  }
   CompareResult out;
   out.width = test.width;
   out.height = test.height;
@@ -82,6 +86,7 @@ CompareResult compare_images(const ImageRGB& test, const ImageRGB& ref) {
   double sum_test[3] = {0, 0, 0}, sum_ref[3] = {0, 0, 0};
   long count_test[3] = {0, 0, 0}, count_ref[3] = {0, 0, 0};
   for (size_t i = 0; i < test.pixels.size(); ++i) {
+    if (keep && !(*keep)[i / 3]) continue;
     const int c = static_cast<int>(i % 3);
     const double t = test.pixels[i], r = ref.pixels[i];
     const bool t_ok = std::isfinite(t), r_ok = std::isfinite(r);

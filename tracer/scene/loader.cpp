@@ -49,6 +49,18 @@ Scene load_scene(const std::string& path) {
     for (const std::string& w : scene.diagnostics.warnings) why += (why.empty() ? " (" : " | ") + w;
     throw InputError(file, "the file contains no triangles" + (why.empty() ? "" : why + ")"));
   }
+  // A file of only degenerate triangles is as empty as one without any (and would otherwise
+  // render its default light alone): checked before framing adds that light.
+  uint32_t degenerate = 0;
+  for (uint32_t t = before; t < scene.mesh.indices.size(); ++t)
+    degenerate += is_zero_area_triangle(scene.mesh, scene.mesh.indices[t]) ? 1u : 0u;
+  if (degenerate == scene.mesh.indices.size() - before) {
+    throw InputError(file, (degenerate == 1 ? std::string("the file's only triangle has")
+                                            : "all " + std::to_string(degenerate) +
+                                                  " triangles of the file have") +
+                               " zero area (degenerate: collinear or repeated vertices), so it "
+                               "has no geometry to render");
+  }
   ObjectInfo info;
   const size_t slash = path.find_last_of('/');
   info.name = slash == std::string::npos ? path : path.substr(slash + 1);

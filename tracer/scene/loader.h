@@ -22,5 +22,8 @@ void append_mesh_file(Scene& scene, const std::string& path, const glm::mat4& xf
 // Checks the assembled scene (NaN/Inf, zero-area triangles, index ranges, parameter ranges,
 // image size vs memory), fixes what can be fixed with a warning, throws InputError otherwise.
 void validate_scene(Scene& scene);
+// Whether validate_scene removes triangle `tri` of `mesh` as degenerate (zero area relative to
+// its longest edge). False for indices out of range, which validate_scene reports.
+bool is_zero_area_triangle(const TriangleMesh& mesh, uvec3 tri);
 
 }  // namespace tracer

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <sstream>
 #include <unordered_map>
 
@@ -55,27 +56,118 @@ void check_index(long idx, long seen, long total, const char* what, const char* 
   }
 }
 
-// Finds what tinyobjloader does not report with a line: non-finite numbers and bad face indices.
-// Returns whether every referenced mtllib exists.
-bool prescan_obj(const std::string& text, const std::string& path, const std::string& suffix,
-                 Diagnostics& diag) {
+// 12345678 as "12,345,678", for counts in messages.
+std::string grouped(size_t n) {
+  std::string digits = std::to_string(n), out;
+  for (size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return out;
+}
+
+// A file that ends inside a statement: its last line has no newline and is incomplete (a face
+// with fewer than 3 corners, a vertex with fewer than 3 numbers, a keyword cut short). Reading
+// stops at that line, or earlier at a face that refers to an element past those the file still
+// defines (cut away with the rest of it). tinyobjloader would read such a file without complaint
+// (or fail on the cut statement), so the pre-scan says where reading stopped and why. A last line
+// that is complete but has no newline is common (and fine) and is not reported.
+struct ObjTruncation {
+  int line = 0;           // where reading stopped; 0: the file does not end inside a statement
+  int last_line = 0;      // the line the file ends inside
+  size_t kept_bytes = 0;  // the text before `line`, all that tinyobjloader is given
+  std::string statement;  // the line where reading stopped, as read
+  std::string why;        // what is wrong with it
+  long faces_before = 0, vertices_before = 0;
+};
+
+struct ObjPrescan {
+  bool mtl_ok = true;    // every referenced mtllib exists
+  std::string mtl_path;  // the first material library that exists, for its warnings
+  ObjTruncation truncation;
+};
+
+// The statements of the OBJ format (and tinyobjloader's "vw" and "t"); any other first word on a
+// cut last line is taken for a keyword cut short.
+bool known_obj_keyword(const std::string& w) {
+  static const char* const kWords[] = {
+      "v",          "vt",        "vn",    "vp",     "vw",    "f",        "l",
+      "p",          "g",         "o",     "s",      "mg",    "usemtl",   "mtllib",
+      "usemap",     "maplib",    "t",     "cstype", "deg",   "bmat",     "step",
+      "curv",       "curv2",     "surf",  "parm",   "trim",  "hole",     "scrv",
+      "sp",         "end",       "con",   "lod",    "bevel", "c_interp", "d_interp",
+      "shadow_obj", "trace_obj", "ctech", "stech",  "call",  "csh"};
+  for (const char* k : kWords)
+    if (w == k) return true;
+  return false;
+}
+
+// Finds what tinyobjloader does not report with a line: non-finite numbers, bad face indices and
+// where a truncated file stops.
+ObjPrescan prescan_obj(const std::string& text, const std::string& path, const std::string& suffix,
+                       Diagnostics& diag) {
   ObjCounts total;
-  for_each_obj_line(text, [&](int, const std::string& w, const std::string&) {
+  int last_line = 0;
+  std::string last_word;
+  for_each_obj_line(text, [&](int line, const std::string& w, const std::string&) {
     total.v += w == "v";
     total.vt += w == "vt";
     total.vn += w == "vn";
+    last_line = line;
+    last_word = w;
   });
+  // The last statement, if the file ends inside it (no newline after it); an element cut short
+  // is not counted as defined.
+  const bool ends_mid_line = !text.empty() && text.back() != '\n' && text.back() != '\r' &&
+                             last_line == 1 + int(std::count(text.begin(), text.end(), '\n'));
+  if (ends_mid_line) {
+    total.v -= last_word == "v";
+    total.vt -= last_word == "vt";
+    total.vn -= last_word == "vn";
+  }
   ObjCounts seen;
-  bool mtl_ok = true;
+  ObjPrescan out;
+  long faces = 0;
+  // Records where reading stops in a file that ends inside a statement, returning true; false
+  // when the file is whole, or `line` is not its last and `anywhere` is false (then the caller
+  // reports the problem as for any file).
+  auto truncated = [&](int line, const std::string& statement, const std::string& why,
+                       bool anywhere = false) {
+    if (!ends_mid_line || (line != last_line && !anywhere)) return false;
+    size_t kept = 0;
+    for (int l = 1; l < line; ++l) kept = text.find('\n', kept) + 1;
+    out.truncation = {line, last_line, kept, statement, why, faces, seen.v};
+    return true;
+  };
+  // A positive index past the elements of a truncated file: they were cut away with its end.
+  auto cut_away = [&](int line, const std::string& statement, long idx, long total_of,
+                      const char* what, const char* plural) {
+    if (idx <= total_of) return false;
+    return truncated(line, statement,
+                     "a face that refers to " + std::string(what) + " " + std::to_string(idx) +
+                         ", but the file defines " + grouped(size_t(total_of)) + " " +
+                         (total_of == 1 ? what : plural),
+                     true);
+  };
   for_each_obj_line(text, [&](int line, const std::string& w, const std::string& rest) {
+    if (out.truncation.line > 0) return;  // reading stopped
     const SourceLoc loc{path, line};
+    if (!known_obj_keyword(w) && w[0] != '#') {
+      truncated(line, w + rest, "an unknown statement, likely a keyword cut short");
+      return;
+    }
     if (w == "v" || w == "vn") {
       const char* p = rest.c_str();
       for (int i = 0; i < 3; ++i) {
         char* end = nullptr;
         const double d = std::strtod(p, &end);
-        if (end == p)
+        if (end == p) {
+          if (truncated(line, w + rest,
+                        std::string(w == "v" ? "a vertex" : "a normal") + " with " +
+                            std::to_string(i) + " of its 3 coordinates"))
+            return;
           throw InputError(loc, "\"" + w + "\" needs 3 numbers: \"" + w + rest + "\"" + suffix);
+        }
         if (!std::isfinite(d) || std::fabs(d) > 3.0e38)
           throw InputError(loc, (w == "v" ? "vertex" : "normal") +
                                     std::string(" has a non-finite coordinate: \"") + w + rest +
@@ -101,14 +193,26 @@ bool prescan_obj(const std::string& text, const std::string& path, const std::st
           if (!part.empty()) {
             char* end = nullptr;
             idx[k] = std::strtol(part.c_str(), &end, 10);
-            if (*end != '\0') throw InputError(loc, "bad face index \"" + corner + "\"" + suffix);
+            if (*end != '\0') {
+              if (truncated(line, w + rest, "a face whose corner \"" + corner + "\" is cut short"))
+                return;
+              throw InputError(loc, "bad face index \"" + corner + "\"" + suffix);
+            }
             present[k] = true;
           }
           if (slash == std::string::npos) break;
           start = slash + 1;
         }
-        if (!present[0])
+        if (!present[0]) {
+          if (truncated(line, w + rest, "a face whose corner \"" + corner + "\" is cut short"))
+            return;
           throw InputError(loc, "face corner \"" + corner + "\" has no vertex index" + suffix);
+        }
+        if (cut_away(line, w + rest, idx[0], total.v, "vertex", "vertices") ||
+            (present[1] && cut_away(line, w + rest, idx[1], total.vt, "texture coordinate",
+                                    "texture coordinates")) ||
+            (present[2] && cut_away(line, w + rest, idx[2], total.vn, "normal", "normals")))
+          return;
         check_index(idx[0], seen.v, total.v, "vertex", "vertices", loc, suffix);
         if (present[1])
           check_index(idx[1], seen.vt, total.vt, "texture coordinate", "texture coordinates", loc,
@@ -116,8 +220,14 @@ bool prescan_obj(const std::string& text, const std::string& path, const std::st
         if (present[2]) check_index(idx[2], seen.vn, total.vn, "normal", "normals", loc, suffix);
       }
       if (corners < 3) {
+        if (truncated(
+                line, w + rest,
+                "a face with " + std::to_string(corners) + (corners == 1 ? " corner" : " corners")))
+          return;
         diag.warn(loc, "face with " + std::to_string(corners) + " corners" + suffix,
                   "skipped (a face needs at least 3)");
+      } else {
+        ++faces;
       }
     } else if (w == "mtllib") {
       std::istringstream ms(rest);
@@ -127,12 +237,94 @@ bool prescan_obj(const std::string& text, const std::string& path, const std::st
         if (!file_exists(full)) {
           diag.warn(loc, "material library \"" + name + "\" not found" + suffix,
                     "its materials are grey diffuse");
-          mtl_ok = false;
+          out.mtl_ok = false;
+        } else if (out.mtl_path.empty()) {
+          out.mtl_path = full;
         }
       }
     }
   });
-  return mtl_ok;
+  return out;
+}
+
+// The line of the n-th (from 0) "usemtl <name>" of `text`, or 0.
+int usemtl_line(const std::string& text, const std::string& name, int n) {
+  int found = 0;
+  for_each_obj_line(text, [&](int line, const std::string& w, const std::string& rest) {
+    if (found || w != "usemtl") return;
+    std::istringstream rs(rest);
+    std::string word;
+    if (rs >> word && word == name && n-- == 0) found = line;
+  });
+  return found;
+}
+
+// The line number in a tinyobjloader message ("(line 12.)", "(line 3 in .mtl.)", "line: 7"), or 0.
+int line_named_in(const std::string& w) {
+  for (const char* key : {"line: ", "line "}) {
+    const size_t at = w.rfind(key);
+    if (at != std::string::npos) return std::atoi(w.c_str() + at + std::strlen(key));
+  }
+  return 0;
+}
+
+// The message without its line note (given as path:line instead) and trailing newlines.
+std::string strip_line_note(std::string w, int line) {
+  auto trim = [&w] {
+    while (!w.empty() && (w.back() == ' ' || w.back() == '.' || w.back() == '\n')) w.pop_back();
+  };
+  trim();
+  if (line > 0) {
+    for (const char* key : {"line: ", "line "}) {
+      const size_t at = w.rfind(key);
+      if (at == std::string::npos) continue;
+      // "(line 3.)" goes whole; "(e.g. ... line 5.)" loses only "line 5.".
+      const size_t open = w.rfind('(', at), close = w.find(')', at);
+      const bool own = open != std::string::npos && open + 1 == at;
+      const bool inside = !own && open != std::string::npos && close != std::string::npos;
+      w = w.substr(0, own ? open : at);
+      trim();
+      if (inside) w += ")";
+      break;
+    }
+  }
+  return w;
+}
+
+// tinyobjloader's warnings as "path:line: ..." messages. Those about faces with fewer than 3
+// corners or indices out of range repeat what the pre-scan reported with its line (or rejected);
+// a missing material library was reported by the pre-scan too. Its "Degenerated face found\n."
+// is where the bare "tinyobjloader: ." warning came from.
+void report_tinyobj_warnings(const std::string& warnings, const std::string& text,
+                             const std::string& path, const std::string& suffix,
+                             const ObjPrescan& pre, Diagnostics& diag) {
+  std::istringstream lines(warnings);
+  std::unordered_map<std::string, int> missing_seen;  // one warning per "usemtl" of the name
+  for (std::string w; std::getline(lines, w);) {
+    while (!w.empty() && (w.back() == ' ' || w.back() == '\r')) w.pop_back();
+    if (w.empty() || w == "." || w.rfind("Degenerated face found", 0) == 0 ||
+        w.rfind("Face with invalid vertex index", 0) == 0 ||
+        w.find("indices out of bounds") != std::string::npos)
+      continue;
+    if (!pre.mtl_ok && w.find("aterial") != std::string::npos) continue;
+    const std::string kMissing = "material [ '";
+    if (w.rfind(kMissing, 0) == 0) {
+      const size_t end = w.find("' ]", kMissing.size());
+      const std::string name = w.substr(
+          kMissing.size(), end == std::string::npos ? std::string::npos : end - kMissing.size());
+      diag.warn({path, usemtl_line(text, name, missing_seen[name]++)},
+                "material \"" + name + "\" is not defined" +
+                    (pre.mtl_path.empty() ? " (the file names no material library)"
+                                          : " in the material library") +
+                    suffix,
+                "used grey diffuse");
+      continue;
+    }
+    const int line = line_named_in(w);
+    const bool in_mtl = w.find("in .mtl") != std::string::npos && !pre.mtl_path.empty();
+    diag.warn({in_mtl ? pre.mtl_path : path, line},
+              "tinyobjloader: " + strip_line_note(w, line) + suffix, "continued");
+  }
 }
 
 Material convert_mtl(const tinyobj::material_t& m, const std::string& path, Diagnostics& diag) {
@@ -229,28 +421,38 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
                      uint32_t material_override, const SourceLoc& from) {
   const std::string suffix = from.path == path ? "" : " (mesh referenced at " + from.str() + ")";
   const std::string text = read_file_text(path, from);
-  const bool mtl_ok = prescan_obj(text, path, suffix, scene.diagnostics);
-
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = true;
-  config.vertex_color = false;
-  tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path, config)) {
-    throw InputError({path, 0}, "cannot read OBJ: " + reader.Error() + suffix);
+  // A UTF-16 file (a byte-order mark, or NULs between ASCII characters) reads as no statements
+  // at all; say so rather than "no faces".
+  const bool bom16 = text.size() >= 2 && ((uint8_t(text[0]) == 0xFE && uint8_t(text[1]) == 0xFF) ||
+                                          (uint8_t(text[0]) == 0xFF && uint8_t(text[1]) == 0xFE));
+  if (bom16 || text.find('\0') < std::min<size_t>(text.size(), 64)) {
+    throw InputError({path, 0}, "the file is UTF-16 (or binary), not the ASCII/UTF-8 text OBJ is"
+                                " written in; convert it, e.g. iconv -f UTF-16 -t UTF-8" + suffix);
   }
-  std::istringstream warnings(reader.Warning());
-  for (std::string w; std::getline(warnings, w);) {
-    if (w.empty() || (!mtl_ok && w.find("aterial") != std::string::npos)) continue;
-    scene.diagnostics.warn({path, 0}, "tinyobjloader: " + w + suffix, "continued");
-  }
+  const ObjPrescan pre = prescan_obj(text, path, suffix, scene.diagnostics);
 
-  const tinyobj::attrib_t& attrib = reader.GetAttrib();
-  const std::vector<tinyobj::material_t>& mtls = reader.GetMaterials();
+  // tinyobjloader reads the text already in memory, up to where a truncated file's reading stops
+  // (it would read a cut statement as a bogus vertex, or fail on it), and the MTL files beside
+  // the OBJ.
+  std::istringstream obj_text(pre.truncation.line > 0 ? text.substr(0, pre.truncation.kept_bytes)
+                                                      : text);
+  const std::string dir = path_directory(path);
+  tinyobj::MaterialFileReader mtl_reader(dir.empty() ? "." : dir);
+  tinyobj::attrib_t attrib;
+  std::vector<tinyobj::shape_t> shapes;
+  std::vector<tinyobj::material_t> mtls;
+  std::string warnings, error;
+  if (!tinyobj::LoadObj(&attrib, &shapes, &mtls, &warnings, &error, &obj_text, &mtl_reader,
+                        /*triangulate=*/true, /*default_vcols_fallback=*/false)) {
+    const int line = line_named_in(error);
+    throw InputError({path, line}, "cannot read OBJ: " + strip_line_note(error, line) + suffix);
+  }
+  report_tinyobj_warnings(warnings, text, path, suffix, pre, scene.diagnostics);
 
   // Normals are used only if every corner has one; de-indexing by (position, normal) pairs turns
   // OBJ's separate index streams into the one-normal-per-position layout.
   bool use_normals = !attrib.normals.empty();
-  for (const tinyobj::shape_t& shape : reader.GetShapes())
+  for (const tinyobj::shape_t& shape : shapes)
     for (const tinyobj::index_t& ix : shape.mesh.indices) use_normals &= ix.normal_index >= 0;
   if (!use_normals && !attrib.normals.empty()) {
     scene.diagnostics.warn({path, 0}, "some faces have vertex normals and some do not" + suffix,
@@ -280,14 +482,14 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
   // Texture coordinates likewise, only if every corner has one ("vt"); OBJ's v runs up the
   // image, glTF's (and ours) down, hence 1 - v.
   bool use_uvs = !attrib.texcoords.empty();
-  for (const tinyobj::shape_t& shape : reader.GetShapes())
+  for (const tinyobj::shape_t& shape : shapes)
     for (const tinyobj::index_t& ix : shape.mesh.indices) use_uvs &= ix.texcoord_index >= 0;
 
   MeshPart part;
   std::unordered_map<CornerKey, uint32_t, CornerHash> remap;
   const size_t nv = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3;
   const size_t nt = attrib.texcoords.size() / 2;
-  for (const tinyobj::shape_t& shape : reader.GetShapes()) {
+  for (const tinyobj::shape_t& shape : shapes) {
     const tinyobj::mesh_t& m = shape.mesh;
     size_t offset = 0;
     for (size_t f = 0; f < m.num_face_vertices.size(); ++f) {
@@ -329,6 +531,25 @@ void append_obj_file(Scene& scene, const std::string& path, const mat4& xform,
       part.indices.push_back(tri);
       part.materials.push_back(material_for(f < m.material_ids.size() ? m.material_ids[f] : -1));
     }
+  }
+  const ObjTruncation& cut = pre.truncation;
+  if (cut.line > 0) {
+    const std::string stopped =
+        cut.line == cut.last_line
+            ? "it ends inside line " + std::to_string(cut.line) + ", \"" + cut.statement + "\" (" +
+                  cut.why + "), with no newline; reading stopped there"
+            : "it ends inside line " + std::to_string(cut.last_line) +
+                  " with no newline; reading stopped at line " + std::to_string(cut.line) + ", \"" +
+                  cut.statement + "\" (" + cut.why + "),";
+    scene.diagnostics.warn(
+        {path, cut.line},
+        "the file appears truncated: " + stopped + " after " + grouped(size_t(cut.faces_before)) +
+            (cut.faces_before == 1 ? " face" : " faces") + " and " +
+            grouped(size_t(cut.vertices_before)) +
+            (cut.vertices_before == 1 ? " vertex" : " vertices") + suffix,
+        part.indices.empty() ? "nothing was added"
+                             : "used the " + grouped(part.indices.size()) + " triangle" +
+                                   (part.indices.size() == 1 ? "" : "s") + " read");
   }
   if (part.indices.empty()) {
     scene.diagnostics.warn({path, 0}, "OBJ file has no faces" + suffix, "nothing was added");

@@ -34,8 +34,8 @@ SourceLoc where(const Scene& scene, const ObjectInfo* o) {
   return o ? o->loc : SourceLoc{scene.source, 0};
 }
 
-std::string object_name(const ObjectInfo* o) {
-  return o ? "object \"" + o->name + "\"" : "an unnamed triangle";
+std::string object_name(const ObjectInfo* o, const char* unnamed = "an unnamed triangle") {
+  return o ? "object \"" + o->name + "\"" : unnamed;
 }
 
 void validate_camera_and_settings(const Scene& scene) {
@@ -107,7 +107,38 @@ void validate_materials(Scene& scene) {
   }
 }
 
-void validate_geometry(Scene& scene) {
+// How far from the origin geometry and the camera may reach. Every ray starts at the camera or on
+// a surface, so with everything within E of the origin each coordinate difference p - o of the
+// watertight triangle test (bvh/geometry.h) is within 2E, the sheared differences within 4E
+// (|sx|, |sy| <= 1), the edge functions U, V, W within 2 (4E)^2 = 32 E^2, and
+// T = U az + V bz + W cz within 3 * 32 E^2 * 2 sqrt(3) E < 333 E^3 (|sz| <= sqrt(3): a unit
+// direction's largest component is at least 1 / sqrt(3)). T must stay below the float maximum
+// 3.4e38, hence E <= 1e12; past it hits are lost (inf) and the ray offset of 256 ulps overflows
+// into NaN near 3.4e38. Squared distances (light sampling: at most 12 E^2) stay far in range.
+constexpr double kMaxReach = 1e12;
+
+std::string number_str(double x) {
+  std::ostringstream out;
+  out.precision(3);
+  out << x;
+  return out.str();
+}
+
+void check_reach(const SourceLoc& loc, const std::string& what, double reach) {
+  if (reach <= kMaxReach) return;
+  throw InputError(loc, what + " reaches " + number_str(reach) +
+                            " from the origin, beyond the supported " + number_str(kMaxReach) +
+                            " (the ray-triangle test multiplies three coordinate differences, "
+                            "which would overflow a float); scale the scene down");
+}
+
+double reach_of(vec3 p) {
+  return std::max(std::fabs(double(p.x)), std::max(std::fabs(double(p.y)), std::fabs(double(p.z))));
+}
+
+// Returns the number of zero-area triangles removed.
+size_t validate_geometry(Scene& scene) {
+  size_t removed = 0;
   TriangleMesh& mesh = scene.mesh;
   const size_t nmat = scene.materials.size();
   for (size_t i = 0; i < scene.spheres.size(); ++i) {
@@ -121,6 +152,8 @@ void validate_geometry(Scene& scene) {
     if (s.material >= nmat)
       throw InputError(where(scene, o), object_name(o) + " has material index " +
                                             std::to_string(s.material) + " out of range");
+    check_reach(where(scene, o), object_name(o, "an unnamed sphere"),
+                reach_of(s.center) + double(s.radius));
   }
   if (mesh.materials.size() != mesh.indices.size())
     throw InputError({scene.source, 0}, "triangle mesh has " + std::to_string(mesh.indices.size()) +
@@ -160,6 +193,10 @@ void validate_geometry(Scene& scene) {
         throw InputError(where(scene, o), object_name(o) + " has a non-finite vertex position " +
                                               vec3_str(mesh.positions[tri[k]]));
       }
+      if (reach_of(mesh.positions[tri[k]]) > kMaxReach) {
+        const ObjectInfo* o = owner_of(scene, t);
+        check_reach(where(scene, o), object_name(o), reach_of(mesh.positions[tri[k]]));
+      }
       if (mesh.normals.empty()) continue;
       vec3& n = mesh.normals[tri[k]];
       if (!is_finite(n)) {
@@ -183,30 +220,31 @@ void validate_geometry(Scene& scene) {
               "dropped its normals (flat shading)");
   }
 
-  // Remove zero-area triangles: they can never be hit reliably and make light sampling divide by
-  // a zero area. Measured in double, relative to the longest edge, so tiny but valid triangles of
-  // a small-scale model survive.
+  // Remove zero-area triangles (is_zero_area_triangle says why).
   std::vector<uint32_t> kept_before(mesh.indices.size() + 1, 0);
   size_t out = 0;
   for (size_t t = 0; t < mesh.indices.size(); ++t) {
     kept_before[t] = uint32_t(out);
     const uvec3 tri = mesh.indices[t];
-    const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]),
-        p2(mesh.positions[tri.z]);
-    const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0, e3 = p2 - p1;
-    const double longest = std::max(glm::dot(e1, e1), std::max(glm::dot(e2, e2), glm::dot(e3, e3)));
-    const double area2 = glm::length(glm::cross(e1, e2));
-    if (area2 <= 1e-12 * longest || longest == 0.0) continue;
+    if (is_zero_area_triangle(mesh, tri)) continue;
     mesh.indices[out] = tri;
     mesh.materials[out] = mesh.materials[t];
     ++out;
   }
   kept_before[mesh.indices.size()] = uint32_t(out);
+  removed = mesh.indices.size() - out;
   if (out != mesh.indices.size()) {
     for (ObjectInfo& o : scene.objects) {
       if (o.is_sphere) continue;
       const uint32_t first = kept_before[o.first], last = kept_before[o.first + o.count];
-      if (last - first != o.count) {
+      if (last == first && o.count > 0) {
+        warn_once(scene, o.loc,
+                  (o.count == 1 ? std::string("the only triangle of object \"") + o.name + "\" has"
+                                : "all " + std::to_string(o.count) + " triangles of object \"" +
+                                      o.name + "\" have") +
+                      " zero area",
+                  "removed the object");
+      } else if (last - first != o.count) {
         warn_once(scene, o.loc,
                   "object \"" + o.name + "\" has " + std::to_string(o.count - (last - first)) +
                       " zero-area triangle(s)",
@@ -218,16 +256,92 @@ void validate_geometry(Scene& scene) {
     mesh.indices.resize(out);
     mesh.materials.resize(out);
   }
+  return removed;
+}
+
+// The camera's reach, and the scene's span against the ray offset. offset_ray_origin moves a
+// spawned ray's origin by a fixed 2^-16 near the origin and by 256 ulps elsewhere; a scene not
+// much larger than that offset is skipped over by its own rays (the Cornell box scaled by 1e-8
+// renders black). Require the span of geometry and camera to be at least 64 offsets (the offset at
+// most 1.6% of it), the offset taken at the scene's reach: a scene far from the origin needs to be
+// larger, a tiny one must sit near the origin.
+void validate_extent(const Scene& scene) {
+  const CameraDesc& cam = scene.camera;
+  const double lens = double(cam.aperture_radius);
+  check_reach({scene.source, 0}, "the camera", reach_of(cam.position) + lens);
+  glm::dvec3 lo(cam.position), hi(cam.position);
+  lo -= lens;
+  hi += lens;
+  for (const SphereDesc& s : scene.spheres) {
+    lo = glm::min(lo, glm::dvec3(s.center) - double(s.radius));
+    hi = glm::max(hi, glm::dvec3(s.center) + double(s.radius));
+  }
+  for (const uvec3& tri : scene.mesh.indices) {
+    for (int k = 0; k < 3; ++k) {
+      lo = glm::min(lo, glm::dvec3(scene.mesh.positions[tri[k]]));
+      hi = glm::max(hi, glm::dvec3(scene.mesh.positions[tri[k]]));
+    }
+  }
+  const glm::dvec3 size = hi - lo;
+  const double span = std::max(size.x, std::max(size.y, size.z));
+  const double reach = std::max(std::max(std::fabs(lo.x), std::fabs(hi.x)),
+                                std::max(std::max(std::fabs(lo.y), std::fabs(hi.y)),
+                                         std::max(std::fabs(lo.z), std::fabs(hi.z))));
+  const float at = float(reach);
+  const double offset = double(offset_ray_origin(vec3(at), vec3(1.0f, 0.0f, 0.0f)).x) - double(at);
+  if (span < 64.0 * offset) {
+    throw InputError({scene.source, 0},
+                     "the scene (geometry and camera) spans " + number_str(span) +
+                         ", less than the supported 64 ray offsets (" + number_str(64.0 * offset) +
+                         "): at " + number_str(reach) +
+                         " from the origin a ray leaving a surface starts " + number_str(offset) +
+                         " from it and would skip the scene's surfaces; scale the scene up" +
+                         (reach >= 1.0 / 32.0 ? " or move it nearer the origin" : ""));
+  }
 }
 
 }  // namespace
 
+// Zero-area triangles can never be hit reliably and make light sampling divide by a zero area.
+// Measured in double, relative to the longest edge, so tiny but valid triangles of a small-scale
+// model survive.
+bool is_zero_area_triangle(const TriangleMesh& mesh, uvec3 tri) {
+  const size_t nv = mesh.positions.size();
+  if (tri.x >= nv || tri.y >= nv || tri.z >= nv) return false;  // validate_scene reports these
+  const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]), p2(mesh.positions[tri.z]);
+  const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0, e3 = p2 - p1;
+  const double longest = std::max(glm::dot(e1, e1), std::max(glm::dot(e2, e2), glm::dot(e3, e3)));
+  const double area2 = glm::length(glm::cross(e1, e2));
+  return area2 <= 1e-12 * longest || longest == 0.0;
+}
+
 void validate_scene(Scene& scene) {
-  validate_camera_and_settings(scene);
+  // Geometry before the camera: a mesh's framing camera derives from its bounds, and a mesh out
+  // of range should be named as the cause rather than the camera placed beyond it.
   validate_materials(scene);
-  validate_geometry(scene);
-  if (scene.spheres.empty() && scene.mesh.indices.empty())
+  const size_t removed = validate_geometry(scene);
+  if (scene.spheres.empty() && scene.mesh.indices.empty()) {
+    // As for a mesh file of only degenerate triangles (load_scene): an error, like an empty scene.
+    if (removed > 0) {
+      std::string names;
+      size_t n = 0;
+      for (const ObjectInfo& o : scene.objects) {
+        if (o.is_sphere || o.count > 0) continue;
+        if (n++ < 3) names += std::string(names.empty() ? "" : ", ") + "\"" + o.name + "\"";
+      }
+      if (n > 3) names += " and " + std::to_string(n - 3) + " more";
+      const std::string what =
+          removed == 1 ? std::string("the scene's only triangle has")
+                       : "all " + std::to_string(removed) + " triangles of the scene have";
+      throw InputError({scene.source, 0},
+                       what + " zero area (degenerate" +
+                           (n > 0 ? (n == 1 ? ": object " : ": objects ") + names : std::string()) +
+                           "), and it has no other geometry");
+    }
     throw InputError({scene.source, 0}, "the scene has no geometry");
+  }
+  validate_camera_and_settings(scene);
+  validate_extent(scene);
   bool lit = false;
   for (const SphereDesc& s : scene.spheres)
     lit |= scene.materials[s.material].material.is_emissive();
