@@ -400,7 +400,7 @@ int run_gui(const GuiOptions& o) {
 
 Runner add_gui_command(CLI::App& cmd) {
   auto o = std::make_shared<GuiOptions>();
-  cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in Cornell box");
+  cmd.add_option("scene", o->scene, "Scene file (.json, .pbrt, .obj, .gltf, .glb, .ply); default: built-in Cornell box");
   cmd.add_option("--window", o->width, "Window width")->check(CLI::Range(320, 16384));
   cmd.add_option("--window-height", o->height, "Window height")->check(CLI::Range(240, 16384));
   cmd.add_option("--frames", o->frames, "Quit after this many frames (window frames, not samples)")

@@ -151,7 +151,7 @@ int run_info(const InfoOptions& o) {
 
 Runner add_info_command(CLI::App& cmd) {
   auto o = std::make_shared<InfoOptions>();
-  cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in")
+  cmd.add_option("scene", o->scene, "Scene file (.json, .pbrt, .obj, .gltf, .glb, .ply); default: built-in")
       ->check(CLI::ExistingFile);
   cmd.add_flag("--json", o->json, "Print JSON instead of text");
   add_setting_options(cmd, &o->settings, {"render", "gpu"},

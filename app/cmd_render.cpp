@@ -237,7 +237,7 @@ int run_render(const RenderOptions& o) {
 
 Runner add_render_command(CLI::App& cmd) {
   auto o = std::make_shared<RenderOptions>();
-  cmd.add_option("scene", o->scene, "Scene file (.json, .obj, .gltf, .glb); default: built-in Cornell box")
+  cmd.add_option("scene", o->scene, "Scene file (.json, .pbrt, .obj, .gltf, .glb, .ply); default: built-in Cornell box")
       ->check(CLI::ExistingFile);
   cmd.add_option("--out", o->out, "Output file: .png (tone-mapped sRGB) or .exr (linear float)")
       ->capture_default_str();

@@ -3,6 +3,8 @@
 #include "scene/loader.h"
 
 #include "scene/loader_util.h"
+#include "scene/pbrt_loader.h"
+#include "scene/ply_reader.h"
 
 namespace tracer {
 
@@ -13,9 +15,11 @@ void append_mesh_file(Scene& scene, const std::string& path, const glm::mat4& xf
     append_obj_file(scene, path, xform, material_override, from);
   } else if (ext == ".gltf" || ext == ".glb") {
     append_gltf_file(scene, path, xform, material_override, from, nullptr, nullptr);
+  } else if (ext == ".ply") {
+    append_ply_file(scene, path, xform, material_override, from);
   } else {
     throw InputError(from, "unsupported mesh file type \"" + ext + "\" for \"" + path +
-                               "\" (expected .obj, .gltf or .glb)");
+                               "\" (expected .obj, .gltf, .glb or .ply)");
   }
 }
 
@@ -23,9 +27,10 @@ Scene load_scene(const std::string& path) {
   const std::string ext = path_extension_lower(path);
   const SourceLoc file{path, 0};
   if (ext == ".json") return load_scene_from_json(read_file_text(path, file), path);
-  if (ext != ".obj" && ext != ".gltf" && ext != ".glb") {
-    throw InputError(
-        file, "unknown scene file type \"" + ext + "\" (expected .json, .obj, .gltf or .glb)");
+  if (ext == ".pbrt") return load_pbrt_scene(path);
+  if (ext != ".obj" && ext != ".gltf" && ext != ".glb" && ext != ".ply") {
+    throw InputError(file, "unknown scene file type \"" + ext +
+                               "\" (expected .json, .pbrt, .obj, .gltf, .glb or .ply)");
   }
   if (!file_exists(path)) read_file_text(path, file);  // throws the precise reason
   Scene scene;
@@ -34,6 +39,8 @@ Scene load_scene(const std::string& path) {
   const uint32_t before = uint32_t(scene.mesh.indices.size());
   if (ext == ".obj")
     append_obj_file(scene, path, mat4(1.0f), kInvalid, file);
+  else if (ext == ".ply")
+    append_ply_file(scene, path, mat4(1.0f), kInvalid, file);
   else
     append_gltf_file(scene, path, mat4(1.0f), kInvalid, file, &scene.camera, &has_camera);
   if (scene.mesh.indices.size() == before) {
