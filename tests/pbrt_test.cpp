@@ -468,7 +468,8 @@ TEST(Pbrt, UnsupportedLightsAndOptionsWarnOncePerKind) {
       count_warnings(
           s, "scene.pbrt:5: LightSource \"distant\" is not supported yet; skipped (and 1 more"),
       1);
-  EXPECT_EQ(count_warnings(s, "scene.pbrt:1: PixelFilter \"gaussian\" is not supported"), 1);
+  EXPECT_EQ(count_warnings(s, "PixelFilter"), 0);  // a supported filter (render.filter)
+  EXPECT_EQ(s.settings.filter, tracer::PixelFilter::kGaussian);
   EXPECT_EQ(count_warnings(s, "Integrator \"bdpt\" is not supported; substituted our path tracer"),
             1);
   EXPECT_EQ(count_warnings(s, "participating media are not supported"), 1);
@@ -593,8 +594,8 @@ TEST(Pbrt, BitterliScenesLoadAndRenderWithTheirExpectedWarnings) {
     bool lit;
   };
   const Case cases[] = {
-      {"cornell-box", {"PixelFilter"}, true},
-      {"veach-mis", {"PixelFilter", "complex-IOR conductors"}, true},
+      {"cornell-box", {}, true},
+      {"veach-mis", {"complex-IOR conductors"}, true},
       {"coffee", {"coateddiffuse is not supported yet", "complex-IOR conductors"}, true},
       {"water-caustic", {"Integrator \"sppm\" is not supported"}, true},
       {"classroom",
@@ -604,8 +605,7 @@ TEST(Pbrt, BitterliScenesLoadAndRenderWithTheirExpectedWarnings) {
        false},
   };
   // Everything a warning of these scenes may say.
-  const std::vector<std::string> allowed = {"PixelFilter",
-                                            "coateddiffuse is not supported yet",
+  const std::vector<std::string> allowed = {"coateddiffuse is not supported yet",
                                             "complex-IOR conductors",
                                             "Integrator \"sppm\"",
                                             "zero-area triangle",
@@ -686,3 +686,34 @@ TEST(Pbrt, DamagedScenesFailCleanly) {
   }
   EXPECT_GT(loaded, 0);
 }
+
+namespace {
+
+// pbrt's PixelFilter maps onto render.filter with its radius; its default is pbrt-v4's Gaussian.
+TEST(PbrtFilter, PixelFiltersMapOntoTheRenderFilter) {
+  char tmpl[] = "/tmp/pathtracer_pbrtfilter_XXXXXX";
+  const std::string dir = mkdtemp(tmpl);
+  auto load = [&](const std::string& directive) {
+    std::ofstream(dir + "/f.pbrt") << directive
+                                   << "\nWorldBegin\nAttributeBegin\nAreaLightSource \"diffuse\"\n"
+                                      "Shape \"sphere\" \"float radius\" 1\nAttributeEnd\n";
+    return tracer::load_scene(dir + "/f.pbrt");
+  };
+  tracer::Scene s = load("");
+  EXPECT_EQ(s.settings.filter, tracer::PixelFilter::kGaussian);
+  EXPECT_EQ(s.settings.filter_radius, 1.5f);
+  s = load("PixelFilter \"triangle\"");
+  EXPECT_EQ(s.settings.filter, tracer::PixelFilter::kTent);
+  EXPECT_EQ(s.settings.filter_radius, 2.0f);  // pbrt-v4's triangle default
+  s = load("PixelFilter \"box\" \"float xradius\" [ 1 ] \"float yradius\" [ 1 ]");
+  EXPECT_EQ(s.settings.filter, tracer::PixelFilter::kBox);
+  EXPECT_EQ(s.settings.filter_radius, 1.0f);
+  s = load("PixelFilter \"mitchell\"");
+  EXPECT_EQ(s.settings.filter, tracer::PixelFilter::kGaussian);
+  ASSERT_FALSE(s.diagnostics.warnings.empty());
+  EXPECT_NE(s.diagnostics.warnings[0].find("f.pbrt:1: PixelFilter \"mitchell\" is not supported"),
+            std::string::npos) << s.diagnostics.warnings[0];
+  EXPECT_THROW(load("PixelFilter \"box\" \"float xradius\" [ -1 ]"), tracer::InputError);
+}
+
+}  // namespace

@@ -74,7 +74,10 @@ class Loader {
         base_dir_(path_directory(main_path)),
         materials_(scene, warnings_, base_dir_) {
     scene_.source = main_path;
-    // pbrt-v4's defaults: a 1280x720 film, 16 samples, volpath with maxdepth 5.
+    // pbrt-v4's defaults: a 1280x720 film, 16 samples, volpath with maxdepth 5, a Gaussian
+    // filter of radius 1.5 (sigma 0.5).
+    scene_.settings.filter = PixelFilter::kGaussian;
+    scene_.settings.filter_radius = 1.5f;
     scene_.settings.width = 1280;
     scene_.settings.height = 720;
     scene_.settings.spp = 16;
@@ -143,7 +146,7 @@ class Loader {
         {"Film", &Loader::film},
         {"Sampler", &Loader::sampler},
         {"Integrator", &Loader::integrator},
-        {"PixelFilter", &Loader::ignored_option},
+        {"PixelFilter", &Loader::pixel_filter},
         {"Accelerator", &Loader::ignored_option},
         {"ColorSpace", &Loader::color_space},
         {"Option", &Loader::option},
@@ -444,12 +447,45 @@ class Loader {
 
   void ignored_option(const PbrtToken& d) {
     require_options(d);
+    string_arg(d);
+    params(d.text);  // Accelerator: the BVH is ours; nothing to say.
+  }
+
+  // box, triangle and gaussian map onto render.filter (camera/filter.h) with their radius;
+  // mitchell and lanczos become the Gaussian of the same radius, with a warning.
+  void pixel_filter(const PbrtToken& d) {
+    require_options(d);
     const std::string type = string_arg(d);
-    params(d.text);
-    if (d.text == "PixelFilter")
-      warnings_.warn(d.loc(), "pixelfilter", "PixelFilter " + quoted(type) + " is not supported",
-                     "each pixel averages samples jittered over its own area (a box filter)");
-    // Accelerator: the BVH is ours; nothing to say.
+    PbrtParams p = params("PixelFilter " + quoted(type));
+    const float def = type == "box" ? 0.5f : type == "triangle" ? 2.0f
+                      : type == "gaussian" ? 1.5f : 2.0f;
+    const float rx = p.get_float("xradius", def), ry = p.get_float("yradius", def);
+    if (!(rx > 0.0f && ry > 0.0f && rx <= 8.0f && ry <= 8.0f))
+      throw InputError(d.loc(), "PixelFilter " + quoted(type) + " radius " + std::to_string(rx) +
+                                    " x " + std::to_string(ry) + " is outside (0, 8] pixels");
+    if (rx != ry)
+      warnings_.warn(d.loc(), "filter radii", "PixelFilter radii differ in x and y",
+                     "used their mean for both");
+    scene_.settings.filter_radius = 0.5f * (rx + ry);
+    if (type == "box") {
+      scene_.settings.filter = PixelFilter::kBox;
+    } else if (type == "triangle") {
+      scene_.settings.filter = PixelFilter::kTent;
+    } else if (type == "gaussian") {
+      scene_.settings.filter = PixelFilter::kGaussian;
+      const float sigma = p.get_float("sigma", 0.5f);
+      if (std::abs(sigma - scene_.settings.filter_radius / 3.0f) > 1e-3f)
+        warnings_.warn(d.loc(), "gaussian sigma",
+                       "a Gaussian filter's sigma other than its radius / 3 is not supported",
+                       "used sigma = radius / 3");
+    } else {
+      scene_.settings.filter = PixelFilter::kGaussian;
+      p.ignore({"B", "C", "tau"});
+      warnings_.warn(d.loc(), "filter " + type,
+                     "PixelFilter " + quoted(type) + " is not supported",
+                     "substituted a Gaussian of the same radius");
+    }
+    p.report_unused(warnings_);
   }
 
   void color_space(const PbrtToken& d) {
