@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fuzzes the JSON, OBJ and glTF scene loaders with libFuzzer (clang from Debian) under ASan and
+# Fuzzes the JSON, OBJ, glTF/GLB, PLY and pbrt scene loaders with libFuzzer (clang from Debian) under ASan and
 # UBSan for a bounded time each: scripts/fuzz.sh [SECONDS per format, default 60].
 # The seed corpus is tests/fuzz/corpus/<format> plus the packaged OBJ/glTF/GLB test files; new
 # inputs found go to build-fuzz/corpus/.
@@ -21,11 +21,12 @@ clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-reco
   tracer/image/image.cpp tracer/image/image_io.cpp \
   -ltinyobjloader -ltinygltf -lstb -ltinyexr -o "$OUT/fuzz_loaders"
 status=0
-for fmt in json obj gltf glb; do
+for fmt in json obj gltf glb ply pbrt; do
   mkdir -p "$OUT/corpus/$fmt" "$OUT/seeds/$fmt"
   # Seeds: the project's own (tests/fuzz/corpus) and the real files the corpus test renders
-  # (assimp-testmodels, glmark2-data) that fit the input limit, named by content.
-  find /usr/share/assimp/models /usr/share/glmark2/models -type f -iname "*.$fmt" -size -64k \
+  # (assimp-testmodels, glmark2-data) and the shared Bitterli scenes that fit the input limit,
+  # named by content.
+  find /usr/share/assimp/models /usr/share/glmark2/models ../shared/scenes -type f -iname "*.$fmt" -size -64k \
       2>/dev/null | while read -r f; do
     cp "$f" "$OUT/seeds/$fmt/$(md5sum < "$f" | cut -c1-16).$fmt"
   done
