@@ -241,11 +241,11 @@ void frame_mesh_scene(Scene& scene, bool keep_camera) {
 
   // The default light is as strong as a 2r x 2r square of radiance 7 at 3r: it lights the model
   // with an irradiance near 3, so white diffuse surfaces show up near 0.8 before tone mapping.
-  // The file's own emitters replace it unless their power is under a tenth of it (a few tiny
+  // The file's own emitters replace it unless their power is under 2% of it (a few tiny
   // emissive labels must not leave the model in the dark).
   const float side = 2.0f * radius, light_radiance = 7.0f;
   const double default_power = kPi * double(light_radiance) * double(side) * double(side);
-  if (s.power > 0.1 * default_power) return;
+  if (s.power > 0.02 * default_power) return;
   Material light;
   light.albedo = vec3(0.0f);
   light.emission = vec3(light_radiance);
@@ -275,7 +275,7 @@ void frame_mesh_scene(Scene& scene, bool keep_camera) {
   if (s.power > 0.0) {
     scene.diagnostics.note(
         file, "the file's emitters give " + fmt(float(100.0 * s.power / default_power)) +
-                  "% of the power of a light for a model of this size (under 10%); added a default area "
+                  "% of the power of a light for a model of this size (under 2%); added a default area "
                   "light above and left of the camera");
   } else {
     scene.diagnostics.note(file, "no light in the file; added a default area light above and left of the camera");
