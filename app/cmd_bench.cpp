@@ -521,8 +521,7 @@ int run_bench(const BenchOptions& o) {
   out["results"] = arr;
   if (!o.json_out.empty()) {
     try {
-      tracer::write_text_atomic(
-          o.json_out, out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+      tracer::write_text_atomic(o.json_out, tracer::json_text(out));
     } catch (const std::exception& e) {
       std::cerr << "error: " << e.what() << "\n";
       return kExitInputError;

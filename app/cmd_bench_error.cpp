@@ -275,8 +275,7 @@ bool obtain_reference(const std::string& path, int spp, const tracer::Scene& sce
   run.features = tracer::describe_features(cs.features());
   nlohmann::json side = tracer::make_sidecar(as_rendered, run);
   side["reference_settings"] = settings;
-  tracer::write_text_atomic(
-      path + ".json", side.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  tracer::write_text_atomic(path + ".json", tracer::json_text(side));
   std::printf("reference: %s (%d spp on %s in %.1f s; variance in %s)\n", path.c_str(), spp,
               r.device_name().c_str(), seconds, var_path.c_str());
   return true;
@@ -436,8 +435,7 @@ void write_outputs(const std::string& dir, const std::vector<Sweep>& sweeps,
   tracer::write_text_atomic(dir + "/summary.csv", sum);
   tracer::write_text_atomic(dir + "/error_vs_time.svg", tracer::loglog_svg(relp));
   tracer::write_text_atomic(dir + "/flip_vs_time.svg", tracer::loglog_svg(flipp));
-  tracer::write_text_atomic(
-      dir + "/bench.json", meta.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  tracer::write_text_atomic(dir + "/bench.json", tracer::json_text(meta));
 }
 
 }  // namespace

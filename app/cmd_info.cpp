@@ -2,7 +2,6 @@
 // out, and which renderer features it needs.
 #include <iomanip>
 #include <iostream>
-#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
@@ -27,12 +26,6 @@ std::string gpu_design_head(const tracer::EffectiveGpuOptions& e) {
   if (build == std::string::npos) return d;
   const size_t end = d.find(';', build + 2);
   return end == std::string::npos ? d : d.substr(0, end);
-}
-
-std::string vec_text(tracer::vec3 v) {
-  std::ostringstream ss;
-  ss << std::setprecision(4) << "[" << v.x << ", " << v.y << ", " << v.z << "]";
-  return ss.str();
 }
 
 // True when the loader chose the camera (a mesh file without one); its note says why.
@@ -115,8 +108,7 @@ int run_info(const InfoOptions& o) {
       scene.gpu, tracer::gpu_scene_traits(cs, tracer::make_integrator_settings(scene.settings)));
   j["gpu_design"] = tracer::effective_gpu_json(gpu);
   if (o.json) {
-    // Names from files are not always UTF-8: invalid bytes become U+FFFD rather than an error.
-    std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    std::cout << tracer::json_text(j);
     return 0;
   }
   std::cout << "scene       " << scene.source << "\n"
@@ -126,8 +118,8 @@ int run_info(const InfoOptions& o) {
             << "materials   " << scene.materials.size() << " (" << by_type_text << "; "
             << emissive << " emissive)\n"
             << "lights      " << v.light_count << " emissive primitives\n"
-            << "camera      " << vec_text(cam.position) << " looking at "
-            << vec_text(cam.look_at) << ", " << cam.vfov_deg << " degree field of view"
+            << "camera      " << tracer::vec3_str(cam.position, 4) << " looking at "
+            << tracer::vec3_str(cam.look_at, 4) << ", " << cam.vfov_deg << " degree field of view"
             << (framed(scene) ? " (framed; the note above says why)" : "")
             << "\n"
             << "bvh         " << st.node_count << " " << tracer::kBvhWidth << "-wide nodes ("

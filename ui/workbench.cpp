@@ -524,8 +524,7 @@ std::string Workbench::save_scene(const std::string& path) {
         if (idx != tracer::kInvalid) it.value() = tracer::material_to_json(scene_.materials[idx].material);
       }
     }
-    tracer::write_text_atomic(
-        path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+    tracer::write_text_atomic(path, tracer::json_text(j));
   } catch (const std::exception& e) {
     return e.what();
   }

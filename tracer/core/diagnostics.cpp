@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <sstream>
 
 namespace tracer {
 
@@ -44,6 +45,13 @@ std::string did_you_mean(const std::string& word, const std::vector<std::string>
     }
   }
   return best;
+}
+
+std::string vec3_str(vec3 v, int digits) {
+  std::ostringstream ss;
+  ss.precision(digits);
+  ss << "[" << v.x << ", " << v.y << ", " << v.z << "]";
+  return ss.str();
 }
 
 }  // namespace tracer

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "core/math.h"
+
 namespace tracer {
 
 struct SourceLoc {
@@ -35,6 +37,9 @@ struct Diagnostics {
     notes.push_back(loc.str() + ": " + text);
   }
 };
+
+// "[1, 2, 3]" for messages, with `digits` significant digits.
+std::string vec3_str(vec3 v, int digits = 6);
 
 // The closest candidate by edit distance, or "" when none is close enough to be a likely typo.
 std::string did_you_mean(const std::string& word, const std::vector<std::string>& candidates);

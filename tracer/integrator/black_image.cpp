@@ -4,7 +4,6 @@
 
 #include <cmath>
 #include <map>
-#include <sstream>
 
 #include "bvh/traverse.h"
 
@@ -17,13 +16,6 @@ vec3 sphere_point(int i, int n) {
   const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
   const float phi = float(i) * 2.39996323f;  // the golden angle
   return vec3(r * std::cos(phi), r * std::sin(phi), z);
-}
-
-std::string text(vec3 v) {
-  std::ostringstream ss;
-  ss.precision(4);
-  ss << "[" << v.x << ", " << v.y << ", " << v.z << "]";
-  return ss.str();
 }
 
 // The object that owns triangle t (objects list their triangles in order), or "".
@@ -71,7 +63,7 @@ std::string explain_black_image(const Scene& scene, const CompiledScene& cs) {
     int most = 0;
     for (const auto& [n, count] : owners)
       if (count > most) name = n, most = count;
-    return "the camera at " + text(eye) + " is inside a closed object" +
+    return "the camera at " + vec3_str(eye, 4) + " is inside a closed object" +
            (name.empty() ? "" : " (\"" + name + "\")") +
            ": every ray from it meets the inside of a surface; move the camera out (camera.position)";
   }

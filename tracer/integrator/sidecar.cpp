@@ -75,10 +75,7 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
 }
 
 void write_sidecar(const Scene& scene, const SidecarRun& run) {
-  // Names from mesh files are not always UTF-8 (regr01.obj's are Latin-1): invalid bytes are
-  // written as U+FFFD rather than failing after the render.
-  const auto replace = nlohmann::json::error_handler_t::replace;
-  write_text_atomic(run.output + ".json", make_sidecar(scene, run).dump(2, ' ', false, replace) + "\n");
+  write_text_atomic(run.output + ".json", json_text(make_sidecar(scene, run)));
 }
 
 }  // namespace tracer

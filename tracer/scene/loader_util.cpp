@@ -2,6 +2,7 @@
 // the default camera and light for meshes opened directly.
 #include "scene/loader_util.h"
 
+#include <stb_image.h>
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -101,6 +102,21 @@ std::string read_file_text(const std::string& path, const SourceLoc& from) {
   return ss.str();
 }
 
+bool decode_texture_file(const std::string& path, TextureImage* t, const std::string& context) {
+  int w = 0, h = 0, comp = 0;
+  if (!stbi_info(path.c_str(), &w, &h, &comp)) return false;
+  if (w > 16384 || h > 16384)
+    throw InputError({path, 0}, "texture is " + std::to_string(w) + "x" + std::to_string(h) +
+                                    ", larger than 16384x16384" + context);
+  unsigned char* data = stbi_load(path.c_str(), &w, &h, &comp, 4);
+  if (!data) return false;
+  t->width = w;
+  t->height = h;
+  t->rgba8.assign(data, data + size_t(w) * size_t(h) * 4);
+  stbi_image_free(data);
+  return true;
+}
+
 std::string path_extension_lower(const std::string& path) {
   const size_t slash = path.find_last_of('/');
   const size_t dot = path.find_last_of('.');
@@ -118,12 +134,6 @@ std::string path_directory(const std::string& path) {
 std::string path_join(const std::string& dir, const std::string& rel) {
   if (rel.empty() || rel[0] == '/' || dir.empty()) return rel;
   return dir.back() == '/' ? dir + rel : dir + "/" + rel;
-}
-
-std::string vec3_str(vec3 v) {
-  std::ostringstream ss;
-  ss << "[" << v.x << ", " << v.y << ", " << v.z << "]";
-  return ss.str();
 }
 
 namespace {
@@ -223,7 +233,11 @@ void frame_mesh_scene(Scene& scene, bool keep_camera) {
   if (keep_camera) {
     view = glm::normalize(scene.camera.position - centre);
     if (!is_finite(view)) view = three_quarter;
-  } else {
+  }
+  // World up, unless the view looks (nearly) straight down or up.
+  const vec3 up = std::abs(view.y) > 0.98f ? vec3(0.0f, 0.0f, view.y > 0.0f ? -1.0f : 1.0f)
+                                           : vec3(0.0f, 1.0f, 0.0f);
+  if (!keep_camera) {
     // Fit the bounding sphere into the narrower of the two fields of view, with a margin.
     scene.camera = CameraDesc();
     scene.camera.vfov_deg = 40.0f;
@@ -233,10 +247,12 @@ void frame_mesh_scene(Scene& scene, bool keep_camera) {
     const float dist = 1.1f * radius / std::sin(half);
     scene.camera.look_at = centre;
     scene.camera.position = centre + dist * view;
-    if (std::abs(view.y) > 0.98f) scene.camera.up = vec3(0.0f, 0.0f, view.y > 0.0f ? -1.0f : 1.0f);
+    scene.camera.up = up;
     scene.diagnostics.note(file, why + "; camera at " + vec3_str(scene.camera.position) +
-                                     " looking at " + vec3_str(centre) + " (the bounding sphere, radius " + fmt(radius) +
-                                     ", fills the " + fmt(scene.camera.vfov_deg) + " degree field of view)");
+                                     " looking at " + vec3_str(centre) +
+                                     " (the bounding sphere, radius " + fmt(radius) +
+                                     ", fills the " + fmt(scene.camera.vfov_deg) +
+                                     " degree field of view)");
   }
 
   // The default light is as strong as a 2r x 2r square of radiance 7 at 3r: it lights the model
@@ -252,8 +268,6 @@ void frame_mesh_scene(Scene& scene, bool keep_camera) {
   const uint32_t mat = scene.add_material("default light", light);
   // Above and to the left of the camera as the camera sees it, facing the model's centre; outside
   // the field of view.
-  const vec3 up = std::abs(view.y) > 0.98f ? vec3(0.0f, 0.0f, view.y > 0.0f ? -1.0f : 1.0f)
-                                           : vec3(0.0f, 1.0f, 0.0f);
   const vec3 right = glm::normalize(glm::cross(-view, up));
   const vec3 cam_up = glm::cross(right, -view);
   const vec3 dir = glm::normalize(view + 0.8f * cam_up - 0.5f * right);

@@ -35,12 +35,15 @@ std::string path_extension_lower(const std::string& path);  // ".obj"; "" when t
 std::string path_directory(const std::string& path);        // "" for a bare file name
 std::string path_join(const std::string& dir, const std::string& rel);
 
+// Decodes an image file (PNG, JPEG, ... through stb_image) into t's size and RGBA8 texels.
+// Returns false when stb_image cannot decode it; one larger than 16384 texels a side throws
+// InputError at the image, with `context` appended (where it was used).
+bool decode_texture_file(const std::string& path, TextureImage* t, const std::string& context);
+
 // For a mesh file opened as a scene: a camera framing the bounds unless `keep_camera`, and a
 // default area light (with a warning) when no material emits.
 void frame_mesh_scene(Scene& scene, bool keep_camera);
 
-// "[1, 2, 3]" for messages.
-std::string vec3_str(vec3 v);
 
 // The format readers behind append_mesh_file. The glTF reader also returns the file's first
 // camera, placed by its node transform and `xform`, when `camera` is non-null.

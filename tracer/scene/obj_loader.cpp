@@ -1,6 +1,5 @@
 // Wavefront OBJ + MTL meshes through tinyobjloader, with our own pre-scan so that bad vertices and
 // face indices are reported with their line (tinyobjloader would read garbage or crash on them).
-#include <stb_image.h>
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
@@ -379,24 +378,11 @@ uint32_t load_map_kd(Scene& scene, const std::string& obj_path, const tinyobj::m
     scene.diagnostics.warn(loc, what + " not found" + suffix, "rendered it untextured");
     return kInvalid;
   }
-  int w = 0, h = 0, comp = 0;
-  if (!stbi_info(file.c_str(), &w, &h, &comp)) {
-    scene.diagnostics.warn(loc, what + " cannot be decoded" + suffix, "rendered it untextured");
-    return kInvalid;
-  }
-  if (w > 16384 || h > 16384)
-    throw InputError({file, 0}, "texture is " + std::to_string(w) + "x" + std::to_string(h) +
-                                    ", larger than 16384x16384" + suffix);
-  unsigned char* data = stbi_load(file.c_str(), &w, &h, &comp, 4);
-  if (!data) {
-    scene.diagnostics.warn(loc, what + " cannot be decoded" + suffix, "rendered it untextured");
-    return kInvalid;
-  }
   TextureImage t;
-  t.width = w;
-  t.height = h;
-  t.rgba8.assign(data, data + size_t(w) * size_t(h) * 4);
-  stbi_image_free(data);
+  if (!decode_texture_file(file, &t, suffix)) {
+    scene.diagnostics.warn(loc, what + " cannot be decoded" + suffix, "rendered it untextured");
+    return kInvalid;
+  }
   t.srgb = true;
   t.source = file;
   scene.textures.push_back(std::move(t));

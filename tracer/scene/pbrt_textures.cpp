@@ -1,6 +1,5 @@
 // pbrt-v4 textures: image maps decoded into the scene's texture list as the OBJ and glTF maps
 // are, checkerboards baked into small images, constants and scales kept as colour factors.
-#include <stb_image.h>
 
 #include <cmath>
 
@@ -164,25 +163,11 @@ uint32_t PbrtMaterials::load_image(const std::string& file, bool srgb, TextureWr
     }
     srgb = true;
   } else {
-    int w = 0, h = 0, comp = 0;
-    if (!stbi_info(path.c_str(), &w, &h, &comp)) {
+    if (!decode_texture_file(path, &t, " (used at " + loc.str() + ")")) {
       warnings_.warn(loc, "undecodable texture " + path, what + " cannot be decoded",
                      "rendered the surfaces that use it untextured");
       return id;
     }
-    if (w > 16384 || h > 16384)
-      throw InputError({path, 0}, "texture is " + std::to_string(w) + "x" + std::to_string(h) +
-                                      ", larger than 16384x16384 (used at " + loc.str() + ")");
-    unsigned char* data = stbi_load(path.c_str(), &w, &h, &comp, 4);
-    if (!data) {
-      warnings_.warn(loc, "undecodable texture " + path, what + " cannot be decoded",
-                     "rendered the surfaces that use it untextured");
-      return id;
-    }
-    t.width = w;
-    t.height = h;
-    t.rgba8.assign(data, data + size_t(w) * size_t(h) * 4);
-    stbi_image_free(data);
   }
   t.srgb = srgb;
   t.wrap_s = t.wrap_t = wrap;

@@ -477,6 +477,10 @@ std::string setting_values_text(const Setting& s) {
   return (s.type == T::kVec3 ? "x,y,z each " : "") + range_text(s);
 }
 
+std::string json_text(const json& j) {
+  return j.dump(2, ' ', false, json::error_handler_t::replace) + "\n";
+}
+
 json settings_to_json(const Scene& scene) {
   json j = json::object();
   for (const Setting& s : settings_table()) j[s.section()][s.name()] = s.get(scene);

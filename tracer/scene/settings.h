@@ -117,6 +117,10 @@ std::string setting_default_text(const Setting& s);
 std::string setting_values_text(const Setting& s);
 // {"camera": {...}, "render": {...}, "gpu": {...}, "display": {...}}: every setting, in the
 // scene format (the sidecar and Save scene write this; the scene reader reads it back).
+// Indented JSON text ending in a newline, as every file and --json output is written. Bytes that
+// are not UTF-8 (names from mesh files: regr01.obj's are Latin-1) become U+FFFD instead of
+// failing the write.
+std::string json_text(const nlohmann::json& j);
 nlohmann::json settings_to_json(const Scene& scene);
 // The check that needs several camera settings together: "" or the problem.
 std::string check_camera(const Scene& scene);
