@@ -69,6 +69,9 @@ double base_albedo(const Material& m, vec3 wo, int c, int n = 400) {
 double coat_albedo(const Material& m, vec3 wo, int ns = 512, int nphi = 256) {
   if (m.roughness <= 0.0f) return fresnel_ref(wo.z, m.ior);  // the delta lobe's weight
   const double alpha = ggx_alpha(m.roughness);
+  Material rough = m, smooth = m;  // white, so that channel 0 is the coat lobe's (grey) albedo
+  rough.albedo = smooth.albedo = vec3(1.0f);
+  smooth.roughness = 0.0f;
   double sum = 0.0;
   const double ds = 0.5 * M_PI / ns, dphi = 2.0 * M_PI / nphi;
   for (int i = 0; i < ns; ++i) {
@@ -83,9 +86,10 @@ double coat_albedo(const Material& m, vec3 wo, int ns = 512, int nphi = 256) {
       if (wo_h <= 0.0) continue;
       const glm::dvec3 wi = 2.0 * wo_h * h - glm::dvec3(wo);
       if (wi.z <= 0.0) continue;
-      float pdf;
-      sum +=
-          double(rough_coat_eval(m, wo, vec3(wi), &pdf)) * wi.z * 4.0 * wo_h * st * jac * ds * dphi;
+      // The coat lobe alone: f less the base term (which does not depend on the roughness).
+      const double coat =
+          double(bsdf_eval(rough, wo, vec3(wi)).x) - double(bsdf_eval(smooth, wo, vec3(wi)).x);
+      sum += coat * wi.z * 4.0 * wo_h * st * jac * ds * dphi;
     }
   }
   return sum;
@@ -148,7 +152,7 @@ TEST(CoatedDiffuseTest, SmoothCoatIsChosenWithItsProbability) {
   for (const Material& m : {plastic(vec3(0.7f, 0.2f, 0.1f)), plastic(vec3(0.02f), 0.0f, 1.3f)})
     for (float theta : {0.0f, 80.0f}) {
       const vec3 wo = direction(theta);
-      const double p = coated_coat_probability(m, wo);
+      const double p = coat_at_wo(m, wo).p;
       const double f = fresnel_ref(wo.z, m.ior);
       Uniform rng(seed++);
       double coat = 0.0;

@@ -277,63 +277,60 @@ TRACER_HD TRACER_INLINE vec3 coat_transmittance(const Material& mat, float cos_w
   return glm::exp(-mat.absorption * (mat.thickness / glm::max(cos_t, 1e-4f)));
 }
 
-TRACER_HD TRACER_INLINE float coat_fresnel_inside(const Material& mat) {
-  return fresnel_average_inside(mat.ior, (mat.flags & kMaterialSchlickFresnel) != 0);
+// What a coated diffuse's eval, pdf and sample share at one wo: the inside average F_in, the
+// coat's Fresnel F(wo.z) and transmittance T(wo), and the probability P of the coat lobe.
+struct CoatAtWo {
+  float f_in, f_o, p;
+  vec3 t_o;
+};
+
+TRACER_HD TRACER_INLINE CoatAtWo coat_at_wo(const Material& mat, vec3 wo) {
+  CoatAtWo c;
+  c.f_in = fresnel_average_inside(mat.ior, (mat.flags & kMaterialSchlickFresnel) != 0);
+  c.f_o = material_fresnel(mat, wo.z, mat.ior);
+  c.t_o = coat_transmittance(mat, wo.z);
+  const vec3 base =
+      mat.albedo * (1.0f - c.f_in) / (vec3(1.0f) - mat.albedo * c.f_in) * c.t_o * c.t_o;
+  const float b = (1.0f - c.f_o) * (base.x + base.y + base.z) * (1.0f / 3.0f);
+  c.p = c.f_o + b > 0.0f ? c.f_o / (c.f_o + b) : 1.0f;
+  return c;
 }
 
-// The base's f(wo, wi), both above the surface.
-TRACER_HD TRACER_INLINE vec3 coated_base_eval(const Material& mat, vec3 wo, vec3 wi) {
-  const float fo = material_fresnel(mat, wo.z, mat.ior), fi = material_fresnel(mat, wi.z, mat.ior);
-  const vec3 rho = mat.albedo;
-  const vec3 bounces = rho / (vec3(1.0f) - rho * coat_fresnel_inside(mat));
-  return bounces * ((1.0f - fo) * (1.0f - fi) * kInvPi / (mat.ior * mat.ior)) *
-         coat_transmittance(mat, wo.z) * coat_transmittance(mat, wi.z);
-}
-
-// Probability of sampling the coat lobe at wo.
-TRACER_HD TRACER_INLINE float coated_coat_probability(const Material& mat, vec3 wo) {
-  const float f = material_fresnel(mat, wo.z, mat.ior);
-  const float f_in = coat_fresnel_inside(mat);
-  const vec3 t = coat_transmittance(mat, wo.z);
-  const vec3 base = mat.albedo * (1.0f - f_in) / (vec3(1.0f) - mat.albedo * f_in) * t * t;
-  const float b = (1.0f - f) * (base.x + base.y + base.z) * (1.0f / 3.0f);
-  return f + b > 0.0f ? f / (f + b) : 1.0f;
-}
-
-// The rough coat's reflection lobe: f and the density of sampling it through wo's visible normals.
-TRACER_HD TRACER_INLINE float rough_coat_eval(const Material& mat, vec3 wo, vec3 wi, float* pdf) {
+// f(wo, wi) of the non-delta lobes (both above the surface) and the density of sampling wi.
+TRACER_HD TRACER_INLINE vec3 coated_diffuse_eval_pdf(const Material& mat, const CoatAtWo& c,
+                                                     vec3 wo, vec3 wi, float* pdf) {
   *pdf = 0.0f;
-  const vec3 h = wo + wi;
-  const float len2 = glm::dot(h, h);
-  if (!(len2 > 0.0f)) return 0.0f;
-  const vec3 m = h / glm::sqrt(len2);
-  const float wo_m = glm::dot(wo, m);
-  if (wo_m <= 0.0f) return 0.0f;
-  const float alpha = ggx_alpha(mat.roughness);
-  *pdf = ggx_vndf_pdf(wo, m, alpha) / (4.0f * wo_m);
-  return material_fresnel(mat, wo_m, mat.ior) * ggx_d(m, alpha) * ggx_g2(wo, wi, alpha) /
-         (4.0f * wo.z * wi.z);
-}
-
-TRACER_HD TRACER_INLINE vec3 coated_diffuse_eval(const Material& mat, vec3 wo, vec3 wi) {
   if (wo.z <= 0.0f || wi.z <= 0.0f) return vec3(0.0f);
-  vec3 f = coated_base_eval(mat, wo, wi);
-  if (mat.roughness > 0.0f) {
-    float pdf;
-    f += vec3(rough_coat_eval(mat, wo, wi, &pdf));
+  const float f_i = material_fresnel(mat, wi.z, mat.ior);
+  const vec3 bounces = mat.albedo / (vec3(1.0f) - mat.albedo * c.f_in);
+  vec3 f = bounces * ((1.0f - c.f_o) * (1.0f - f_i) * kInvPi / (mat.ior * mat.ior)) * c.t_o *
+           coat_transmittance(mat, wi.z);
+  *pdf = (1.0f - c.p) * cosine_hemisphere_pdf(wi.z);
+  if (mat.roughness > 0.0f) {  // the rough coat's reflection, sampled through wo's visible normals
+    const vec3 h = wo + wi;
+    const float len2 = glm::dot(h, h);
+    if (!(len2 > 0.0f)) return f;
+    const vec3 m = h / glm::sqrt(len2);
+    const float wo_m = glm::dot(wo, m);
+    if (wo_m <= 0.0f) return f;
+    const float alpha = ggx_alpha(mat.roughness);
+    *pdf += c.p * ggx_vndf_pdf(wo, m, alpha) / (4.0f * wo_m);
+    f += vec3(material_fresnel(mat, wo_m, mat.ior) * ggx_d(m, alpha) * ggx_g2(wo, wi, alpha) /
+              (4.0f * wo.z * wi.z));
   }
   return f;
 }
 
+TRACER_HD TRACER_INLINE vec3 coated_diffuse_eval(const Material& mat, vec3 wo, vec3 wi) {
+  if (wo.z <= 0.0f || wi.z <= 0.0f) return vec3(0.0f);
+  float pdf;
+  return coated_diffuse_eval_pdf(mat, coat_at_wo(mat, wo), wo, wi, &pdf);
+}
+
 TRACER_HD TRACER_INLINE float coated_diffuse_pdf(const Material& mat, vec3 wo, vec3 wi) {
   if (wo.z <= 0.0f || wi.z <= 0.0f) return 0.0f;
-  const float p = coated_coat_probability(mat, wo);
-  float pdf = (1.0f - p) * cosine_hemisphere_pdf(wi.z);
-  if (mat.roughness > 0.0f) {
-    float coat_pdf;
-    rough_coat_eval(mat, wo, wi, &coat_pdf);
-    pdf += p * coat_pdf;
-  }
+  float pdf;
+  coated_diffuse_eval_pdf(mat, coat_at_wo(mat, wo), wo, wi, &pdf);
   return pdf;
 }
 
@@ -341,12 +338,12 @@ TRACER_HD TRACER_INLINE BsdfSample coated_diffuse_sample(const Material& mat, ve
                                                          float uc) {
   BsdfSample s;
   if (wo.z <= 0.0f) return s;
-  const float p = coated_coat_probability(mat, wo);
-  const bool coat = uc < p;
+  const CoatAtWo c = coat_at_wo(mat, wo);
+  const bool coat = uc < c.p;
   if (coat && mat.roughness <= 0.0f) {  // the smooth coat's mirror reflection, weight F / P
     s.wi = vec3(-wo.x, -wo.y, wo.z);
-    s.pdf = p;
-    s.weight = vec3(material_fresnel(mat, wo.z, mat.ior) / p);
+    s.pdf = c.p;
+    s.weight = vec3(c.f_o / c.p);
     s.specular = true;
     s.valid = true;
     return s;
@@ -357,9 +354,9 @@ TRACER_HD TRACER_INLINE BsdfSample coated_diffuse_sample(const Material& mat, ve
     s.wi = sample_cosine_hemisphere(u);
   }
   if (s.wi.z <= 0.0f) return s;
-  s.pdf = coated_diffuse_pdf(mat, wo, s.wi);
+  const vec3 f = coated_diffuse_eval_pdf(mat, c, wo, s.wi, &s.pdf);
   if (!(s.pdf > 0.0f)) return s;
-  s.weight = coated_diffuse_eval(mat, wo, s.wi) * (s.wi.z / s.pdf);
+  s.weight = f * (s.wi.z / s.pdf);
   s.valid = is_finite(s.weight);
   return s;
 }
