@@ -1,11 +1,14 @@
 // Tests for tracer/materials (bsdf.h, fresnel.h): every BSDF gets Mitsuba's tests (eval and pdf
 // agree with sample, chi-square of the sampled directions), plus the Fresnel equations against
-// their textbook form, Snell's law, reciprocity and R + T = 1 for the smooth dielectric.
+// their textbook form (dielectric and conductor) and their hemispherical averages, Snell's law,
+// reciprocity, R + T = 1 for the smooth dielectric and the thin diffuse transmitter. (The rough
+// conductor is in microfacet_test.cpp, the coated diffuse in coated_diffuse_test.cpp.)
 #include "materials/bsdf.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <complex>
 #include <random>
 #include <vector>
 
@@ -18,10 +21,10 @@
 namespace tracer {
 namespace {
 
-// Sidak correction over all chi-square tests in this executable: 3 diffuse direction tests and
-// 9 tests of the dielectric's lobe choice.
+// Sidak correction over all chi-square tests in this executable: 3 diffuse direction tests,
+// 9 tests of the dielectric's lobe choice and 6 of the diffuse transmitter's directions.
 constexpr double kSignificance = 0.01;
-constexpr int kChiSquareTests = 12;
+constexpr int kChiSquareTests = 18;
 constexpr size_t kSamples = 1000000;
 
 using chi2::Uniform;
@@ -48,6 +51,20 @@ double fresnel_reference(double cos_i, double eta) {
   const double rs = std::sin(ti - tt) / std::sin(ti + tt);
   const double rp = std::tan(ti - tt) / std::tan(ti + tt);
   return 0.5 * (rs * rs + rp * rp);
+}
+
+// The conductor's Fresnel reflectance from the complex amplitudes, in double and independent of
+// the code under test: cos_t = sqrt(1 - sin^2 / eta_c^2), r_s = (cos - eta_c cos_t) /
+// (cos + eta_c cos_t), r_p = (eta_c cos - cos_t) / (eta_c cos + cos_t), R = (|r_s|^2 + |r_p|^2) / 2
+// (Born & Wolf sec. 14.2, the form pbrt-v4's FrComplex evaluates).
+double conductor_reference(double cos_i, double eta, double k) {
+  using C = std::complex<double>;
+  const C n(eta, k);
+  const double sin2 = 1.0 - cos_i * cos_i;
+  const C cos_t = std::sqrt(C(1.0) - sin2 / (n * n));
+  const C rs = (cos_i - n * cos_t) / (cos_i + n * cos_t);
+  const C rp = (n * cos_i - cos_t) / (n * cos_i + cos_t);
+  return 0.5 * (std::norm(rs) + std::norm(rp));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -299,6 +316,65 @@ TEST(FresnelTest, HemisphericalAverage) {
   EXPECT_NEAR(schlick, 0.04 + 0.96 / 21.0, 1e-5);
 }
 
+TEST(FresnelTest, ConductorMatchesTheComplexAmplitudes) {
+  // Measured metals (RGB channels of gold, silver, aluminium, titanium), a dielectric (k = 0)
+  // from either side, and extreme values.
+  const double cases[][2] = {{0.1757, 4.8935}, {0.3985, 2.3672}, {1.5856, 1.7183}, {0.1346, 4.4298},
+                             {1.4812, 7.8517}, {2.7835, 3.8899}, {1.5, 0.0},       {1.0 / 1.5, 0.0},
+                             {0.05, 12.0},     {4.0, 0.01},      {1.0, 1.0}};
+  for (const auto& c : cases) {
+    double worst = 0.0;
+    for (int i = 0; i <= 1000; ++i) {
+      const double cos_i = i / 1000.0;
+      const float f = fresnel_conductor(float(cos_i), float(c[0]), float(c[1]));
+      ASSERT_GE(f, 0.0f);
+      ASSERT_LE(f, 1.0f);
+      worst = std::max(worst, std::abs(f - conductor_reference(cos_i, c[0], c[1])));
+    }
+    EXPECT_LT(worst, 2e-5) << "eta " << c[0] << " k " << c[1];
+    EXPECT_NEAR(fresnel_conductor(0.0f, float(c[0]), float(c[1])), 1.0f, 1e-6f);  // grazing
+    // Normal incidence: ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2).
+    const double f0 =
+        ((c[0] - 1) * (c[0] - 1) + c[1] * c[1]) / ((c[0] + 1) * (c[0] + 1) + c[1] * c[1]);
+    EXPECT_NEAR(fresnel_conductor(1.0f, float(c[0]), float(c[1])), f0, 1e-6);
+  }
+  // k = 0 is the dielectric, total internal reflection included.
+  for (float eta : {1.5f, 1.0f / 1.5f, 2.4f})
+    for (int i = 0; i <= 100; ++i)
+      EXPECT_NEAR(fresnel_conductor(i / 100.0f, eta, 0.0f), fresnel_dielectric(i / 100.0f, eta),
+                  2e-6f);
+}
+
+TEST(FresnelTest, HemisphericalAveragesMatchQuadrature) {
+  // fresnel_average's closed form against int F(mu) 2 mu dmu by the midpoint rule in double, and
+  // the inside average against the same quadrature of the reflectance from inside (eta -> 1/eta),
+  // which checks the energy-balance relation 1 - F_in = (1 - F_out) / eta^2.
+  auto quad = [](auto f) {
+    const int n = 200000;
+    double sum = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const double mu = (i + 0.5) / n;
+      sum += f(mu) * 2.0 * mu / n;
+    }
+    return sum;
+  };
+  for (float eta : {1.001f, 1.01f, 1.05f, 1.099f, 1.1f, 1.33f, 1.5f, 2.0f, 2.4f, 4.0f}) {
+    const double out = quad([&](double mu) { return fresnel_reference(mu, eta); });
+    const double in = quad([&](double mu) { return fresnel_reference(mu, 1.0 / eta); });
+    EXPECT_NEAR(fresnel_average(eta, false), out, 2e-6 + 2e-5 * out) << eta;
+    EXPECT_NEAR(fresnel_average_inside(eta, false), in, 2e-5) << eta;
+    const double out_s = quad([&](double mu) { return double(fresnel_schlick(float(mu), eta)); });
+    const double in_s =
+        quad([&](double mu) { return double(fresnel_schlick(float(mu), 1.0f / eta)); });
+    EXPECT_NEAR(fresnel_average(eta, true), out_s, 1e-5) << eta;
+    EXPECT_NEAR(fresnel_average_inside(eta, true), in_s, 1e-4) << eta;
+  }
+  EXPECT_NEAR(fresnel_average(1.5f, false), 0.0918, 1e-4);  // the table value, as above
+  EXPECT_NEAR(fresnel_average_inside(1.5f, false), 0.5963, 1e-4);
+  EXPECT_EQ(fresnel_average(1.0f, false), 0.0f);
+  EXPECT_EQ(fresnel_average_inside(1.0f, true), 0.0f);
+}
+
 TEST(FresnelTest, RefractionObeysSnellsLaw) {
   Uniform rng(7);
   for (float eta : {1.5f, 1.0f / 1.5f, 1.33f, 2.4f, 1.0f / 2.4f}) {
@@ -428,6 +504,98 @@ TEST(DielectricBsdfTest, SchlickFlagChoosesLobesBySchlick) {
     EXPECT_TRUE(r.passed) << "reflected " << reflected / kSamples << " vs Schlick " << schlick
                           << " (exact " << exact << "): " << r.message;
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Diffuse transmission.
+
+Material sheet(vec3 reflectance, vec3 transmittance) {
+  Material m = make(MaterialType::kDiffuseTransmission, reflectance);
+  m.transmittance = transmittance;
+  return m;
+}
+
+TEST(DiffuseTransmissionTest, SampledDirectionsFollowThePdf) {
+  uint32_t seed = 60;
+  for (const Material& m :
+       {sheet(vec3(0.5f, 0.3f, 0.1f), vec3(0.3f, 0.5f, 0.6f)), sheet(vec3(0.05f), vec3(0.9f))}) {
+    for (float theta : {10.0f, 70.0f, 160.0f}) {  // from both sides
+      SCOPED_TRACE(testing::Message() << "theta_o = " << theta);
+      const vec3 wo = direction(theta);
+      Uniform rng(seed++);
+      auto sample = [&](glm::dvec3& w) {
+        const BsdfSample s = bsdf_sample(m, wo, rng.f2(), rng.f());
+        w = glm::dvec3(s.wi);
+        return s.valid;
+      };
+      auto pdf = [&](glm::dvec3 w) { return double(bsdf_pdf(m, wo, vec3(w))); };
+      const chi2::Result r = chi2::sphere_chi_square(sample, pdf, kSamples, chi2::SphereBins(),
+                                                     kSignificance, kChiSquareTests);
+      EXPECT_TRUE(r.passed) << r.message;
+      EXPECT_NEAR(r.pdf_integral, 1.0, 1e-3);
+    }
+  }
+}
+
+TEST(DiffuseTransmissionTest, EvalPdfAndSampleAgreeAndAreReciprocal) {
+  const Material m = sheet(vec3(0.5f, 0.3f, 0.1f), vec3(0.3f, 0.5f, 0.6f));
+  EXPECT_FALSE(bsdf_is_delta(m, m.type));
+  EXPECT_TRUE(bsdf_transmits(m.type));
+  EXPECT_TRUE(bsdf_chooses_lobe(m.type));
+  Uniform rng(70);
+  int bad = 0, reflected = 0, transmitted = 0;
+  for (float theta : {0.0f, 30.0f, 89.0f, 91.0f, 150.0f, 180.0f}) {
+    const vec3 wo = direction(theta, 2.0f);
+    for (int i = 0; i < 20000; ++i) {
+      const BsdfSample s = bsdf_sample(m, wo, rng.f2(), rng.f());
+      if (!s.valid) continue;
+      const vec3 f = bsdf_eval(m, wo, s.wi);
+      const float pdf = bsdf_pdf(m, wo, s.wi);
+      const vec3 expected = f * std::abs(s.wi.z) / pdf;
+      const bool same_side = s.wi.z * wo.z > 0.0f;
+      (same_side ? reflected : transmitted)++;
+      bad += s.specular || std::abs(s.pdf - pdf) > 1e-5f * pdf ||
+             glm::length(s.weight - expected) > 1e-5f ||
+             f != (same_side ? m.albedo : m.transmittance) * kInvPi;
+    }
+  }
+  EXPECT_EQ(bad, 0);
+  EXPECT_GT(reflected, 1000);
+  EXPECT_GT(transmitted, 1000);
+  for (int i = 0; i < 1000; ++i) {
+    const vec3 a = sample_uniform_sphere(rng.f2()), b = sample_uniform_sphere(rng.f2());
+    EXPECT_EQ(bsdf_eval(m, a, b), bsdf_eval(m, b, a));
+  }
+}
+
+TEST(DiffuseTransmissionTest, ReflectsAndTransmitsItsColours) {
+  // The mean sample weight on each side is that side's colour: R + T of incident light leaves,
+  // so R + T = 1 loses nothing (the furnace test renders it) and a black sheet absorbs all.
+  const Material m = sheet(vec3(0.6f, 0.2f, 0.1f), vec3(0.4f, 0.5f, 0.9f));
+  Uniform rng(80);
+  for (float theta : {20.0f, 75.0f, 120.0f}) {
+    const vec3 wo = direction(theta);
+    glm::dvec3 r(0.0), t(0.0);
+    const int n = 200000;
+    for (int i = 0; i < n; ++i) {
+      const BsdfSample s = bsdf_sample(m, wo, rng.f2(), rng.f());
+      ASSERT_TRUE(s.valid);
+      (s.wi.z * wo.z > 0.0f ? r : t) += glm::dvec3(s.weight);
+    }
+    for (int c = 0; c < 3; ++c) {
+      // Each weight is the colour over its lobe's probability: a Bernoulli mean, 5 sigma.
+      const double p = double(diffuse_reflect_probability(m));
+      const double se_r = m.albedo[c] / p * std::sqrt(p * (1 - p) / n);
+      const double se_t = m.transmittance[c] / (1 - p) * std::sqrt(p * (1 - p) / n);
+      EXPECT_NEAR(r[c] / n, m.albedo[c], 5 * se_r) << theta << " channel " << c;
+      EXPECT_NEAR(t[c] / n, m.transmittance[c], 5 * se_t) << theta << " channel " << c;
+    }
+  }
+  const Material black = sheet(vec3(0.0f), vec3(0.0f));
+  EXPECT_EQ(diffuse_reflect_probability(black), 1.0f);
+  const BsdfSample s = bsdf_sample(black, direction(30.0f), vec2(0.3f, 0.4f), 0.5f);
+  EXPECT_TRUE(!s.valid || s.weight == vec3(0.0f));
+  EXPECT_FALSE(bsdf_sample(m, vec3(1.0f, 0.0f, 0.0f), vec2(0.3f), 0.5f).valid);  // grazing wo
 }
 
 }  // namespace

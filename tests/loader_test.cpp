@@ -8,6 +8,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "materials/metals.h"
 #include "test_util.h"
 
 namespace fs = std::filesystem;
@@ -591,4 +592,146 @@ TEST(LoaderObjTruncated, TinyobjWarningsCarryFileAndLine) {
   EXPECT_EQ(warnings_with(s, dir + "/m.mtl:4: tinyobjloader: Both `d` and `Tr`").size(), 1u);
   for (const std::string& w : s.diagnostics.warnings)
     EXPECT_EQ(w.find("(line"), std::string::npos) << w;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The materials of issue 21 in the scene format: complex-IOR conductors (named metals or eta
+// and k), anisotropic roughness, the coated diffuse ("plastic") and the diffuse transmitter.
+
+namespace {
+
+Scene load_materials(const std::string& materials, const std::string& name = "inline.json") {
+  return load_scene_from_json(
+      "{\"materials\": {\n" + materials +
+          "\n},\n\"objects\": [{\"type\": \"sphere\", \"radius\": 1, \"material\": \"m\"}]}",
+      test::data_dir() + "/" + name);
+}
+
+std::string materials_error(const std::string& materials) {
+  try {
+    load_materials(materials);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << materials << " loaded without an error";
+  return "";
+}
+
+const Material& material(const Scene& s, const char* name = "m") {
+  return s.materials[s.find_material(name)].material;
+}
+
+}  // namespace
+
+TEST(LoaderMaterials, NamedMetalsAndComplexIndices) {
+  const Scene s = load_materials(
+      R"("m": {"type": "conductor", "metal": "Au", "roughness": 0.2},
+         "ek": {"type": "conductor", "eta": [0.2, 0.9, 1.1], "k": 3.9, "albedo": [1, 0.9, 0.8]},
+         "schlick": {"type": "conductor", "albedo": [0.9, 0.6, 0.3]},
+         "brushed": {"type": "conductor", "metal": "Ti", "roughness": [0.1, 0.5]})");
+  const Material& au = material(s);
+  EXPECT_EQ(au.type, MaterialType::kConductor);
+  EXPECT_TRUE(au.flags & kMaterialConductorIor);
+  EXPECT_EQ(au.eta, find_metal("Au")->eta);
+  EXPECT_EQ(au.k, find_metal("Au")->k);
+  EXPECT_EQ(au.albedo, vec3(1.0f));  // a tint, white unless given
+  EXPECT_EQ(au.roughness, 0.2f);
+  EXPECT_FALSE(au.is_anisotropic());
+  const Material& ek = material(s, "ek");
+  EXPECT_EQ(ek.eta, vec3(0.2f, 0.9f, 1.1f));
+  EXPECT_EQ(ek.k, vec3(3.9f));
+  EXPECT_EQ(ek.albedo, vec3(1.0f, 0.9f, 0.8f));
+  EXPECT_FALSE(material(s, "schlick").flags & kMaterialConductorIor);  // as before: F0 = albedo
+  const Material& ti = material(s, "brushed");
+  EXPECT_TRUE(ti.is_anisotropic());
+  EXPECT_EQ(ti.roughness, 0.1f);
+  EXPECT_EQ(ti.roughness_v, 0.5f);
+  for (const char* name : {"Ag", "Al", "Au", "Cu", "Cr", "Ni", "Ti"})
+    EXPECT_NE(find_metal(name), nullptr) << name;
+}
+
+TEST(LoaderMaterials, MistakesNameTheLineAndGuess) {
+  const std::string dir = test::data_dir() + "/inline.json:";
+  struct Case {
+    std::string materials;
+    std::vector<std::string> words;
+  };
+  const std::vector<Case> cases = {
+      {"\"m\": {\"type\": \"conductor\",\n \"metal\": \"Cuu\"}",
+       {dir + "3:", "unknown metal \"Cuu\"", "did you mean \"Cu\""}},
+      {"\"m\": {\"type\": \"conductor\",\n \"metal\": \"unobtainium\"}",
+       {dir + "3:", "known: Ag, Al, Au, Cr, Cu, Ni, Ti"}},
+      {"\"m\": {\"type\": \"conductor\",\n \"eta\": [1, 1, 1]}", {dir + "3:", "without \"k\""}},
+      {"\"m\": {\"type\": \"conductor\", \"metal\": \"Au\",\n \"k\": 3}", {"not both"}},
+      {"\"m\": {\"type\": \"conductor\",\n \"eta\": [0, 1, 1], \"k\": 1}", {dir + "3:", "> 0"}},
+      {"\"m\": {\"type\": \"dielectric\",\n \"roughness\": [0.1, 0.2]}",
+       {dir + "3:", "anisotropic roughness is for conductors"}},
+      {"\"m\": {\"type\": \"conductor\",\n \"roughness\": [0.1, 1.2]}", {dir + "3:", "[0, 1]"}},
+      {"\"m\": {\"type\": \"plastik\"}", {"did you mean \"plastic\""}},
+      {"\"m\": {\"type\": \"coated_diffuse\",\n \"thickness\": -1}", {dir + "3:", ">= 0"}},
+      {"\"m\": {\"type\": \"diffuse_transmission\",\n \"transmittance\": [0.1, -0.1, 0]}",
+       {dir + "3:", ">= 0"}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.materials);
+    const std::string msg = materials_error(c.materials);
+    for (const std::string& w : c.words) EXPECT_NE(msg.find(w), std::string::npos) << msg;
+  }
+}
+
+TEST(LoaderMaterials, CoatedDiffuseAndDiffuseTransmission) {
+  const Scene s = load_materials(
+      R"("m": {"type": "plastic", "albedo": [0.8, 0.1, 0.1], "ior": 1.6, "roughness": 0.3,
+               "absorption": [0.1, 0.2, 0.3], "thickness": 0.05, "fresnel": "schlick"},
+         "coat": {"type": "coated_diffuse"},
+         "sheet": {"type": "diffuse_transmission", "albedo": [0.2, 0.2, 0.2],
+                   "transmittance": [0.7, 0.5, 0.3]},
+         "bright": {"type": "diffuse_transmission", "albedo": [0.6, 0.6, 0.6],
+                    "transmittance": [0.8, 0.4, 0.2]},
+         "plain": {"type": "diffuse", "thickness": 2, "transmittance": [1, 1, 1]})");
+  const Material& p = material(s);
+  EXPECT_EQ(p.type, MaterialType::kCoatedDiffuse);
+  EXPECT_EQ(p.ior, 1.6f);
+  EXPECT_EQ(p.roughness, 0.3f);
+  EXPECT_EQ(p.absorption, vec3(0.1f, 0.2f, 0.3f));
+  EXPECT_EQ(p.thickness, 0.05f);
+  EXPECT_TRUE(p.flags & kMaterialSchlickFresnel);
+  const Material& c = material(s, "coat");  // defaults: ior 1.5, smooth, clear, albedo 0.8
+  EXPECT_EQ(c.ior, 1.5f);
+  EXPECT_EQ(c.roughness, 0.0f);
+  EXPECT_EQ(c.albedo, vec3(0.8f));
+  EXPECT_EQ(material(s, "sheet").transmittance, vec3(0.7f, 0.5f, 0.3f));
+  // More out than in: both scaled so that no channel exceeds 1, with a warning.
+  const Material& b = material(s, "bright");
+  EXPECT_NEAR(max_component(b.albedo + b.transmittance), 1.0f, 1e-6f);
+  EXPECT_NEAR(b.transmittance.x / b.albedo.x, 0.8f / 0.6f, 1e-5f);
+  EXPECT_TRUE(has_warning(s, "\"albedo\" + \"transmittance\""));
+  EXPECT_TRUE(has_warning(s, "\"thickness\" has no effect on a diffuse material"));
+  EXPECT_TRUE(has_warning(s, "\"transmittance\" has no effect on a diffuse material"));
+}
+
+TEST(LoaderMaterials, MeshOverridesTurnFileMaterialsIntoNewTypes) {
+  // A mesh object's "materials" edits the file's materials (the `base` of parse_material): a
+  // diffuse becomes gold with a white tint (not the file's diffuse colour), a Schlick metal keeps
+  // its roughness when given a metal, and a file's colour stays the plastic's base colour.
+  const Scene s = load_scene_from_json(
+      R"({"materials": {},
+          "objects": [{"type": "mesh", "file": "../meshes/lit_sphere.obj",
+            "materials": {"blue": {"type": "conductor", "metal": "Au", "roughness": [0.2, 0.4]},
+                          "marble": {"type": "plastic", "roughness": 0.1},
+                          "lamp": {"type": "diffuse_transmission"}}}]})",
+      test::source_dir() + "/assets/scenes/inline.json");
+  const Material& blue = material(s, "blue");
+  EXPECT_EQ(blue.type, MaterialType::kConductor);
+  EXPECT_TRUE(blue.flags & kMaterialConductorIor);
+  EXPECT_EQ(blue.albedo, vec3(1.0f));
+  EXPECT_TRUE(blue.is_anisotropic());
+  const Material& marble = material(s, "marble");
+  EXPECT_EQ(marble.type, MaterialType::kCoatedDiffuse);
+  EXPECT_EQ(marble.roughness, 0.1f);
+  EXPECT_EQ(marble.albedo, vec3(0.8f, 0.8f, 0.78f));
+  const Material& lamp = material(s, "lamp");  // keeps its emission; a black sheet by default
+  EXPECT_EQ(lamp.type, MaterialType::kDiffuseTransmission);
+  EXPECT_TRUE(lamp.is_emissive());
+  EXPECT_EQ(lamp.transmittance, vec3(0.5f));
 }

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "integrator/sidecar.h"
+#include "materials/metals.h"
 #include "scene/loader.h"
 #include "test_util.h"
 #include "ui/workbench.h"
@@ -336,3 +337,73 @@ TEST(Settings, DocsTablesAreTheTable) {
 }
 
 }  // namespace
+
+// The material fields of issue 21's materials: --set (and so the workbench) edits them with the
+// same checks as the scene format, and material_to_json (the sidecar, Save scene) writes what
+// the scene format reads back to the same material.
+TEST(Settings, NewMaterialFieldsSetAndRoundTrip) {
+  using tracer::Material;
+  using tracer::MaterialType;
+  tracer::Scene scene = tracer::builtin_default_scene();
+  auto set = [&](const std::string& a) { return tracer::set_material_assignment(scene, a); };
+  auto white = [&]() -> Material& {
+    return scene.materials[scene.find_material("white")].material;
+  };
+  EXPECT_EQ(set("materials.white.metal=Cu"), "");
+  EXPECT_EQ(white().type, MaterialType::kConductor);
+  EXPECT_TRUE(white().flags & tracer::kMaterialConductorIor);
+  EXPECT_EQ(white().albedo, tracer::vec3(1.0f));  // the diffuse colour does not tint the metal
+  EXPECT_EQ(white().eta, tracer::find_metal("Cu")->eta);
+  EXPECT_EQ(set("materials.white.roughness=0.2,0.6"), "");
+  EXPECT_TRUE(white().is_anisotropic());
+  EXPECT_EQ(set("materials.white.k=3,2.5,2"), "");
+  EXPECT_EQ(white().k, tracer::vec3(3.0f, 2.5f, 2.0f));
+  EXPECT_NE(set("materials.white.eta=0,1,1").find("> 0"), std::string::npos);
+  EXPECT_NE(set("materials.white.metal=Gld").find("unknown metal"), std::string::npos);
+  EXPECT_NE(set("materials.white.metal=Auu").find("did you mean \"Au\""), std::string::npos);
+  EXPECT_NE(set("materials.white.roughness=0.2,1.5").find("[0, 1]"), std::string::npos);
+  const json metal = tracer::material_to_json(white());
+  EXPECT_EQ(metal["roughness"], json::array({0.2, 0.6}));
+  EXPECT_TRUE(metal.contains("eta") && metal.contains("k")) << metal.dump();
+
+  EXPECT_EQ(set("materials.red.type=plastic"), "");
+  EXPECT_EQ(set("materials.red.thickness=0.25"), "");
+  EXPECT_EQ(set("materials.red.absorption=0.5,0,0"), "");
+  EXPECT_EQ(set("materials.red.roughness=0.3"), "");
+  EXPECT_NE(set("materials.red.roughness=0.3,0.4").find("only conductors"), std::string::npos);
+  EXPECT_EQ(set("materials.green.type=diffuse_transmission"), "");
+  EXPECT_EQ(set("materials.green.transmittance=0.4,0.5,0.6"), "");
+  EXPECT_NE(set("materials.green.transmittance=2,0,0").find("<= 1"), std::string::npos);
+  EXPECT_NE(set("materials.green.type=glas").find("coated_diffuse"), std::string::npos);
+  EXPECT_NE(set("materials.green.thicknes=1").find("did you mean \"thickness\""),
+            std::string::npos);
+
+  // Written and read back: the same materials.
+  json mats = json::object();
+  for (const char* name : {"white", "red", "green"})
+    mats[name] = tracer::material_to_json(scene.materials[scene.find_material(name)].material);
+  const tracer::Scene back = tracer::load_scene_from_json(
+      "{\"materials\": " + mats.dump() +
+          ", \"objects\": [{\"type\": \"sphere\", \"radius\": 1, \"material\": \"white\"}]}",
+      testing::TempDir() + "/materials.json");
+  for (const char* name : {"white", "red", "green"}) {
+    SCOPED_TRACE(name);
+    const Material& a = scene.materials[scene.find_material(name)].material;
+    const Material& b = back.materials[back.find_material(name)].material;
+    EXPECT_EQ(a.type, b.type);
+    EXPECT_EQ(a.flags, b.flags);
+    EXPECT_EQ(a.albedo, b.albedo);
+    EXPECT_EQ(a.roughness, b.roughness);
+    EXPECT_EQ(a.type == MaterialType::kConductor ? a.roughness_v : -1.0f, b.roughness_v);
+    if (a.flags & tracer::kMaterialConductorIor) {
+      EXPECT_EQ(a.eta, b.eta);
+      EXPECT_EQ(a.k, b.k);
+    }
+    if (a.type == MaterialType::kCoatedDiffuse) {
+      EXPECT_EQ(a.ior, b.ior);
+      EXPECT_EQ(a.absorption, b.absorption);
+      EXPECT_EQ(a.thickness, b.thickness);
+    }
+    if (a.type == MaterialType::kDiffuseTransmission) EXPECT_EQ(a.transmittance, b.transmittance);
+  }
+}

@@ -323,7 +323,8 @@ TEST(UiPanels, FitAt1280x720And1600x900WithEveryPanelOpen) {
     ps.status = "error: " + std::string(200, 'y');
     ps.expand_all = true;
     // Every material type shows other widgets; the selected object's material is the floor's.
-    for (const char* type : {"diffuse", "mirror", "dielectric", "conductor", "subsurface"}) {
+    for (const char* type : {"diffuse", "mirror", "dielectric", "conductor", "subsurface",
+                             "coated_diffuse", "diffuse_transmission"}) {
       ASSERT_TRUE(wb.apply(std::string("materials.white.type=") + type, &err)) << err;
       wb.update();
       imgui.frames(wb, ps);

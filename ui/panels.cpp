@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
+#include "materials/metals.h"
 #include "ui/widgets.h"
 
 namespace ui {
@@ -129,21 +130,80 @@ void material_panel(Workbench& wb, PanelState& ps) {
   tracer::Material& m = mats[size_t(wb.selected_material)].material;
   bool changed = false;
   int type = int(m.type);
-  if (ImGui::Combo("type", &type, "diffuse\0mirror\0dielectric\0conductor\0subsurface\0")) {
+  if (ImGui::Combo("type", &type,
+                   "diffuse\0mirror\0dielectric\0conductor\0subsurface\0coated diffuse\0"
+                   "diffuse transmission\0")) {
     m.type = tracer::MaterialType(type);
     changed = true;
   }
   check_fit(ps, "type");
   const bool sss = m.type == tracer::MaterialType::kSubsurface;
+  const bool metal = m.type == tracer::MaterialType::kConductor;
+  const bool ior_metal = metal && (m.flags & tracer::kMaterialConductorIor);
+  const bool coated = m.type == tracer::MaterialType::kCoatedDiffuse;
+  const bool sheet = m.type == tracer::MaterialType::kDiffuseTransmission;
+  if (metal) {
+    // Schlick (F0 = a colour, glTF's model) or a complex index: a named metal or eta and k.
+    const std::vector<std::string> names = tracer::metal_names();
+    std::string current = ior_metal ? "eta, k" : "Schlick F0";
+    for (const tracer::NamedMetal& nm : tracer::named_metals())
+      if (ior_metal && nm.eta == m.eta && nm.k == m.k) current = nm.name;
+    if (ImGui::BeginCombo("Fresnel", current.c_str())) {
+      if (ImGui::Selectable("Schlick F0", !ior_metal)) {
+        m.flags &= ~tracer::kMaterialConductorIor;
+        changed = true;
+      }
+      for (const tracer::NamedMetal& nm : tracer::named_metals()) {
+        if (ImGui::Selectable(nm.name, current == nm.name)) {
+          if (!ior_metal) m.albedo = vec3(1.0f);  // F0 becomes a tint
+          m.flags |= tracer::kMaterialConductorIor;
+          m.eta = nm.eta;
+          m.k = nm.k;
+          changed = true;
+        }
+      }
+      ImGui::EndCombo();
+    }
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip(
+          "Schlick's approximation with F0 = the colour, or the exact Fresnel\n"
+          "equations of a measured metal's complex index eta + i k");
+    check_fit(ps, "Fresnel");
+  }
   if (!sss) {
-    changed |= ImGui::ColorEdit3(m.type == tracer::MaterialType::kDiffuse     ? "base colour"
-                                 : m.type == tracer::MaterialType::kConductor ? "F0 colour"
-                                                                              : "tint",
+    changed |= ImGui::ColorEdit3(m.type == tracer::MaterialType::kDiffuse ? "base colour"
+                                 : metal && !ior_metal                    ? "F0 colour"
+                                 : coated                                 ? "base colour"
+                                 : sheet                                  ? "reflectance"
+                                                                          : "tint",
                                  &m.albedo.x);
     check_fit(ps, "base colour");
   }
-  if (m.type == tracer::MaterialType::kDielectric || m.type == tracer::MaterialType::kConductor)
+  if (sheet) {
+    changed |= ImGui::ColorEdit3("transmittance", &m.transmittance.x);
+    check_fit(ps, "transmittance");
+  }
+  if (ior_metal) {
+    changed |= drag(ps, "eta", &m.eta.x, 3, 0.01f, 0.01f, 10.0f, "%.3f");
+    changed |= drag(ps, "k", &m.k.x, 3, 0.01f, 0.0f, 20.0f, "%.3f");
+  }
+  if (m.type == tracer::MaterialType::kDielectric || metal || coated)
     changed |= slider(ps, "roughness", &m.roughness, 1, 0.0f, 1.0f, "%.3f");
+  if (metal) {
+    // Anisotropy: a second roughness across the tangent (the world y axis on the surface).
+    bool aniso = m.roughness_v >= 0.0f;
+    if (ImGui::Checkbox("anisotropic", &aniso)) {
+      m.roughness_v = aniso ? m.roughness : -1.0f;
+      changed = true;
+    }
+    check_fit(ps, "anisotropic");
+    if (aniso) changed |= slider(ps, "roughness v", &m.roughness_v, 1, 0.0f, 1.0f, "%.3f");
+  }
+  if (coated) {
+    changed |= slider(ps, "coat IOR", &m.ior, 1, 1.0f, 3.0f, "%.3f");
+    changed |= drag(ps, "coat absorption", &m.absorption.x, 3, 0.001f, 0.0f, 1e3f, "%.4f");
+    changed |= drag(ps, "coat thickness", &m.thickness, 1, 0.001f, 0.0f, 1e3f, "%.4f");
+  }
   if (sss) {
     // Edited as the artist's pair (surface colour, mean free path) and shown as coefficients.
     const vec3 sigma_t = m.scattering + m.absorption;
@@ -194,6 +254,8 @@ void material_panel(Workbench& wb, PanelState& ps) {
   }
   m.albedo = glm::clamp(m.albedo, vec3(0.0f), vec3(1.0f));
   m.absorption = glm::max(m.absorption, vec3(0.0f));
+  // A sheet cannot send on more than it receives: the transmittance gives way to the reflectance.
+  m.transmittance = glm::clamp(m.transmittance, vec3(0.0f), vec3(1.0f) - m.albedo);
   if (changed) wb.changed(Edit::kMaterial);
 }
 

@@ -14,7 +14,7 @@ enum SceneFeature : uint32_t {
   kFeatureTextures = 1u << 3,
   kFeatureEmissiveMeshes = 1u << 4,
   kFeatureSpheres = 1u << 5,
-  kFeatureMirror = 1u << 6,
+  kFeatureMirror = 1u << 6,  // also coated diffuse and diffuse transmission (specular code)
   kFeatureAbsorption = 1u << 7,
   kFeatureShadingNormals = 1u << 8,
   // Not a scene feature: code compiled with it honours SceneView::use_flat (the flat primitive

@@ -146,6 +146,19 @@ struct Frame {
     f.n = n;
     return f;
   }
+  // A frame whose tangent is `axis` projected onto the plane of n (a field of tangents that is
+  // smooth wherever n is, e.g. along the meridians of a sphere about `axis`); from_normal's
+  // frame where n is (nearly) parallel to the axis.
+  TRACER_HD static Frame from_normal_and_axis(vec3 n, vec3 axis) {
+    const vec3 t = axis - glm::dot(axis, n) * n;
+    const float len2 = glm::dot(t, t);
+    if (!(len2 > 1e-8f)) return from_normal(n);
+    Frame f;
+    f.t = t / glm::sqrt(len2);
+    f.b = glm::cross(n, f.t);
+    f.n = n;
+    return f;
+  }
   TRACER_HD vec3 to_local(vec3 v) const { return vec3(glm::dot(v, t), glm::dot(v, b), glm::dot(v, n)); }
   TRACER_HD vec3 to_world(vec3 v) const { return v.x * t + v.y * b + v.z * n; }
 };

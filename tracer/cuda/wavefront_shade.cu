@@ -173,7 +173,8 @@ __global__ void sort_keys_kernel(SceneView s, WavefrontState w, const uint32_t* 
     } else {
       const uint32_t mat = prim < s.tri_count ? s.tri_shading[prim].material
                                               : s.spheres[prim - s.tri_count].material;
-      key = uint32_t(s.materials[mat].type);
+      // Keys 6 and 7 are taken: the types past 5 share key 5.
+      key = min(uint32_t(s.materials[mat].type), 5u);
     }
   }
   w.sort_keys[i] = key;

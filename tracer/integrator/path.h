@@ -273,7 +273,7 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   const vec3 wo_world = -st.ray.d;
   const bool transmits = bsdf_transmits(type);
   // Reflectors are two-sided: their frame faces the viewer. Transmitters keep +z outside.
-  const Frame frame = Frame::from_normal(transmits || sh.front ? sh.ns : -sh.ns);
+  const Frame frame = bsdf_frame(m, type, transmits || sh.front ? sh.ns : -sh.ns);
   const vec3 wo = frame.to_local(wo_world);
   const vec3 ng_viewer = sh.front ? sh.ng : -sh.ng;
 
@@ -303,9 +303,8 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
     }
   }
 
-  // Only dielectric and subsurface boundaries choose a lobe (reflect or refract).
-  const bool two_lobes = type == MaterialType::kDielectric || type == MaterialType::kSubsurface;
-  const BsdfSample bs = bsdf_sample<F>(m, wo, u.bsdf(), two_lobes ? u.lobe() : 0.5f);
+  // Only materials with several lobes draw the number that chooses one.
+  const BsdfSample bs = bsdf_sample<F>(m, wo, u.bsdf(), bsdf_chooses_lobe(type) ? u.lobe() : 0.5f);
   if (!bs.valid) return false;
   const vec3 wi_world = fast_normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wi_world, sh.ng);

@@ -11,16 +11,23 @@ enum class MaterialType : uint32_t {
   kMirror = 1,      // perfect specular reflection tinted by `albedo`
   kDielectric = 2,  // glass: Fresnel reflection and refraction, `ior`, Beer-Lambert `absorption`;
                     // smooth when `roughness` is 0, GGX microfacets otherwise
-  kConductor = 3,   // metal: Schlick Fresnel with F0 = `albedo`, GGX `roughness` (0: smooth)
+  kConductor = 3,   // metal, GGX `roughness` (u) and `roughness_v` (0: smooth); Fresnel: Schlick
+                    // with F0 = `albedo`, or with kMaterialConductorIor the exact equations of the
+                    // complex index `eta` + i `k`, tinted by `albedo`
   kSubsurface = 4,  // smooth dielectric boundary (`ior`) around a homogeneous medium that
                     // scatters (`scattering`) and absorbs (`absorption`) per unit length, with
                     // Henyey-Greenstein anisotropy `g`; light random-walks inside
+  kCoatedDiffuse = 5,  // "plastic": a dielectric coat (`ior`, GGX `roughness`, `absorption` per
+                       // unit length x `thickness`) over a Lambertian base of reflectance `albedo`
+  kDiffuseTransmission = 6,  // thin sheet: Lambertian reflection `albedo` on the side of the
+                             // viewer, Lambertian transmission `transmittance` to the other side
 };
-constexpr int kMaterialTypeCount = 5;
+constexpr int kMaterialTypeCount = 7;
 
 enum MaterialFlags : uint32_t {
   kMaterialSchlickFresnel = 1u << 0,    // Schlick's approximation instead of the exact equations
   kMaterialTwoSidedEmission = 1u << 1,  // emit from both faces, not only the front face
+  kMaterialConductorIor = 1u << 2,      // conductor: exact Fresnel of eta + i k, not Schlick's F0
 };
 
 struct alignas(16) Material {
@@ -29,10 +36,16 @@ struct alignas(16) Material {
   vec3 emission = vec3(0.0f);  // emitted radiance (colour x strength already multiplied)
   float ior = 1.5f;
   vec3 absorption = vec3(0.0f);  // Beer-Lambert coefficient per unit length inside a dielectric
+                                 // (and in a coated diffuse's coat)
   uint32_t flags = 0;
   vec3 scattering = vec3(0.0f);  // subsurface: scattering coefficient per unit length
   float roughness = 0.0f;        // perceptual roughness; the GGX alpha is roughness^2
-  float g = 0.0f;                // subsurface: Henyey-Greenstein mean cosine, (-1, 1)
+  vec3 eta = vec3(1.0f);         // conductor with kMaterialConductorIor: complex index eta + i k
+  float roughness_v = -1.0f;     // conductor: roughness along the bitangent; < 0: = roughness
+  vec3 k = vec3(0.0f);
+  float thickness = 1.0f;           // coated diffuse: the coat's thickness (x absorption)
+  vec3 transmittance = vec3(0.0f);  // diffuse transmission: Lambertian transmittance
+  float g = 0.0f;                   // subsurface: Henyey-Greenstein mean cosine, (-1, 1)
   // Texture indices into the scene's texture list (kInvalid: none), glTF semantics: the base
   // colour texel multiplies `albedo`, the emissive one `emission`; metallic-roughness reads
   // roughness from G and metallic from B, scaled by `roughness` and `metallic`.
@@ -42,7 +55,7 @@ struct alignas(16) Material {
   uint32_t normal_tex = kInvalid;
   float metallic = 0.0f;      // glTF metallicFactor; used only with metal_rough_tex
   float normal_scale = 1.0f;  // glTF normalTexture.scale
-  uint32_t pad = 0;
+  uint32_t pad[2] = {0, 0};
 
   TRACER_HD bool has_textures() const {
     return (base_color_tex & metal_rough_tex & emissive_tex & normal_tex) != kInvalid;
@@ -52,8 +65,16 @@ struct alignas(16) Material {
     return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f;
   }
   TRACER_HD bool is_specular() const { return type != MaterialType::kDiffuse; }
+  // Anisotropic roughness: the lobe depends on the azimuth, so the shading frame's tangent
+  // matters (bsdf_frame in bsdf.h). Only conductors read roughness_v.
+  TRACER_HD bool is_anisotropic() const {
+    return type == MaterialType::kConductor && roughness_v >= 0.0f && roughness_v != roughness;
+  }
 };
-static_assert(sizeof(Material) == 96, "Material is uploaded as plain bytes");
+// 144 bytes since the complex-IOR conductor, the anisotropic roughness, the coat's thickness and
+// the diffuse transmittance (96 before): uploaded once per scene; a shader loads only the fields
+// its material type reads.
+static_assert(sizeof(Material) == 144, "Material is uploaded as plain bytes");
 
 inline const char* material_type_name(MaterialType t) {
   switch (t) {
@@ -62,6 +83,8 @@ inline const char* material_type_name(MaterialType t) {
     case MaterialType::kDielectric: return "dielectric";
     case MaterialType::kConductor: return "conductor";
     case MaterialType::kSubsurface: return "subsurface";
+    case MaterialType::kCoatedDiffuse: return "coated_diffuse";
+    case MaterialType::kDiffuseTransmission: return "diffuse_transmission";
   }
   return "unknown";
 }

@@ -124,7 +124,10 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     if (m.type == MaterialType::kDielectric) features |= kFeatureDielectric;
     if (m.type == MaterialType::kDielectric && max_component(m.absorption) > 0.0f)
       features |= kFeatureAbsorption;
-    if (m.type == MaterialType::kMirror || m.type == MaterialType::kConductor)
+    // Every other non-diffuse reflector (and the thin diffuse transmitter) counts as a mirror:
+    // the bit only has to pull in the kernels' specular code (kFeatureSpecular).
+    if (m.type == MaterialType::kMirror || m.type == MaterialType::kConductor ||
+        m.type == MaterialType::kCoatedDiffuse || m.type == MaterialType::kDiffuseTransmission)
       features |= kFeatureMirror;
     if (m.type == MaterialType::kSubsurface) features |= kFeatureSubsurface;
   }

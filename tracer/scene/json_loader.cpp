@@ -6,6 +6,7 @@
 
 #include "core/math.h"
 #include "scene/json_lines.h"
+#include "materials/metals.h"
 #include "materials/subsurface.h"
 #include "scene/loader.h"
 #include "scene/loader_util.h"
@@ -173,35 +174,47 @@ class JsonSceneReader {
     require_object(m, ptr, where);
     check_keys(m, ptr,
                {"type", "albedo", "emission", "emission_strength", "two_sided", "ior", "fresnel",
-                "absorption", "roughness", "scattering", "mean_free_path", "g"},
+                "absorption", "roughness", "scattering", "mean_free_path", "g", "metal", "eta", "k",
+                "thickness", "transmittance"},
                where);
     Material mat = base ? *base : Material();
-    const std::string type =
+    std::string type =
         get_string(m, ptr, "type", base ? material_type_name(base->type) : "diffuse", where);
-    const std::vector<std::string> types = {"diffuse", "mirror", "dielectric", "conductor",
-                                            "subsurface"};
-    if (type == "diffuse") {
-      mat.type = MaterialType::kDiffuse;
-    } else if (type == "mirror") {
-      mat.type = MaterialType::kMirror;
-    } else if (type == "dielectric") {
-      mat.type = MaterialType::kDielectric;
-    } else if (type == "conductor") {
-      mat.type = MaterialType::kConductor;
-    } else if (type == "subsurface") {
-      mat.type = MaterialType::kSubsurface;
-    } else {
+    if (type == "plastic") type = "coated_diffuse";  // the name Mitsuba and Tungsten use
+    const std::vector<std::string> types = {
+        "diffuse",    "mirror",         "dielectric", "conductor",
+        "subsurface", "coated_diffuse", "plastic",    "diffuse_transmission"};
+    bool known = false;
+    for (int t = 0; t < kMaterialTypeCount; ++t) {
+      if (type != material_type_name(MaterialType(t))) continue;
+      mat.type = MaterialType(t);
+      known = true;
+    }
+    if (!known) {
       const std::string guess = did_you_mean(type, types);
       fail(json_pointer_child(ptr, "type"),
            "unknown material type " + in_quotes(type) + " in " + where +
-               (guess.empty()
-                    ? " (expected diffuse, mirror, dielectric, conductor or subsurface)"
-                    : " (did you mean " + in_quotes(guess) + "?)"));
+               (guess.empty() ? " (expected diffuse, mirror, dielectric, conductor, subsurface, "
+                                "coated_diffuse (plastic) or diffuse_transmission)"
+                              : " (did you mean " + in_quotes(guess) + "?)"));
     }
     const bool dielectric = mat.type == MaterialType::kDielectric;
     const bool subsurface = mat.type == MaterialType::kSubsurface;
-    const bool has_boundary = dielectric || subsurface;  // ior and fresnel apply
-    const vec3 default_albedo = base ? base->albedo : dielectric ? vec3(1.0f) : vec3(0.8f);
+    const bool conductor = mat.type == MaterialType::kConductor;
+    const bool coated = mat.type == MaterialType::kCoatedDiffuse;
+    const bool transmission = mat.type == MaterialType::kDiffuseTransmission;
+    const bool has_boundary = dielectric || subsurface || coated;  // ior and fresnel apply
+    const bool base_ior =
+        base && base->type == MaterialType::kConductor && (base->flags & kMaterialConductorIor);
+    const bool ior_conductor =
+        conductor && (m.contains("metal") || m.contains("eta") || m.contains("k") || base_ior);
+    // An IOR conductor's albedo tints its Fresnel reflectance: white unless given, also over a
+    // base whose albedo meant something else (a diffuse colour, a Schlick F0).
+    const vec3 default_albedo = ior_conductor && !base_ior ? vec3(1.0f)
+                                : base                     ? base->albedo
+                                : dielectric               ? vec3(1.0f)
+                                : transmission             ? vec3(0.5f)
+                                                           : vec3(0.8f);
     mat.albedo = get_vec3(m, ptr, "albedo", default_albedo, where);
     const vec3 clamped = glm::clamp(mat.albedo, vec3(0.0f), vec3(1.0f));
     if (clamped != mat.albedo) {
@@ -228,7 +241,8 @@ class JsonSceneReader {
                               "no light is emitted");
     }
     const bool two_sided = base && (base->flags & kMaterialTwoSidedEmission);
-    mat.flags &= ~uint32_t(kMaterialTwoSidedEmission | kMaterialSchlickFresnel);
+    mat.flags &=
+        ~uint32_t(kMaterialTwoSidedEmission | kMaterialSchlickFresnel | kMaterialConductorIor);
     if (get_bool(m, ptr, "two_sided", two_sided, where)) mat.flags |= kMaterialTwoSidedEmission;
 
     auto ignored = [&](const char* key, bool applies) {
@@ -241,16 +255,21 @@ class JsonSceneReader {
     ignored("ior", has_boundary);
     ignored("fresnel", has_boundary);
     ignored("absorption", has_boundary);
-    ignored("roughness", dielectric || mat.type == MaterialType::kConductor);
+    ignored("roughness", dielectric || conductor || coated);
     for (const char* key : {"scattering", "mean_free_path", "g"}) ignored(key, subsurface);
+    for (const char* key : {"metal", "eta", "k"}) ignored(key, conductor);
+    ignored("thickness", coated);
+    ignored("transmittance", transmission);
 
     mat.ior = get_float(m, ptr, "ior", base ? base->ior : subsurface ? 1.4f : 1.5f, where);
     if (has_boundary && !(mat.ior >= 1.0f && mat.ior <= 4.0f)) {
       fail(json_pointer_child(ptr, "ior"), "\"ior\" in " + where + " must be in [1, 4]");
     }
-    if (dielectric && mat.ior == 1.0f) {
-      scene_.diagnostics.warn(at(json_pointer_child(ptr, "ior")),
-                              "\"ior\" 1 makes " + where + " invisible", "rendered as given");
+    if ((dielectric || coated) && mat.ior == 1.0f) {
+      scene_.diagnostics.warn(
+          at(json_pointer_child(ptr, "ior")),
+          "\"ior\" 1 makes " + (coated ? "the coat of " : std::string()) + where + " invisible",
+          "rendered as given");
     }
     const bool schlick = base && (base->flags & kMaterialSchlickFresnel);
     const std::string fresnel = get_string(m, ptr, "fresnel", schlick ? "schlick" : "exact", where);
@@ -263,16 +282,120 @@ class JsonSceneReader {
                in_quotes(fresnel) +
                (guess.empty() ? "" : " (did you mean " + in_quotes(guess) + "?)"));
     }
-    mat.roughness = get_float(m, ptr, "roughness", base ? base->roughness : 0.0f, where);
-    if (!(mat.roughness >= 0.0f && mat.roughness <= 1.0f))
-      fail(json_pointer_child(ptr, "roughness"), "\"roughness\" in " + where + " must be in [0, 1]");
+    read_roughness(m, ptr, where, base, mat);
     mat.absorption = get_vec3(m, ptr, "absorption", base ? base->absorption : vec3(0.0f), where);
     if (glm::any(glm::lessThan(mat.absorption, vec3(0.0f))))
       fail(json_pointer_child(ptr, "absorption"), "\"absorption\" in " + where + " must be >= 0");
+    mat.thickness = get_float(m, ptr, "thickness", base ? base->thickness : 1.0f, where);
+    if (!(mat.thickness >= 0.0f))
+      fail(json_pointer_child(ptr, "thickness"), "\"thickness\" in " + where + " must be >= 0");
     if (subsurface) read_medium(m, ptr, where, mat);
+    if (ior_conductor) read_complex_ior(m, ptr, where, base, mat);
+    if (transmission) read_transmittance(m, ptr, where, base, mat);
     if (!has_boundary) mat.absorption = vec3(0.0f), mat.ior = 1.5f;
-    if (!dielectric && mat.type != MaterialType::kConductor) mat.roughness = 0.0f;
+    if (!dielectric && !conductor && !coated) mat.roughness = 0.0f;
+    if (!conductor) mat.roughness_v = -1.0f;
     return mat;
+  }
+
+  // "roughness": a number, or for a conductor [u, v]: u along the surface's tangent (the world
+  // +y axis projected onto it, bsdf_frame), v across.
+  void read_roughness(const json& m, const std::string& ptr, const std::string& where,
+                      const Material* base, Material& mat) const {
+    const std::string key_ptr = json_pointer_child(ptr, "roughness");
+    auto check = [&](float r) {
+      if (!(r >= 0.0f && r <= 1.0f))
+        fail(key_ptr, "\"roughness\" in " + where + " must be in [0, 1]");
+      return r;
+    };
+    if (!m.contains("roughness")) {
+      mat.roughness = base ? base->roughness : 0.0f;
+      mat.roughness_v = base ? base->roughness_v : -1.0f;
+      return;
+    }
+    const json& r = m["roughness"];
+    if (r.is_array()) {
+      if (mat.type != MaterialType::kConductor)
+        fail(key_ptr, "\"roughness\" [u, v] in " + where +
+                          ": anisotropic roughness is for conductors; give one number");
+      if (r.size() != 2)
+        fail(key_ptr, "\"roughness\" in " + where +
+                          " must be a number or [u, v], not an array of " +
+                          std::to_string(r.size()));
+      mat.roughness = check(float(
+          number(r[0], json_pointer_child(key_ptr, size_t(0)), "\"roughness\" u in " + where)));
+      mat.roughness_v = check(float(
+          number(r[1], json_pointer_child(key_ptr, size_t(1)), "\"roughness\" v in " + where)));
+      return;
+    }
+    mat.roughness = check(get_float(m, ptr, "roughness", 0.0f, where));
+    mat.roughness_v = -1.0f;
+  }
+
+  // A conductor's complex index of refraction: a named metal ("metal": "Au"), or "eta" and "k",
+  // each a number or an RGB triple. "albedo" then tints the reflectance (default white).
+  void read_complex_ior(const json& m, const std::string& ptr, const std::string& where,
+                        const Material* base, Material& mat) const {
+    mat.flags |= kMaterialConductorIor;
+    auto colour = [&](const char* key, vec3 def) {
+      if (m.contains(key) && m[key].is_number()) return vec3(get_float(m, ptr, key, 0.0f, where));
+      return get_vec3(m, ptr, key, def, where);
+    };
+    if (m.contains("metal")) {
+      if (m.contains("eta") || m.contains("k"))
+        fail(json_pointer_child(ptr, "metal"),
+             "give either \"metal\" or \"eta\" and \"k\" in " + where + ", not both");
+      const std::string name = get_string(m, ptr, "metal", "", where);
+      const NamedMetal* metal = find_metal(name);
+      if (!metal) {
+        const std::string guess = did_you_mean(name, metal_names());
+        std::string list;
+        for (const std::string& n : metal_names()) list += (list.empty() ? "" : ", ") + n;
+        fail(json_pointer_child(ptr, "metal"),
+             "unknown metal " + in_quotes(name) + " in " + where +
+                 (guess.empty() ? " (known: " + list + ")"
+                                : " (did you mean " + in_quotes(guess) + "?)"));
+      }
+      mat.eta = metal->eta;
+      mat.k = metal->k;
+      return;
+    }
+    const bool had = base && (base->flags & kMaterialConductorIor);
+    if (!had && m.contains("eta") != m.contains("k")) {
+      fail(json_pointer_child(ptr, m.contains("eta") ? "eta" : "k"),
+           where + " gives \"" + (m.contains("eta") ? "eta" : "k") + "\" without \"" +
+               (m.contains("eta") ? "k" : "eta") +
+               "\": a conductor's complex index needs both (or a \"metal\")");
+    }
+    mat.eta = colour("eta", had ? base->eta : vec3(1.0f));
+    mat.k = colour("k", had ? base->k : vec3(0.0f));
+    if (!glm::all(glm::greaterThan(mat.eta, vec3(0.0f))))
+      fail(json_pointer_child(ptr, "eta"), "\"eta\" in " + where + " must be > 0");
+    if (glm::any(glm::lessThan(mat.k, vec3(0.0f))))
+      fail(json_pointer_child(ptr, "k"), "\"k\" in " + where + " must be >= 0");
+  }
+
+  // A thin sheet's transmittance; with the reflectance (albedo) at most 1 per channel.
+  void read_transmittance(const json& m, const std::string& ptr, const std::string& where,
+                          const Material* base, Material& mat) const {
+    const bool had = base && base->type == MaterialType::kDiffuseTransmission;
+    mat.transmittance =
+        get_vec3(m, ptr, "transmittance", had ? base->transmittance : vec3(0.5f), where);
+    const std::string key_ptr = json_pointer_child(ptr, "transmittance");
+    if (glm::any(glm::lessThan(mat.transmittance, vec3(0.0f))))
+      fail(key_ptr, "\"transmittance\" in " + where + " must be >= 0");
+    const float sum = max_component(mat.albedo + mat.transmittance);
+    if (sum > 1.0f) {
+      // More out than in: scale both down so that no channel exceeds 1.
+      const vec3 a = mat.albedo / sum, t = mat.transmittance / sum;
+      scene_.diagnostics.warn(
+          at(m.contains("transmittance") ? key_ptr : ptr),
+          "\"albedo\" + \"transmittance\" in " + where + " exceed 1 (" +
+              vec3_str(mat.albedo + mat.transmittance) + ")",
+          "scaled both down to albedo " + vec3_str(a) + ", transmittance " + vec3_str(t));
+      mat.albedo = a;
+      mat.transmittance = t;
+    }
   }
 
   // A subsurface medium from either the physical coefficients ("scattering" and "absorption",

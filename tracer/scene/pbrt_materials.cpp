@@ -1,6 +1,7 @@
 // pbrt-v4 materials as the renderer's: diffuse, mirror, dielectric (smooth or GGX-rough),
-// conductor (Schlick F0 + GGX) and subsurface; each pbrt type maps to the closest, and what is
-// lost is said once per kind and file. Textures: pbrt_textures.cpp; lights: pbrt_lights.cpp.
+// conductor (complex IOR or Schlick F0, anisotropic GGX), coated diffuse, diffuse transmission and
+// subsurface; each pbrt type maps to the closest, and what is lost is said once per kind and
+// file. Textures: pbrt_textures.cpp; lights: pbrt_lights.cpp.
 #include "scene/pbrt_materials.h"
 
 #include <algorithm>
@@ -130,20 +131,35 @@ Material PbrtMaterials::diffuse(PbrtParams& p, const Ctx& c) {
   return m;
 }
 
+// pbrt's coateddiffuse: a dielectric interface (eta, roughness) over a diffuse base, with a
+// medium of unit extinction between them, `thickness` thick (default 0.01), scattering a share
+// `albedo` (default 0). Ours is the closed-form coated diffuse (bsdf.h): the same layers, the
+// medium as Beer-Lambert absorption of 1 - albedo per unit length; pbrt's random walk (maxdepth,
+// nsamples) is an estimator of the same layers, so its parameters are not needed.
 Material PbrtMaterials::coated_diffuse(PbrtParams& p, const Ctx& c) {
   Material m;
+  m.type = MaterialType::kCoatedDiffuse;
   reflectance(p, "reflectance", vec3(0.5f), c, m);
-  p.ignore({"roughness", "uroughness", "vroughness", "remaproughness", "thickness", "eta", "albedo",
-            "g", "maxdepth", "nsamples"});
-  substituted(c, "coateddiffuse", "coateddiffuse is not supported yet",
-              "substituted diffuse with its reflectance (the glossy coating is dropped)");
+  m.roughness = roughness(p, c, "");
+  m.ior = p.has("eta") ? eta(p, "eta", c) : 1.5f;
+  m.thickness = std::max(p.get_float("thickness", 0.01f), 0.0f);
+  vec3 albedo(0.0f);
+  if (p.has("albedo")) {
+    const Colour a = colour(p, "albedo", Use::kReflectance, c);
+    albedo = glm::clamp(a.rgb, vec3(0.0f), vec3(1.0f));
+    if (max_component(albedo) > 0.0f || a.image != kInvalid)
+      substituted(c, "coateddiffuse albedo", "scattering inside the coat is not supported",
+                  "the scattered share is dropped: absorption 1 - albedo per unit thickness");
+  }
+  m.absorption = vec3(1.0f) - albedo;
+  p.ignore({"g", "maxdepth", "nsamples"});
   return m;
 }
 
 Material PbrtMaterials::conductor(PbrtParams& p, const Ctx& c, const std::string& prefix) {
   Material m;
   m.type = MaterialType::kConductor;
-  m.roughness = roughness(p, c, prefix);
+  m.roughness = roughness(p, c, prefix, &m.roughness_v);
   const Colour refl = colour(p, prefix + "reflectance", Use::kReflectance, c);
   if (refl.present) {
     // pbrt-v4's artist-friendly conductor: the reflectance is the colour at normal incidence.
@@ -152,17 +168,16 @@ Material PbrtMaterials::conductor(PbrtParams& p, const Ctx& c, const std::string
     p.ignore({(prefix + "eta").c_str(), (prefix + "k").c_str()});
     return m;
   }
+  // The exact Fresnel equations of eta + i k (named spectra as the RGB fits of pbrt_spectra.h);
+  // without eta and k, pbrt's default is copper.
   Colour eta = colour(p, prefix + "eta", Use::kIor, c);
   Colour k = colour(p, prefix + "k", Use::kIor, c);
-  const bool named = !eta.present || !k.present;  // pbrt's default is copper
   if (!eta.present) pbrt_named_metal("metal-Cu-eta", &eta.rgb);
   if (!k.present) pbrt_named_metal("metal-Cu-k", &k.rgb);
-  m.albedo = conductor_f0(eta.rgb, k.rgb);
-  substituted(c, "conductor",
-              std::string("complex-IOR conductors are not supported yet") +
-                  (named ? " (no eta/k given: pbrt's copper)" : ""),
-              "substituted a Schlick conductor with F0 = " + rgb_str(m.albedo) +
-                  ", the Fresnel reflectance of its eta and k at normal incidence");
+  m.flags |= kMaterialConductorIor;
+  m.albedo = vec3(1.0f);
+  m.eta = glm::max(eta.rgb, vec3(1e-3f));
+  m.k = glm::max(k.rgb, vec3(0.0f));
   return m;
 }
 
@@ -196,11 +211,23 @@ Material PbrtMaterials::thin_dielectric(PbrtParams& p, const Ctx& c) {
 
 Material PbrtMaterials::diffuse_transmission(PbrtParams& p, const Ctx& c) {
   Material m;
+  m.type = MaterialType::kDiffuseTransmission;
   reflectance(p, "reflectance", vec3(0.25f), c, m);
-  m.albedo *= p.get_float("scale", 1.0f);
-  p.ignore({"transmittance"});
-  substituted(c, "diffusetransmission", "diffuse transmission is not supported",
-              "substituted diffuse with its reflectance (the transmitted light is dropped)");
+  const Colour t = colour(p, "transmittance", Use::kReflectance, c);
+  if (t.image != kInvalid)
+    substituted(c, "transmittance texture", "a textured transmittance is not supported",
+                "used its factor " + rgb_str(t.rgb));
+  const float scale = p.get_float("scale", 1.0f);
+  m.albedo *= scale;
+  m.transmittance = (t.present ? t.rgb : vec3(0.25f)) * scale;
+  const float sum = max_component(m.albedo + m.transmittance);
+  if (sum > 1.0f) {
+    m.albedo /= sum;
+    m.transmittance /= sum;
+    substituted(c, "diffusetransmission energy", "reflectance + transmittance exceed 1",
+                "scaled both down to reflectance " + rgb_str(m.albedo) + ", transmittance " +
+                    rgb_str(m.transmittance));
+  }
   return m;
 }
 
@@ -351,7 +378,8 @@ void PbrtMaterials::reflectance(PbrtParams& p, const char* name, vec3 def, const
 // pbrt's microfacet roughness: "uroughness"/"vroughness" (default "roughness", default 0), the
 // Trowbridge-Reitz alpha directly, or through RoughnessToAlpha (sqrt in pbrt-v4) when
 // "remaproughness" (default true). Ours is perceptual: alpha = roughness^2.
-float PbrtMaterials::roughness(PbrtParams& p, const Ctx& c, const std::string& prefix) {
+float PbrtMaterials::roughness(PbrtParams& p, const Ctx& c, const std::string& prefix,
+                               float* roughness_v) {
   float r = 0.0f;
   if (const PbrtParam* q = p.find(prefix + "roughness", {"float", "texture"})) {
     if (q->type == "float")
@@ -372,8 +400,13 @@ float PbrtMaterials::roughness(PbrtParams& p, const Ctx& c, const std::string& p
   const bool remap = p.get_bool("remaproughness", true);
   float au = std::max(u, 0.0f), av = std::max(v, 0.0f);
   if (remap) au = std::sqrt(au), av = std::sqrt(av);
-  if (std::fabs(au - av) > 1e-6f * std::max(au, av))
-    substituted(c, "anisotropic", "anisotropic roughness is not supported",
+  const bool anisotropic = std::fabs(au - av) > 1e-6f * std::max(au, av);
+  if (roughness_v) {  // a conductor: u along the tangent, v across (bsdf_frame's convention)
+    *roughness_v = anisotropic ? glm::clamp(std::sqrt(av), 0.0f, 1.0f) : -1.0f;
+    return glm::clamp(std::sqrt(au), 0.0f, 1.0f);
+  }
+  if (anisotropic)
+    substituted(c, "anisotropic", "anisotropic roughness is supported by conductors only",
                 "used the geometric mean of the two alphas");
   const float alpha = std::sqrt(au * av);
   return glm::clamp(std::sqrt(alpha), 0.0f, 1.0f);

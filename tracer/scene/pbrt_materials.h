@@ -1,7 +1,7 @@
 // pbrt-v4 materials, textures and lights mapped onto the renderer's: one function per pbrt
 // construct, each naming what it substituted in one warning per kind and file. When the renderer
-// gains a feature (an environment light, complex-IOR conductors, coated diffuse), the function of
-// that construct is the one place to change.
+// gains a feature (an environment light, a thin dielectric), the function of that construct is
+// the one place to change.
 #pragma once
 
 #include <map>
@@ -84,7 +84,10 @@ class PbrtMaterials {
   // Parameters shared by the material types.
   Colour colour(PbrtParams& p, const std::string& name, Use use, const Ctx& c);
   void reflectance(PbrtParams& p, const char* name, vec3 def, const Ctx& c, Material& m);
-  float roughness(PbrtParams& p, const Ctx& c, const std::string& prefix);
+  // Our perceptual roughness; with `roughness_v` (conductors) u and v apart (v < 0: isotropic),
+  // else their geometric mean.
+  float roughness(PbrtParams& p, const Ctx& c, const std::string& prefix,
+                  float* roughness_v = nullptr);
   float eta(PbrtParams& p, const std::string& name, const Ctx& c);
   void common(PbrtParams& p, const Ctx& c);
 

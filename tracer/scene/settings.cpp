@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <nlohmann/json.hpp>
 
+#include "materials/metals.h"
 #include "scene/scene.h"
 
 namespace tracer {
@@ -512,7 +513,9 @@ const std::vector<std::string> kMaterialSetKeys = {
     "materials.NAME.ior",        "materials.NAME.fresnel",
     "materials.NAME.absorption", "materials.NAME.two_sided",
     "materials.NAME.roughness",  "materials.NAME.scattering",
-    "materials.NAME.g"};
+    "materials.NAME.g",          "materials.NAME.metal",
+    "materials.NAME.eta",        "materials.NAME.k",
+    "materials.NAME.thickness",  "materials.NAME.transmittance"};
 
 namespace {
 bool parse_floats(const std::string& s, float* out, int n) {
@@ -551,24 +554,61 @@ std::string set_material_assignment(Scene& scene, const std::string& assignment)
     return parse_floats(value, f, 1) && f[0] >= lo && f[0] <= hi;
   };
   if (field == "type") {
-    if (value == "diffuse")
-      m.type = MaterialType::kDiffuse;
-    else if (value == "mirror")
-      m.type = MaterialType::kMirror;
-    else if (value == "dielectric")
-      m.type = MaterialType::kDielectric;
-    else if (value == "conductor")
-      m.type = MaterialType::kConductor;
-    else if (value == "subsurface")
-      m.type = MaterialType::kSubsurface;
-    else
-      return "expected diffuse, mirror, dielectric, conductor or subsurface";
+    bool known = false;
+    for (int t = 0; t < kMaterialTypeCount; ++t) {
+      if (value != material_type_name(MaterialType(t)) &&
+          !(value == "plastic" && MaterialType(t) == MaterialType::kCoatedDiffuse))
+        continue;
+      m.type = MaterialType(t);
+      known = true;
+    }
+    if (!known)
+      return "expected diffuse, mirror, dielectric, conductor, subsurface, coated_diffuse "
+             "(plastic) or diffuse_transmission";
+  } else if (field == "roughness" && value.find(',') != std::string::npos) {
+    if (!parse_floats(value, f, 2) ||
+        !(f[0] >= 0.0f && f[0] <= 1.0f && f[1] >= 0.0f && f[1] <= 1.0f))
+      return "expected roughness in [0, 1], or u,v for an anisotropic conductor";
+    if (m.type != MaterialType::kConductor) return "only conductors take roughness u,v";
+    m.roughness = f[0];
+    m.roughness_v = f[1];
+  } else if (field == "metal") {
+    const NamedMetal* metal = find_metal(value);
+    if (!metal) {
+      const std::string guess = did_you_mean(value, metal_names());
+      std::string list;
+      for (const std::string& n : metal_names()) list += (list.empty() ? "" : ", ") + n;
+      return "unknown metal " + quoted(value) +
+             (guess.empty() ? " (known: " + list + ")" : " (did you mean " + quoted(guess) + "?)");
+    }
+    if (!(m.flags & kMaterialConductorIor)) m.albedo = vec3(1.0f);  // F0 becomes a tint
+    m.type = MaterialType::kConductor;
+    m.flags |= kMaterialConductorIor;
+    m.eta = metal->eta;
+    m.k = metal->k;
+  } else if (field == "eta" || field == "k") {
+    if (!parse_floats(value, f, 3)) return "expected three finite numbers r,g,b";
+    const vec3 v(f[0], f[1], f[2]);
+    if (field == "eta" ? !(glm::all(glm::greaterThan(v, vec3(0.0f)))) : max_component(-v) > 0.0f)
+      return field == "eta" ? "eta components must be > 0" : "k components must be >= 0";
+    if (!(m.flags & kMaterialConductorIor)) {  // from Schlick: start from k = 0, eta = 1
+      m.albedo = vec3(1.0f);
+      m.eta = vec3(1.0f);
+      m.k = vec3(0.0f);
+    }
+    m.type = MaterialType::kConductor;
+    m.flags |= kMaterialConductorIor;
+    (field == "eta" ? m.eta : m.k) = v;
+  } else if (field == "thickness") {
+    if (!number(0.0f, 1e9f)) return "expected a thickness in [0, 1e9]";
+    m.thickness = f[0];
   } else if (field == "roughness" || field == "g") {
     if (!number(field == "g" ? -0.99f : 0.0f, field == "g" ? 0.99f : 1.0f))
       return field == "g" ? "expected g in [-0.99, 0.99]" : "expected roughness in [0, 1]";
     (field == "g" ? m.g : m.roughness) = f[0];
+    if (field == "roughness") m.roughness_v = -1.0f;
   } else if (field == "albedo" || field == "absorption" || field == "emission" ||
-             field == "scattering") {
+             field == "scattering" || field == "transmittance") {
     if (!parse_floats(value, f, 3)) return "expected three finite numbers r,g,b";
     const vec3 v(f[0], f[1], f[2]);
     if (max_component(-v) > 0.0f) return "components must be >= 0";
@@ -579,6 +619,9 @@ std::string set_material_assignment(Scene& scene, const std::string& assignment)
       m.absorption = v;
     } else if (field == "scattering") {
       m.scattering = v;
+    } else if (field == "transmittance") {
+      if (max_component(v) > 1.0f) return "transmittance components must be <= 1";
+      m.transmittance = v;
     } else {
       m.emission = v * (strength > 0.0f ? strength : 1.0f);
     }
@@ -621,18 +664,29 @@ json material_to_json(const Material& m) {
     j["emission_strength"] = shortest(strength);
     if (m.flags & kMaterialTwoSidedEmission) j["two_sided"] = true;
   }
-  if (m.type == MaterialType::kDielectric || m.type == MaterialType::kSubsurface) {
+  if (m.type == MaterialType::kDielectric || m.type == MaterialType::kSubsurface ||
+      m.type == MaterialType::kCoatedDiffuse) {
     j["ior"] = shortest(m.ior);
     j["fresnel"] = (m.flags & kMaterialSchlickFresnel) ? "schlick" : "exact";
     if (max_component(m.absorption) > 0.0f) j["absorption"] = to_value(m.absorption);
   }
+  if (m.type == MaterialType::kCoatedDiffuse && max_component(m.absorption) > 0.0f)
+    j["thickness"] = shortest(m.thickness);
+  if (m.type == MaterialType::kConductor && (m.flags & kMaterialConductorIor)) {
+    j["eta"] = to_value(m.eta);
+    j["k"] = to_value(m.k);
+  }
+  if (m.type == MaterialType::kDiffuseTransmission) j["transmittance"] = to_value(m.transmittance);
   if (m.type == MaterialType::kSubsurface) {
     j.erase("albedo");
     j["scattering"] = to_value(m.scattering);
     j["absorption"] = to_value(m.absorption);
     j["g"] = shortest(m.g);
   }
-  if (m.roughness > 0.0f) j["roughness"] = shortest(m.roughness);
+  if (m.is_anisotropic())
+    j["roughness"] = json::array({shortest(m.roughness), shortest(m.roughness_v)});
+  else if (m.roughness > 0.0f)
+    j["roughness"] = shortest(m.roughness);
   return j;
 }
 

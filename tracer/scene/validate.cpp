@@ -104,6 +104,36 @@ void validate_materials(Scene& scene) {
       throw InputError(loc, name + " has a non-finite metallic factor or normal scale");
     if (m.type == MaterialType::kDielectric && !(m.ior > 1.0f && m.ior <= 4.0f))
       throw InputError(loc, name + " has ior " + std::to_string(m.ior) + ", outside (1, 4]");
+    if (m.type == MaterialType::kCoatedDiffuse &&
+        !(m.ior >= 1.0f && m.ior <= 4.0f && m.thickness >= 0.0f && std::isfinite(m.thickness)))
+      throw InputError(loc, name + " has a coat of ior " + std::to_string(m.ior) +
+                                " (expected [1, 4]) or thickness " + std::to_string(m.thickness) +
+                                " (expected >= 0)");
+    if (m.type == MaterialType::kConductor && (m.flags & kMaterialConductorIor) &&
+        !(is_finite(m.eta) && is_finite(m.k) && glm::all(glm::greaterThan(m.eta, vec3(0.0f))) &&
+          glm::all(glm::greaterThanEqual(m.k, vec3(0.0f)))))
+      throw InputError(loc, name + " has a complex index of refraction with eta " +
+                                vec3_str(m.eta) + " (expected > 0) and k " + vec3_str(m.k) +
+                                " (expected >= 0)");
+    if (m.type == MaterialType::kConductor && !(m.roughness_v <= 1.0f))
+      throw InputError(
+          loc, name + " has roughness v " + std::to_string(m.roughness_v) + ", outside [0, 1]");
+    if (m.type == MaterialType::kDiffuseTransmission) {
+      if (!is_finite(m.transmittance) || glm::any(glm::lessThan(m.transmittance, vec3(0.0f))))
+        throw InputError(
+            loc, name + " has transmittance " + vec3_str(m.transmittance) + " (expected >= 0)");
+      const float sum = max_component(m.albedo + m.transmittance);
+      if (sum > 1.0f) {
+        warn_once(scene, loc,
+                  name +
+                      " reflects and transmits more than it receives (albedo + transmittance "
+                      "= " +
+                      vec3_str(m.albedo + m.transmittance) + ")",
+                  "scaled both by " + std::to_string(1.0f / sum));
+        m.albedo /= sum;
+        m.transmittance /= sum;
+      }
+    }
   }
 }
 
