@@ -74,7 +74,10 @@ int run_info(const InfoOptions& o) {
     j["materials"][name] = by_type[t];
     by_type_text += (t ? ", " : "") + std::to_string(by_type[t]) + " " + name;
   }
-  j["lights"] = v.light_count;
+  uint32_t emitters = 0;  // the light list also holds the lights at infinity
+  for (const tracer::Light& l : cs.lights()) emitters += l.kind == tracer::kLightPrimitive;
+  j["lights"] = emitters;
+  j["environment"] = tracer::describe_environment(scene);
   const tracer::CameraDesc& cam = scene.camera;
   auto vec = [](tracer::vec3 p) { return nlohmann::json::array({p.x, p.y, p.z}); };
   j["camera"] = {{"position", vec(cam.position)}, {"look_at", vec(cam.look_at)},
@@ -123,13 +126,13 @@ int run_info(const InfoOptions& o) {
             << "objects     " << scene.objects.size() << "\n"
             << "primitives  " << v.tri_count + v.sphere_count << " (" << v.tri_count
             << " triangles, " << v.sphere_count << " spheres)\n"
-            << "materials   " << scene.materials.size() << " (" << by_type_text << "; "
-            << emissive << " emissive)\n"
-            << "lights      " << v.light_count << " emissive primitives\n"
-            << "camera      " << vec_text(cam.position) << " looking at "
-            << vec_text(cam.look_at) << ", " << cam.vfov_deg << " degree field of view"
-            << (framed(scene) ? " (framed; the note above says why)" : "")
-            << "\n"
+            << "materials   " << scene.materials.size() << " (" << by_type_text << "; " << emissive
+            << " emissive)\n"
+            << "lights      " << emitters << " emissive primitives\n"
+            << "environment " << tracer::describe_environment(scene) << "\n"
+            << "camera      " << vec_text(cam.position) << " looking at " << vec_text(cam.look_at)
+            << ", " << cam.vfov_deg << " degree field of view"
+            << (framed(scene) ? " (framed; the note above says why)" : "") << "\n"
             << "bvh         " << st.node_count << " " << tracer::kBvhWidth << "-wide nodes ("
             << st.leaf_count << " leaves, " << st.node_count * sizeof(tracer::BvhNode) / 1024.0
             << " KiB), depth " << st.max_depth << ", SAH cost " << std::fixed
@@ -154,7 +157,7 @@ Runner add_info_command(CLI::App& cmd) {
   cmd.add_option("scene", o->scene, "Scene file (.json, .pbrt, .obj, .gltf, .glb, .ply); default: built-in")
       ->check(CLI::ExistingFile);
   cmd.add_flag("--json", o->json, "Print JSON instead of text");
-  add_setting_options(cmd, &o->settings, {"render", "gpu"},
+  add_setting_options(cmd, &o->settings, {"render", "gpu", "environment"},
                       {"render.spp", "render.time_limit_s", "render.threads", "render.backend",
                        "render.samples_per_frame"});
   return [o] { return run_info(*o); };
