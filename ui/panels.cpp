@@ -244,7 +244,9 @@ void environment_panel(Workbench& wb, PanelState& ps) {
   ImGui::SameLine();
   if (ImGui::Button("None##env")) set_file("");
   check_fit(ps, "None##env");
-  ImGui::TextDisabled("map: %s", wb.environment_summary().c_str());
+  ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
+  ImGui::TextWrapped("map: %s", wb.environment_summary().c_str());
+  ImGui::PopStyleColor();
   setting_widget(wb, ps, "environment.mapping", "mapping");
   setting_widget(wb, ps, "environment.strength", "strength", 0.01f, "%.3f", 10.0);
   setting_widget(wb, ps, "environment.rotation", "rotation", 0.5f, "%.1f deg");

@@ -49,6 +49,8 @@ std::vector<unsigned char> read_bytes(const std::string& path) {
   const fs::file_status st = fs::status(path, ec);
   if (st.type() == fs::file_type::not_found) fail(path, "no such file");
   if (fs::is_directory(st)) fail(path, "is a directory, not an environment map");
+  // Not a device or a pipe, which could be read for ever (a fuzzed scene may name /dev/zero).
+  if (!fs::is_regular_file(st)) fail(path, "is not a regular file");
   FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) fail(path, std::string("cannot open: ") + std::strerror(errno));
   std::vector<unsigned char> bytes;
