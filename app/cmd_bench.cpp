@@ -553,7 +553,7 @@ Runner add_bench_command(CLI::App& cmd) {
   std::vector<std::string> skip;
   for (const tracer::Setting& s : tracer::settings_table())
     if (s.key != "render.nee" && s.key != "gpu.tail") skip.push_back(s.key);
-  add_setting_options(cmd, &o->settings, {"render", "gpu"}, skip);
+  add_setting_options(cmd, &o->settings, {"render", "gpu", "environment"}, skip);
   // The speed bench's own options mean nothing to --error (its configurations carry nee=off,
   // its sweep its sample counts, --out its files): combining them is a usage error.
   CLI::Option* error = add_error_bench_options(cmd, &o->error);

@@ -240,6 +240,8 @@ int run_gui(const GuiOptions& o) {
   if (!o.stats_json.empty()) stats_out.open(o.stats_json);
 
   DisplayTexture tex;
+  DisplayTexture env_tex;  // the Environment panel's preview of the map
+  std::vector<uint32_t> env_rgba;
   std::unique_ptr<tracer::GlDisplayBuffer> interop;
   bool interop_failed = false;
   int exit_code = 0;
@@ -327,6 +329,14 @@ int run_gui(const GuiOptions& o) {
     if (!uploaded && wb.fetch_display(rgba, fw, fh) && fw == tex.width && fh == tex.height)
       tex.upload_host(rgba);
     ps.texture = reinterpret_cast<ImTextureID>(static_cast<intptr_t>(tex.texture));
+    if (wb.environment_preview(env_rgba, ps.env_preview_w, ps.env_preview_h) &&
+        ps.env_preview_w > 0) {
+      env_tex.ensure(ps.env_preview_w, ps.env_preview_h);
+      env_tex.upload_host(env_rgba);
+    }
+    ps.env_texture = ps.env_preview_w > 0
+                         ? reinterpret_cast<ImTextureID>(static_cast<intptr_t>(env_tex.texture))
+                         : nullptr;
 
     ImGui::NewFrame();
     if (ui::draw_workbench(wb, ps)) quit = true;
@@ -425,7 +435,7 @@ Runner add_gui_command(CLI::App& cmd) {
   cmd.add_option("--stats-json", o->stats_json, "Write one JSON line of statistics per frame");
   cmd.add_flag("--egl", o->egl, "Draw into an off-screen EGL pbuffer instead of a window");
   cmd.add_flag("!--no-vsync", o->vsync, "Do not wait for the display's refresh");
-  add_setting_options(cmd, &o->settings, {"render", "gpu", "display"});
+  add_setting_options(cmd, &o->settings, {"render", "gpu", "display", "environment"});
   return [o] { return run_gui(*o); };
 }
 

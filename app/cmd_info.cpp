@@ -67,7 +67,10 @@ int run_info(const InfoOptions& o) {
     j["materials"][name] = by_type[t];
     by_type_text += (t ? ", " : "") + std::to_string(by_type[t]) + " " + name;
   }
-  j["lights"] = v.light_count;
+  uint32_t emitters = 0;  // the light list also holds the lights at infinity
+  for (const tracer::Light& l : cs.lights()) emitters += l.kind == tracer::kLightPrimitive;
+  j["lights"] = emitters;
+  j["environment"] = tracer::describe_environment(scene);
   const tracer::CameraDesc& cam = scene.camera;
   auto vec = [](tracer::vec3 p) { return nlohmann::json::array({p.x, p.y, p.z}); };
   j["camera"] = {{"position", vec(cam.position)}, {"look_at", vec(cam.look_at)},
@@ -117,7 +120,8 @@ int run_info(const InfoOptions& o) {
             << " triangles, " << v.sphere_count << " spheres)\n"
             << "materials   " << scene.materials.size() << " (" << by_type_text << "; "
             << emissive << " emissive)\n"
-            << "lights      " << v.light_count << " emissive primitives\n"
+            << "lights      " << emitters << " emissive primitives\n"
+            << "environment " << tracer::describe_environment(scene) << "\n"
             << "camera      " << tracer::vec3_str(cam.position, 4) << " looking at "
             << tracer::vec3_str(cam.look_at, 4) << ", " << cam.vfov_deg << " degree field of view"
             << (framed(scene) ? " (framed; the note above says why)" : "")
@@ -146,7 +150,7 @@ Runner add_info_command(CLI::App& cmd) {
   cmd.add_option("scene", o->scene, "Scene file (.json, .pbrt, .obj, .gltf, .glb, .ply); default: built-in")
       ->check(CLI::ExistingFile);
   cmd.add_flag("--json", o->json, "Print JSON instead of text");
-  add_setting_options(cmd, &o->settings, {"render", "gpu"},
+  add_setting_options(cmd, &o->settings, {"render", "gpu", "environment"},
                       {"render.spp", "render.time_limit_s", "render.threads", "render.backend",
                        "render.samples_per_frame"});
   return [o] { return run_info(*o); };

@@ -242,7 +242,7 @@ Runner add_render_command(CLI::App& cmd) {
   cmd.add_option("--out", o->out, "Output file: .png (tone-mapped sRGB) or .exr (linear float)")
       ->capture_default_str();
   cmd.add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
-  add_setting_options(cmd, &o->settings, {"render", "gpu", "display"},
+  add_setting_options(cmd, &o->settings, {"render", "gpu", "display", "environment"},
                       {"render.samples_per_frame"});
   return [o] { return run_render(*o); };
 }

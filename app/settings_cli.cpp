@@ -32,9 +32,10 @@ void add_setting_options(CLI::App& cmd, SettingArgs* args, const std::vector<std
     if (std::find(sections.begin(), sections.end(), s.section()) == sections.end()) continue;
     if (std::find(skip.begin(), skip.end(), s.key) != skip.end()) continue;
     const std::string key = s.key;
-    const std::string group = s.section() == "gpu"       ? "GPU (CUDA backend)"
-                              : s.section() == "display" ? "Display and PNG export"
-                                                         : "Render settings";
+    const std::string group = s.section() == "gpu"           ? "GPU (CUDA backend)"
+                              : s.section() == "display"     ? "Display and PNG export"
+                              : s.section() == "environment" ? "Environment light"
+                                                             : "Render settings";
     if (s.bare_flag) {
       cmd.add_flag_function(
              s.flag, [args, key](std::int64_t) { args->flags[key] = "on"; },
@@ -47,7 +48,8 @@ void add_setting_options(CLI::App& cmd, SettingArgs* args, const std::vector<std
            setting_flag_help(s))
         ->type_name(s.type == tracer::SettingType::kInt || s.type == tracer::SettingType::kFloat
                         ? "NUMBER"
-                        : "VALUE")
+                    : s.type == tracer::SettingType::kString ? "FILE"
+                                                             : "VALUE")
         ->group(group);
   }
   cmd.add_option("--set", args->sets,

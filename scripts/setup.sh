@@ -10,6 +10,7 @@ PACKAGES=(
   libcli11-dev libgtest-dev libbenchmark-dev
   libimgui-dev libglfw3-dev xvfb xauth
   glmark2-data assimp-testmodels python3-tinyobjloader
+  libopenexr-dev blender-data
 )
 
 scripts/install-packages.sh setup "${PACKAGES[@]}"

@@ -102,12 +102,23 @@ TEST(Loader, EveryAssetLoads) {
       const std::string ext = entry.path().extension().string();
       if (ext != ".json" && ext != ".obj" && ext != ".gltf" && ext != ".glb") continue;
       SCOPED_TRACE(entry.path().string());
+      // Scenes lit by Debian's blender-data world maps (scripts/setup.sh installs the package).
+      if (entry.path().filename().string().rfind("env_", 0) == 0 &&
+          !fs::exists(test::kBlenderWorlds)) {
+        std::printf("skipped %s: %s is absent (Debian package blender-data)\n",
+                    entry.path().filename().c_str(), test::kBlenderWorlds);
+        continue;
+      }
       Scene s;
       ASSERT_NO_THROW(s = load_scene(entry.path().string()));
       EXPECT_GT(s.mesh.indices.size() + s.spheres.size(), 0u);
-      EXPECT_GE(emissive_materials(s), 1u);
-      for (const std::string& w : s.diagnostics.warnings)
+      const bool sky = !s.environment.file.empty() || !s.distant_lights.empty();
+      EXPECT_TRUE(emissive_materials(s) >= 1u || sky);
+      for (const std::string& w : s.diagnostics.warnings) {
+        // The world maps' DWA compression leaves tiny negative texels: one warning says so.
+        if (sky && w.find("negative texel values") != std::string::npos) continue;
         if (ext == ".json" || ext == ".gltf") ADD_FAILURE() << "unexpected warning: " << w;
+      }
       ++count;
     }
   }

@@ -50,6 +50,8 @@ json other_value(const Setting& s, int index) {
     }
     case SettingType::kVec3:
       return json::array({0.5, 1.25, 3.0 + index});
+    case SettingType::kString:  // a file the load hook reads (absolute: scene files keep them so)
+      return test::data_dir() + "/env/sky_16x8.pfm";
   }
   return def;
 }
@@ -60,6 +62,7 @@ std::string as_text(const Setting& s, const json& v) {
     case SettingType::kBool:
       return v.get<bool>() ? "on" : "off";
     case SettingType::kChoice:
+    case SettingType::kString:
       return v.get<std::string>();
     case SettingType::kVec3: {
       std::ostringstream o;
@@ -139,7 +142,7 @@ TEST(Settings, EverySettingRoundTripsSceneFileToSidecarToSceneFile) {
   run.output = "x.png";
   const json side = tracer::make_sidecar(loaded, run);
   json sections = json::object();
-  for (const char* sec : {"camera", "render", "gpu", "display"}) {
+  for (const char* sec : {"camera", "render", "gpu", "display", "environment"}) {
     ASSERT_TRUE(side.contains(sec)) << sec;
     sections[sec] = side[sec];
   }
@@ -157,7 +160,8 @@ TEST(Settings, EverySettingRoundTripsSetToSidecar) {
   tracer::SidecarRun run;
   const json side = tracer::make_sidecar(scene, run);
   json sections;
-  for (const char* sec : {"camera", "render", "gpu", "display"}) sections[sec] = side[sec];
+  for (const char* sec : {"camera", "render", "gpu", "display", "environment"})
+    sections[sec] = side[sec];
   expect_same_settings(load_sections(sections), expected, "--set -> sidecar -> scene file");
 }
 
@@ -196,7 +200,7 @@ TEST(Settings, RenderCommandRecordsEverySettingItWasGiven) {
   std::ifstream f(out + ".json");
   const json side = json::parse(f);
   expected["render"]["samples_per_frame"] = 0;  // not given: the default
-  for (const char* sec : {"camera", "render", "gpu", "display"}) {
+  for (const char* sec : {"camera", "render", "gpu", "display", "environment"}) {
     for (auto it = expected[sec].begin(); it != expected[sec].end(); ++it) {
       const json got = side[sec][it.key()];
       if (it.value().is_number()) {
@@ -276,6 +280,18 @@ TEST(Settings, FlagsGiveTheTablesMessage) {
   // One run per flag: the command refuses the value before rendering, with the table's words.
   for (const Setting& s : tracer::settings_table()) {
     if (s.flag.empty() || s.bare_flag) continue;  // a bare flag takes no value to refuse
+    if (s.type == SettingType::kString) {         // any text parses; the load hook refuses the file
+      std::string log;
+      EXPECT_EQ(test::run_command(test::pathtracer_exe() + " render -q " + s.flag +
+                                      " no_such_map.hdr --out " + testing::TempDir() + "/never.png",
+                                  &log),
+                2)
+          << log;
+      EXPECT_NE(log.find(s.flag + " no_such_map.hdr: no_such_map.hdr: no such file"),
+                std::string::npos)
+          << log;
+      continue;
+    }
     const std::string bad = s.type == SettingType::kBool     ? "maybe"
                             : s.type == SettingType::kChoice ? "bogus"
                             : s.hi < 1e30                    ? std::to_string(s.hi + 1)

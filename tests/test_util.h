@@ -13,6 +13,9 @@ inline std::string source_dir() {
 }
 inline std::string data_dir() { return source_dir() + "/tests/data"; }
 inline std::string pathtracer_exe() { return PATHTRACER_EXE; }
+// Debian's blender-data world maps (CC0; 1024x512 DWA-compressed OpenEXR): city, courtyard,
+// forest, interior, night, studio, sunrise, sunset. Tests that use them skip when absent.
+constexpr const char* kBlenderWorlds = "/usr/share/blender/datafiles/studiolights/world";
 // Runs a shell command, returns its exit status and fills `output` with stdout+stderr.
 int run_command(const std::string& cmd, std::string* output = nullptr);
 }  // namespace test

@@ -274,6 +274,53 @@ void camera_panel(Workbench& wb, PanelState& ps) {
       "Ctrl+click or middle click focuses on the surface under the cursor.");
 }
 
+// The environment light: its map (a file field and Load; None drops it), how the map is read and
+// placed, and what camera rays see; a preview of the map. Every edit goes through the settings
+// table (Workbench::set), so it restarts the image and a new file is read and checked there.
+void environment_panel(Workbench& wb, PanelState& ps) {
+  if (!section(ps, "Environment")) return;
+  const std::string& file = wb.scene().environment.file;
+  if (file != ps.env_path_shown) {  // the scene changed it (a load, a script): show its value
+    std::snprintf(ps.env_path, sizeof ps.env_path, "%s", file.c_str());
+    ps.env_path_shown = file;
+  }
+  auto set_file = [&](const std::string& path) {
+    std::string err;
+    const tracer::Setting* s = tracer::find_setting("environment.file");
+    if (wb.set(*s, nlohmann::json(path), &err)) {
+      ps.status = path.empty() ? "environment map removed" : "environment map " + path + " loaded";
+    } else {
+      ps.status = "error: " + err;
+      wb.messages.error(err);
+    }
+  };
+  const float buttons = width_beside("Load##env") + width_beside("None##env");
+  ImGui::SetNextItemWidth(-buttons);
+  const bool enter = ImGui::InputText("##envpath", ps.env_path, sizeof ps.env_path,
+                                      ImGuiInputTextFlags_EnterReturnsTrue);
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("%s\n(--set environment.file, --env)",
+                      tracer::find_setting("environment.file")->help.c_str());
+  ImGui::SameLine();
+  if (ImGui::Button("Load##env") || enter) set_file(ps.env_path);
+  ImGui::SameLine();
+  if (ImGui::Button("None##env")) set_file("");
+  check_fit(ps, "None##env");
+  ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
+  ImGui::TextWrapped("map: %s", wb.environment_summary().c_str());
+  ImGui::PopStyleColor();
+  setting_widget(wb, ps, "environment.mapping", "mapping");
+  setting_widget(wb, ps, "environment.strength", "strength", 0.01f, "%.3f", 10.0);
+  setting_widget(wb, ps, "environment.rotation", "rotation", 0.5f, "%.1f deg");
+  setting_widget(wb, ps, "environment.visible", "visible to the camera");
+  setting_widget(wb, ps, "environment.background", "background", 0.01f);
+  setting_widget(wb, ps, "environment.color", "constant colour", 0.01f);
+  if (ps.env_texture && ps.env_preview_w > 0 && ps.env_preview_h > 0) {
+    const float w = std::min(ImGui::GetContentRegionAvail().x, 256.0f);
+    ImGui::Image(ps.env_texture, ImVec2(w, w * float(ps.env_preview_h) / float(ps.env_preview_w)));
+  }
+}
+
 void render_panel(Workbench& wb, PanelState& ps) {
   if (!section(ps, "Render", ImGuiTreeNodeFlags_DefaultOpen)) return;
   setting_widget(wb, ps, "render.backend", "backend");
@@ -541,6 +588,7 @@ bool draw_workbench(Workbench& wb, PanelState& ps) {
   scene_panel(wb, ps);
   material_panel(wb, ps);
   camera_panel(wb, ps);
+  environment_panel(wb, ps);
   render_panel(wb, ps);
   stats_panel(wb, ps);
   display_panel(wb, ps);

@@ -25,6 +25,10 @@ struct PanelState {
   size_t errors_seen = 0;         // a new error opens the list
   bool expand_all = false;        // open every panel and tree node in the next frame
   int listed_selection = -1;      // the object the Scene list last scrolled to
+  char env_path[512] = "";        // the Environment panel's file field
+  std::string env_path_shown;     // the scene's environment.file when the field was last synced
+  ImTextureID env_texture = nullptr;  // Workbench::environment_preview, uploaded by the app
+  int env_preview_w = 0, env_preview_h = 0;
   // Widgets of the last frame whose label ran past the column or whose box was too narrow for
   // its value (empty when the panels fit the window; the tests check it at 1280x720).
   std::vector<std::string> layout_problems;

@@ -136,6 +136,14 @@ bool setting_widget(Workbench& wb, PanelState& ps, const char* key, const char* 
       next = f;
       break;
     }
+    case T::kString: {  // a file name, taken when Enter is pressed
+      char buf[512];
+      std::snprintf(buf, sizeof buf, "%s", v.get<std::string>().c_str());
+      edited = ImGui::InputText(label, buf, sizeof buf, ImGuiInputTextFlags_EnterReturnsTrue);
+      next = std::string(buf);
+      check_fit(ps, label);
+      break;
+    }
     case T::kVec3: {
       float f[3] = {float(v[0].get<double>()), float(v[1].get<double>()),
                     float(v[2].get<double>())};

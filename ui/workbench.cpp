@@ -4,14 +4,16 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "cpu/cpu_backend.h"
-#include "integrator/sidecar.h"
+#include "image/display.h"
 #include "image/image.h"
+#include "integrator/sidecar.h"
 #include "scene/loader.h"
 
 namespace tracer {
@@ -332,6 +334,52 @@ void Workbench::worker_loop() {
   }
 }
 
+bool Workbench::environment_preview(std::vector<uint32_t>& rgba, int& width, int& height) {
+  const tracer::EnvironmentDesc& e = scene_.environment;
+  const tracer::EnvironmentImage* img = e.file.empty() ? nullptr : scene_.environment_image.get();
+  char key[256];
+  std::snprintf(key, sizeof key, "%p %g %g %g %g %g %d", static_cast<const void*>(img),
+                double(e.strength), double(e.color.x), double(e.color.y), double(e.color.z),
+                double(scene_.display.exposure), int(scene_.display.tone_map));
+  if (preview_key_ == key) return false;
+  preview_key_ = key;
+  const float scale = scene_.display.scale();
+  width = height = 0;
+  rgba.clear();
+  if (img && img->width > 0) {
+    width = std::min(256, img->width);
+    height = std::max(1, int(std::lround(double(img->height) * width / img->width)));
+    rgba.resize(size_t(width) * size_t(height));
+    // Each preview texel averages the map's texels it covers (a box filter).
+    for (int y = 0; y < height; ++y) {
+      const int y0 = y * img->height / height,
+                y1 = std::max(y0 + 1, (y + 1) * img->height / height);
+      for (int x = 0; x < width; ++x) {
+        const int x0 = x * img->width / width, x1 = std::max(x0 + 1, (x + 1) * img->width / width);
+        vec3 sum(0.0f);
+        for (int j = y0; j < y1; ++j)
+          for (int i = x0; i < x1; ++i) {
+            const float* t = &img->rgba[4 * (size_t(j) * size_t(img->width) + size_t(i))];
+            sum += vec3(t[0], t[1], t[2]);
+          }
+        sum *= e.strength / float((y1 - y0) * (x1 - x0));
+        rgba[size_t(y) * size_t(width) + size_t(x)] =
+            tracer::display_rgba8(sum, scale, scene_.display.tone_map);
+      }
+    }
+  } else if (e.file.empty() && tracer::max_component(e.color) > 0.0f) {
+    width = 64;
+    height = 16;
+    rgba.assign(size_t(width) * size_t(height),
+                tracer::display_rgba8(e.color * e.strength, scale, scene_.display.tone_map));
+  }
+  return true;
+}
+
+std::string Workbench::environment_summary() const {
+  return tracer::describe_environment(scene_);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Edits by name, for --set, the script file and tests.
 
@@ -359,11 +407,12 @@ bool Workbench::set(const tracer::Setting& s, const nlohmann::json& value, std::
     else return true;
   } else if (problem.empty()) {
     const tracer::CameraDesc old_camera = scene_.camera;
-    s.put(scene_, value);
-    if (s.section() == "camera") {  // the camera's settings are checked together
+    problem = tracer::set_setting(scene_, s, value);   // with its load hook (environment.file)
+    if (problem.empty() && s.section() == "camera") {  // the camera's settings go together
       problem = tracer::check_camera(scene_);
       if (!problem.empty()) scene_.camera = old_camera;
     }
+    take_scene_warnings();  // what a load hook found (negative texels in a map)
   }
   if (!problem.empty()) {
     if (error) *error = problem;

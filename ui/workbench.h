@@ -117,6 +117,14 @@ class Workbench {
   int pick_object(float u, float v) const;   // index into scene().objects, or -1
   bool focus_at(float u, float v);          // sets focus_distance to the hit under (u, v)
 
+  // A small picture of the environment for the Environment panel: the map as stored (at most
+  // 256 texels wide), times environment.strength, through the display's exposure and tone map;
+  // a constant environment as a swatch; 0 x 0 without an environment. False when it is the same
+  // as the last call's.
+  bool environment_preview(std::vector<uint32_t>& rgba, int& width, int& height);
+  // "1024x512 equirect (auto), 596 negative texels clamped" or "constant colour" or "none".
+  std::string environment_summary() const;
+
   // Messages for the UI and stderr (errors, warnings with the scene's own, notes), newest last.
   MessageLog messages;
 
@@ -142,6 +150,7 @@ class Workbench {
   std::unique_ptr<tracer::ReferenceImage> reference_;
   int frames_since_estimate_ = 0;
   uint32_t next_curve_spp_ = 1;
+  std::string preview_key_;  // what environment_preview last drew
 
   // CPU backend: a worker thread renders passes while the UI runs.
   bool async_ = false;

@@ -121,8 +121,8 @@ std::string describe_flat_list(const FlatList& list, uint32_t sphere_count) {
          ") + " + std::to_string(sphere_count) + " spheres";
 }
 
-FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
-                         const std::vector<Sphere>& spheres) {
+FlatList build_flat_list(const std::vector<TriangleVerts>& tris, const std::vector<Sphere>& spheres,
+                         bool open) {
   FlatList out;
   const size_t n = tris.size();
   const size_t sphere_count = spheres.size();
@@ -181,7 +181,8 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
       barycentric_map(cb, fi.map1);
       used[j] = true;
       entry_of[i] = entry_of[j] = uint32_t(quads.size());
-      quad_class.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
+      quad_class.push_back(open ? 0
+                                : on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
       {
         const DVec p = dv(corner(tris[i], ip)), q = dv(corner(tris[i], iq)),
                    r = dv(corner(tris[i], ir));
@@ -202,7 +203,8 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
       std::copy(identity, identity + 6, fi.map1);
       entry_of[i] = uint32_t(singles.size());
       is_single[i] = true;
-      single_class.push_back(on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
+      single_class.push_back(
+          open ? 0 : on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
       singles.push_back(probe);
       single_info.push_back(fi);
     }

@@ -93,8 +93,9 @@ struct FlatList {
 std::string describe_flat_list(const FlatList& list, uint32_t sphere_count);
 
 // Builds the list for a scene of these triangles and spheres; `enabled` is false (and the arrays
-// empty) when the scene is too large for it.
-FlatList build_flat_list(const std::vector<TriangleVerts>& tris,
-                         const std::vector<Sphere>& spheres);
+// empty) when the scene is too large for it. `open`: shadow rays may leave the scene (lights at
+// infinity), so no entry is on the hull (every one can block them) and there are no box faces.
+FlatList build_flat_list(const std::vector<TriangleVerts>& tris, const std::vector<Sphere>& spheres,
+                         bool open = false);
 
 }  // namespace tracer

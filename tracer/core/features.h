@@ -20,17 +20,26 @@ enum SceneFeature : uint32_t {
   // Not a scene feature: code compiled with it honours SceneView::use_flat (the flat primitive
   // list of small scenes, bvh/flat_list.h); without it, queries always walk the BVH.
   kFeatureFlatList = 1u << 9,
+  // Lights at infinity: an environment (map or constant colour) or distant lights (suns), or a
+  // background colour that replaces the environment for camera rays.
+  kFeatureInfiniteLights = 1u << 10,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
 // Materials other than Lambertian diffuse.
 // (Subsurface is grouped with them: its boundary is a dielectric. Textures too: a
 // metallic-roughness map turns diffuse into metal per texel, and grouping them keeps the CUDA
-// specialisations at three bits, so diffuse-only untextured kernels compile no texture code.)
+// specialisations at three bits, so diffuse-only untextured kernels compile no texture code.
+// Infinite lights as well: a fourth bit would double the kernels compiled (the megakernels alone
+// from 32 to 64), for scenes that are rarely diffuse-only; grouped, the diffuse kernels of
+// closed rooms compile neither the environment's lookups nor its sampling, and a diffuse scene
+// under a sky runs the specular kernels, which test the material type it does not need.)
 constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption |
-                                      kFeatureSubsurface | kFeatureTextures;
+                                      kFeatureSubsurface | kFeatureTextures |
+                                      kFeatureInfiniteLights;
 
-// Specialisations: three bits (1 spheres, 2 depth of field, 4 specular materials) name the eight
+// Specialisations: three bits (1 spheres, 2 depth of field, 4 specular materials, textures,
+// subsurface or infinite lights) name the eight
 // compiled variants both backends run; kGeneralSpec is the one for all features.
 constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4;
 constexpr uint32_t kGeneralSpec = 7;

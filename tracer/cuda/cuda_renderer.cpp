@@ -34,6 +34,11 @@ struct CudaRenderer::Impl {
   DeviceBuffer<TriangleUv> tri_uvs;  // empty unless the scene is textured
   DeviceBuffer<TextureDesc> textures;
   DeviceBuffer<uint32_t> texels;     // all textures' RGBA8 texels in one allocation
+  // The lights at infinity (SceneView::infinite): the map's texels and sampling distribution,
+  // the distant lights, and the InfiniteLights struct pointing at them.
+  DeviceBuffer<float> env_texels, env_func, env_cond_cdf, env_marg_cdf;
+  DeviceBuffer<DistantLight> distant;
+  DeviceBuffer<InfiniteLights> infinite;
   DeviceBuffer<FlatPrim> flat;       // the flat primitive list, small scenes only
   DeviceBuffer<FlatPrimInfo> flat_info;
   DeviceBuffer<FlatPrim> flat_solids;  // the solid boxes' maps
@@ -389,6 +394,25 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.textures = m.textures.get();
   m.view.texels = m.texels.get();
   m.view.cpu_bvh = CpuBvhView();  // host memory: the device traverses the shared layout
+  m.view.infinite = nullptr;
+  if (scene.view().infinite) {
+    const InfiniteLightsData& inf = scene.infinite();
+    InfiniteLights dv = inf.view;
+    if (inf.image) {
+      m.env_texels.upload(inf.image->rgba);
+      m.env_func.upload(inf.func);
+      m.env_cond_cdf.upload(inf.cond_cdf);
+      m.env_marg_cdf.upload(inf.marg_cdf);
+      dv.texels = m.env_texels.get();
+      dv.func = m.env_func.get();
+      dv.cond_cdf = m.env_cond_cdf.get();
+      dv.marg_cdf = m.env_marg_cdf.get();
+    }
+    m.distant.upload(inf.distant);
+    dv.distant = inf.distant.empty() ? nullptr : m.distant.get();
+    m.infinite.upload(std::vector<InfiniteLights>{dv});
+    m.view.infinite = m.infinite.get();
+  }
   m.features = scene.features();
   m.has_scene = true;
   set_settings(cfg);
@@ -453,7 +477,9 @@ size_t CudaRenderer::scene_bytes() const {
   const Impl& m = *impl_;
   return m.nodes.bytes() + m.prim_indices.bytes() + m.tri_verts.bytes() + m.tri_shading.bytes() +
          m.spheres.bytes() + m.materials.bytes() + m.lights.bytes() + m.light_cdf.bytes() +
-         m.flat.bytes() + m.flat_info.bytes() + m.tri_to_flat.bytes();
+         m.env_texels.bytes() + m.env_func.bytes() + m.env_cond_cdf.bytes() +
+         m.env_marg_cdf.bytes() + m.distant.bytes() + m.infinite.bytes() + m.flat.bytes() +
+         m.flat_info.bytes() + m.tri_to_flat.bytes();
 }
 
 FrameStats CudaRenderer::render(uint32_t spp) {

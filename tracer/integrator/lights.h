@@ -1,6 +1,7 @@
 // Sampling emissive geometry for next-event estimation, and the matching pdf for multiple
 // importance sampling when a BSDF-sampled ray hits an emitter. Lights are chosen in proportion to
-// their power; triangles are sampled by area, spheres by the cone of directions they subtend.
+// their power; triangles are sampled by area, spheres by the cone of directions they subtend,
+// the environment by its map's luminance, distant lights by their cone (or their direction).
 #pragma once
 
 #include "core/sampling.h"
@@ -11,13 +12,48 @@
 namespace tracer {
 
 struct LightSample {
-  vec3 p;     // point on the light
+  vec3 p;     // point on the light; a light at infinity: the unit direction towards it
   vec3 n;     // its geometric normal
-  vec3 le;    // radiance emitted towards the reference point
-  float pdf;  // solid-angle pdf at the reference point, including the choice of light
+  vec3 le;    // radiance emitted towards the reference point (a delta light: its irradiance)
+  float pdf;  // solid-angle pdf at the reference point, including the choice of light (a delta
+              // light: the choice alone)
   uint32_t prim;
   bool valid;
+  bool infinite;  // a direction, not a point: the shadow ray leaves the scene
+  bool delta;     // a delta distribution (a distant light of angular diameter 0): no MIS
 };
+
+// A light at infinity once chosen (select: the probability of that choice).
+template <uint32_t F>
+TRACER_HD inline LightSample sample_infinite_light(const SceneView& s, const Light& light,
+                                                   float select, vec2 u) {
+  LightSample ls;
+  ls.valid = false;
+  ls.infinite = true;
+  ls.delta = false;
+  ls.prim = kInvalid;
+  const InfiniteLights& inf = *s.infinite;
+  float pdf = 0.0f;
+  if (light.kind == kLightEnvironment) {
+    ls.p = env_sample(inf, u, &pdf);
+    ls.le = env_radiance(inf, ls.p);
+  } else {
+    const DistantLight& dl = inf.distant[light.prim];
+    ls.le = dl.radiance;
+    if (dl.one_minus_cos > 0.0f) {
+      ls.p = distant_sample(dl, u);
+      pdf = distant_cone_pdf(dl);
+    } else {
+      ls.p = dl.dir;
+      ls.delta = true;
+      pdf = 1.0f;
+    }
+  }
+  ls.n = -ls.p;
+  ls.pdf = select * pdf;
+  ls.valid = ls.pdf > 0.0f && is_finite(ls.pdf);
+  return ls;
+}
 
 // Index of the light whose CDF interval holds u (binary search over light_count + 1 entries).
 TRACER_HD TRACER_INLINE uint32_t pick_light(const SceneView& s, float u) {
@@ -70,9 +106,13 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
                                                  vec3 ref_n, vec2 u) {
   LightSample ls;
   ls.valid = false;
+  ls.infinite = false;
+  ls.delta = false;
   const Light& light = s.lights[li];
   const float select = light_select_pdf(s, li);
   if (select <= 0.0f) return ls;
+  if ((F & kFeatureInfiniteLights) && light.kind != kLightPrimitive)
+    return sample_infinite_light<F>(s, light, select, u);
   ls.prim = light.prim;
   uint32_t material;
   if (!(F & kFeatureSpheres) || light.prim < s.tri_count) {
@@ -179,6 +219,42 @@ TRACER_HD inline float light_pdf(const SceneView& s, uint32_t light_index, vec3 
   const float cos_l = glm::abs(glm::dot(ng, to_ref)) * fast_rsqrt(d2);
   if (cos_l <= 0.0f) return 0.0f;
   return fast_div(select * d2, cos_l * light.area);
+}
+
+// The radiance a path gains when its ray (direction d, leaving the scene; st_depth the segments
+// traced, counting it) meets no surface: the environment and the distant lights' cones, each
+// weighted against the light sampling that could have produced d at the previous vertex (MIS:
+// prev_pdf is the BSDF's solid-angle pdf of d; no weight after a delta bounce or for the camera).
+// Camera rays see the background instead where the environment is not visible.
+template <uint32_t F = kAllFeatures>
+TRACER_HD inline vec3 escaped_radiance(const SceneView& s, bool nee, bool mis, vec3 d,
+                                       float prev_pdf, uint32_t depth, bool prev_specular) {
+  const InfiniteLights& inf = *s.infinite;
+  if (depth == 1 && !inf.visible) return inf.background;
+  // Lights that next-event estimation samples are weighted; without MIS BSDF sampling leaves
+  // them to next-event estimation entirely.
+  const bool weighted = nee && !prev_specular;
+  vec3 L(0.0f);
+  if (inf.env != kEnvNone) {
+    const vec3 le = env_radiance(inf, d);
+    if (le.x > 0.0f || le.y > 0.0f || le.z > 0.0f) {
+      float w = 1.0f;
+      if (weighted)
+        w = mis ? power_heuristic(prev_pdf, light_select_pdf(s, inf.env_light) * env_pdf(inf, d))
+                : 0.0f;
+      L += le * w;
+    }
+  }
+  for (uint32_t k = 0; k < inf.distant_count; ++k) {
+    const DistantLight& dl = inf.distant[k];
+    if (!(dl.one_minus_cos > 0.0f) || !distant_hit(dl, d)) continue;  // delta lights: never hit
+    float w = 1.0f;
+    if (weighted)
+      w = mis ? power_heuristic(prev_pdf, light_select_pdf(s, dl.light) * distant_cone_pdf(dl))
+              : 0.0f;
+    L += dl.radiance * w;
+  }
+  return L;
 }
 
 }  // namespace tracer

@@ -229,7 +229,13 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
       return !is_black(st.throughput);
     }
   }
-  if (!hit.valid()) return false;  // escaped: the scene has no environment light
+  if (!hit.valid()) {  // escaped: the lights at infinity, if any
+    if ((F & kFeatureInfiniteLights) && s.infinite)
+      st.radiance +=
+          st.throughput * escaped_radiance<F>(s, cfg.nee != 0, cfg.mis != 0, st.ray.d, st.prev_pdf,
+                                              st.depth, (st.flags & kPathPrevSpecular) != 0);
+    return false;
+  }
   SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
   // Textured materials are evaluated on a copy holding this point's texel values; scenes without
   // textures (F without kFeatureTextures) read the material in place.
@@ -280,8 +286,9 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
     const LightSample ls = sample_light_2d<F>(s, sh.p, sh.ng, u.light());
     if (ls.valid && !is_black(ls.le)) {
-      const vec3 to = ls.p - sh.p;
-      const vec3 wi_world = fast_normalize(to);
+      // A light at infinity gives a direction; the others a point.
+      const bool at_infinity = (F & kFeatureInfiniteLights) && ls.infinite;
+      const vec3 wi_world = at_infinity ? ls.p : fast_normalize(ls.p - sh.p);
       const vec3 wi = frame.to_local(wi_world);
       // Reflectors see lights on the viewer's side only; a rough transmitter on either side,
       // as long as the shading and geometric normals agree about which side that is.
@@ -291,9 +298,12 @@ TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& c
       if (usable) {
         const vec3 f = bsdf_eval<F>(m, wo, wi);
         if (!is_black(f)) {
-          const float w = cfg.mis ? power_heuristic(ls.pdf, bsdf_pdf<F>(m, wo, wi)) : 1.0f;
+          const bool delta = (F & kFeatureInfiniteLights) && ls.delta;
+          const float w =
+              cfg.mis && !delta ? power_heuristic(ls.pdf, bsdf_pdf<F>(m, wo, wi)) : 1.0f;
           shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * fast_div(w, ls.pdf);
-          shadow.ray = spawn_ray_to(sh.p, geo > 0.0f ? sh.ng : -sh.ng, ls.p, ls.n);
+          shadow.ray = at_infinity ? spawn_ray(sh.p, sh.ng, wi_world)
+                                   : spawn_ray_to(sh.p, geo > 0.0f ? sh.ng : -sh.ng, ls.p, ls.n);
           shadow.target_prim = ls.prim;
           shadow.origin_prim =
               (F & kFeatureSubsurface) && hit.prim < s.tri_count ? hit.prim : kInvalid;

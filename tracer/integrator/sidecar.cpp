@@ -48,6 +48,16 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
   nlohmann::json mats = nlohmann::json::object();
   for (const auto& m : scene.materials) mats[m.name] = material_to_json(m.material);
   j["materials"] = mats;
+  if (!scene.distant_lights.empty()) j["lights"] = distant_lights_to_json(scene.distant_lights);
+  if (scene.environment_image) {  // the map as it was read (the mapping "auto" chose)
+    const EnvironmentImage& img = *scene.environment_image;
+    j["environment_map"] = {{"file", img.path},
+                            {"width", img.width},
+                            {"height", img.height},
+                            {"mapping", env_mapping_name(resolve_env_mapping(
+                                            scene.environment.mapping, img.width, img.height))},
+                            {"negative_texels_clamped", img.negative}};
+  }
   j["spp"] = run.spp;
   j["wall_time_s"] = run.wall_time_s;
   if (run.setup_time_s >= 0) j["setup_time_s"] = run.setup_time_s;

@@ -13,15 +13,12 @@ std::string describe_features(uint32_t f) {
   static const struct {
     uint32_t bit;
     const char* name;
-  } kNames[] = {{kFeatureDepthOfField, "depth of field"},
-                {kFeatureDielectric, "dielectrics"},
-                {kFeatureAbsorption, "absorption"},
-                {kFeatureMirror, "mirrors and conductors"},
-                {kFeatureSubsurface, "subsurface"},
-                {kFeatureTextures, "textures"},
-                {kFeatureEmissiveMeshes, "emissive meshes"},
-                {kFeatureSpheres, "spheres"},
-                {kFeatureShadingNormals, "shading normals"}};
+  } kNames[] = {
+      {kFeatureDepthOfField, "depth of field"},    {kFeatureDielectric, "dielectrics"},
+      {kFeatureAbsorption, "absorption"},          {kFeatureMirror, "mirrors and conductors"},
+      {kFeatureSubsurface, "subsurface"},          {kFeatureTextures, "textures"},
+      {kFeatureEmissiveMeshes, "emissive meshes"}, {kFeatureSpheres, "spheres"},
+      {kFeatureShadingNormals, "shading normals"}, {kFeatureInfiniteLights, "lights at infinity"}};
   std::string out;
   for (const auto& n : kNames) {
     if (!(f & n.bit)) continue;
@@ -89,7 +86,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     l.area = area;
     l.power = luminance(m.emission) * area;
     if (m.flags & kMaterialTwoSidedEmission) l.power *= 2.0f;
-    l.pad = 0;
+    l.kind = kLightPrimitive;
     if (!(l.power > 0.0f)) l.power = max_component(m.emission) * area;
     lights_.push_back(l);
     return uint32_t(lights_.size() - 1);
@@ -108,6 +105,39 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     if (!m.is_emissive()) continue;
     const float area = 4.0f * kPi * spheres_[i].radius * spheres_[i].radius;
     spheres_[i].light = add_light(tri_count + i, area, m);
+  }
+  // The lights at infinity: the environment's map (read here only when the scene's copy is
+  // missing or stale, e.g. a scene built in code) and the distant lights. Their power is pbrt-v4's
+  // estimate (PowerLightSampler): the flux through the disc of the scene's bounding sphere,
+  // pi R^2 times the radiance integrated over the sphere (a distant light: its irradiance).
+  infinite_ = std::make_unique<InfiniteLightsData>();
+  {
+    std::shared_ptr<const EnvironmentImage> image = scene.environment_image;
+    const std::string& file = scene.environment.file;
+    if (!file.empty() && (!image || image->path != file)) image = read_environment_image(file);
+    build_infinite_lights(scene.environment, image, scene.distant_lights, infinite_.get());
+  }
+  if (infinite_->any()) {
+    features |= kFeatureInfiniteLights;
+    Aabb box;
+    for (const Aabb& b : bounds) box.grow(b);
+    const float radius = box.empty() ? 1.0f : 0.5f * glm::length(box.hi - box.lo);
+    const double r2 = std::max(double(radius) * radius, 1e-30);
+    auto add_infinite = [&](uint32_t kind, uint32_t index, double power) {
+      Light l;
+      l.prim = index;
+      l.area = 0.0f;
+      l.power = float(power);
+      l.kind = kind;
+      lights_.push_back(l);
+      return uint32_t(lights_.size() - 1);
+    };
+    InfiniteLights& inf = infinite_->view;
+    if (inf.env != kEnvNone)
+      inf.env_light = add_infinite(kLightEnvironment, 0, r2 * infinite_->env_luminance_integral);
+    for (size_t i = 0; i < infinite_->distant.size(); ++i)
+      infinite_->distant[i].light =
+          add_infinite(kLightDistant, uint32_t(i), r2 * infinite_->distant_luminance[i]);
   }
   double total = 0.0;
   for (const Light& l : lights_) total += l.power;
@@ -173,7 +203,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
 
   bvh_ = build_bvh(bounds);
   cpu_bvh_ = build_cpu_bvh(bvh_, tri_verts_, tri_count);
-  flat_ = build_flat_list(tri_verts_, spheres_);
+  // With lights at infinity shadow rays leave the scene, so no entry may be skipped as hull.
+  flat_ = build_flat_list(tri_verts_, spheres_, infinite_->any());
 
   view_.nodes = bvh_.nodes.data();
   view_.prim_indices = bvh_.prim_indices.data();
@@ -186,6 +217,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.tri_uvs = tri_uvs_.empty() ? nullptr : tri_uvs_.data();
   view_.textures = textures_.data();
   view_.texels = texels_.data();
+  view_.infinite = infinite_->any() ? &infinite_->view : nullptr;
   view_.texture_count = uint32_t(textures_.size());
   view_.node_count = uint32_t(bvh_.nodes.size());
   view_.tri_count = tri_count;

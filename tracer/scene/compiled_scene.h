@@ -2,6 +2,7 @@
 // lights) and keeps them alive; view() points into them.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,9 @@ class CompiledScene {
   const std::vector<TriangleUv>& tri_uvs() const { return tri_uvs_; }
   const std::vector<TextureDesc>& textures() const { return textures_; }
   const std::vector<uint32_t>& texels() const { return texels_; }
+  // The environment's and the distant lights' arrays (view().infinite points at its view when
+  // the scene has any).
+  const InfiniteLightsData& infinite() const { return *infinite_; }
 
  private:
   Bvh bvh_;
@@ -48,6 +52,7 @@ class CompiledScene {
   std::vector<TriangleUv> tri_uvs_;  // empty unless the scene has textures and uvs
   std::vector<TextureDesc> textures_;
   std::vector<uint32_t> texels_;  // RGBA8 packed little-endian (R in the low byte)
+  std::unique_ptr<InfiniteLightsData> infinite_;  // on the heap: view_ keeps its address
   SceneView view_;
 };
 

@@ -1,13 +1,14 @@
 // The JSON scene format (docs/SCENE_FORMAT.md): camera, render settings, named materials and
 // objects, read with a line for every value so that each message points at the offending spot.
 #include <cmath>
+#include <filesystem>
 #include <glm/gtc/matrix_transform.hpp>
 #include <initializer_list>
 
 #include "core/math.h"
-#include "scene/json_lines.h"
 #include "materials/metals.h"
 #include "materials/subsurface.h"
+#include "scene/json_lines.h"
 #include "scene/loader.h"
 #include "scene/loader_util.h"
 
@@ -42,10 +43,13 @@ class JsonSceneReader {
     const json& root = doc_.root;
     if (!root.is_object())
       fail("", std::string("a scene file must be a JSON object, not ") + json_type_name(root));
-    check_keys(root, "", {"camera", "render", "gpu", "display", "materials", "objects"},
-               "the scene");
-    for (const char* section : {"camera", "render", "gpu", "display"})
+    check_keys(
+        root, "",
+        {"camera", "render", "gpu", "display", "environment", "materials", "objects", "lights"},
+        "the scene");
+    for (const char* section : {"camera", "render", "gpu", "display", "environment"})
       if (root.contains(section)) read_settings(root[section], section);
+    if (root.contains("lights")) read_lights(root["lights"], "/lights");
     if (root.contains("camera")) {
       const std::string problem = check_camera(scene_);
       if (!problem.empty()) fail("/camera", problem);
@@ -151,8 +155,57 @@ class JsonSceneReader {
         throw InputError({path_, doc_.key_line(json_pointer_child(ptr, it.key()))},
                          unknown_setting_message(it.key(), section));
       }
-      const std::string problem = set_setting(scene_, *s, it.value());
+      json value = it.value();
+      // A file named by the scene is relative to the scene's folder; kept absolute, so that a
+      // sidecar or saved scene elsewhere names the same file.
+      if (s->path && value.is_string() && !value.get<std::string>().empty()) {
+        const std::string full = path_join(path_directory(path_), value.get<std::string>());
+        value = std::filesystem::absolute(full).lexically_normal().string();
+      }
+      const std::string problem = set_setting(scene_, *s, value);
       if (!problem.empty()) fail(json_pointer_child(ptr, it.key()), problem);
+    }
+  }
+
+  // "lights": lights that are no geometry. Today the distant light (a sun): "direction" towards
+  // it, "irradiance" on a surface facing it, "angular_diameter" in degrees (0: a delta light).
+  void read_lights(const json& ls, const std::string& ptr) {
+    if (!ls.is_array())
+      fail(ptr, std::string("\"lights\" must be an array [...], not ") + json_type_name(ls));
+    for (size_t i = 0; i < ls.size(); ++i) {
+      const json& l = ls[i];
+      const std::string lp = json_pointer_child(ptr, i);
+      const std::string where = "light " + std::to_string(i);
+      require_object(l, lp, where);
+      check_keys(l, lp, {"type", "name", "direction", "irradiance", "angular_diameter"}, where);
+      const std::string type = get_string(l, lp, "type", "", where);
+      if (type != "distant") {
+        const std::string guess = did_you_mean(type, {"distant"});
+        fail(l.contains("type") ? json_pointer_child(lp, "type") : lp,
+             (type.empty() ? where + " has no \"type\"" : "unknown light type " + in_quotes(type)) +
+                 (guess.empty() ? " (expected \"distant\")" : " (did you mean \"distant\"?)"));
+      }
+      DistantLightDesc d;
+      d.name = get_string(l, lp, "name", where, where);
+      d.loc = at(lp);
+      if (!l.contains("direction")) fail(lp, where + " has no \"direction\" (towards the light)");
+      d.direction = get_vec3(l, lp, "direction", d.direction, where);
+      const double len2 = double(d.direction.x) * d.direction.x +
+                          double(d.direction.y) * d.direction.y +
+                          double(d.direction.z) * d.direction.z;
+      if (!(len2 > 1e-30) || !std::isfinite(len2))
+        fail(json_pointer_child(lp, "direction"),
+             "\"direction\" of " + where + " must be a non-zero vector of moderate length");
+      d.irradiance = get_vec3(l, lp, "irradiance", d.irradiance, where);
+      if (glm::any(glm::lessThan(d.irradiance, vec3(0.0f))))
+        fail(json_pointer_child(lp, "irradiance"), "\"irradiance\" of " + where + " must be >= 0");
+      d.angular_diameter_deg = get_float(l, lp, "angular_diameter", 0.0f, where);
+      if (!(d.angular_diameter_deg >= 0.0f && d.angular_diameter_deg < 180.0f))
+        fail(json_pointer_child(lp, "angular_diameter"),
+             "\"angular_diameter\" of " + where + " must be in [0, 180) degrees");
+      if (max_component(d.irradiance) <= 0.0f)
+        scene_.diagnostics.warn(at(lp), where + " has zero irradiance", "it lights nothing");
+      scene_.distant_lights.push_back(d);
     }
   }
 

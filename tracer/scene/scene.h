@@ -5,11 +5,12 @@
 #include <string>
 #include <vector>
 
-#include "core/diagnostics.h"
 #include "camera/filter.h"
+#include "core/diagnostics.h"
 #include "core/sobol.h"
 #include "materials/material.h"
 #include "materials/texture.h"
+#include "scene/environment.h"
 #include "scene/settings.h"
 
 namespace tracer {
@@ -118,11 +119,28 @@ struct Scene {
   std::vector<TextureImage> textures;  // Material::*_tex index into this
   TriangleMesh mesh;                   // every triangle of every object, in world space
   std::vector<ObjectInfo> objects;
+  // The lights at infinity: the environment's settings (the table's "environment" section),
+  // the map read from environment.file (shared by copies of the scene; set by the setting's
+  // load hook, refresh_environment), and the distant lights (the scene file's "lights").
+  EnvironmentDesc environment;
+  std::shared_ptr<const EnvironmentImage> environment_image;
+  std::vector<DistantLightDesc> distant_lights;
   Diagnostics diagnostics;
 
   uint32_t add_material(const std::string& name, const Material& m);
   // Index of the named material, or kInvalid.
   uint32_t find_material(const std::string& name) const;
 };
+
+// Brings environment_image up to date with environment.file (reads the file when it names
+// another one; drops the image when it is ""; warns once about clamped negative texels) and
+// checks the map's shape against environment.mapping. "" or the problem (the file's own
+// "path[:line]: what"); the scene's image is unchanged on a problem. The load hook of the
+// environment.file and environment.mapping settings.
+std::string refresh_environment(Scene& scene);
+
+// "sunrise.exr, 1024x512 equirect (auto), strength 1, rotation 0 deg, 596 negative texels
+// clamped; 1 distant light", "constant colour [...]" or "none", for `info` and the workbench.
+std::string describe_environment(const Scene& scene);
 
 }  // namespace tracer

@@ -7,6 +7,7 @@
 #include "core/features.h"
 #include "materials/material.h"
 #include "materials/texture.h"
+#include "scene/environment_view.h"
 
 namespace tracer {
 
@@ -23,12 +24,22 @@ struct TriangleUv {
   vec2 uv0, uv1, uv2;
 };
 
-// An emissive primitive. `prim` is a unified primitive id (triangles first, then spheres).
+// Light::kind.
+enum LightKind : uint32_t {
+  kLightPrimitive = 0,    // an emissive triangle or sphere
+  kLightEnvironment = 1,  // SceneView::infinite's environment
+  kLightDistant = 2,      // SceneView::infinite->distant[prim]
+};
+
+// A light to choose for next-event estimation: an emissive primitive (`prim` a unified primitive
+// id, triangles first, then spheres) or a light at infinity (kind; `prim` the distant light).
 struct Light {
   uint32_t prim;
   float area;
-  float power;  // luminance of the emission times area: how often it is chosen
-  uint32_t pad;
+  // How often it is chosen: flux / pi (luminance x area for a one-sided emitter; for lights at
+  // infinity the flux through the disc of the scene's bounding sphere, pbrt-v4's estimate).
+  float power;
+  uint32_t kind;  // LightKind
 };
 
 // The whole scene as the integrator reads it: the geometry that ray queries read (TraceView) and
@@ -41,6 +52,9 @@ struct SceneView : TraceView {
   const TriangleUv* tri_uvs = nullptr;    // tri_count entries, or null when the mesh has none
   const TextureDesc* textures = nullptr;  // texture_count entries
   const uint32_t* texels = nullptr;       // RGBA8 texels of all textures, one after another
+  // The environment and the distant lights; null when the scene has neither (its rays that
+  // escape see black).
+  const InfiniteLights* infinite = nullptr;
   uint32_t texture_count = 0;
   uint32_t material_count = 0, light_count = 0;
   uint32_t features = 0;

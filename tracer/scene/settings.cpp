@@ -52,6 +52,9 @@ json to_value(float f) {
 json to_value(double d) {
   return d;
 }
+json to_value(const std::string& t) {
+  return t;
+}
 json to_value(vec3 v) {
   return json::array({shortest(v.x), shortest(v.y), shortest(v.z)});
 }
@@ -70,6 +73,9 @@ void from_value(const json& j, float& f) {
 }
 void from_value(const json& j, double& d) {
   d = j.get<double>();
+}
+void from_value(const json& j, std::string& t) {
+  t = j.get<std::string>();
 }
 void from_value(const json& j, vec3& v) {
   for (int i = 0; i < 3; ++i) v[i] = float(j[size_t(i)].get<double>());
@@ -250,6 +256,48 @@ std::vector<Setting> make_table() {
                     "Wavefront with compaction: once fewer paths than this fraction of the "
                     "pixels remain, one megakernel launch runs their remaining bounces (0: off).",
                     E::kGpu, [](Scene& s) -> float& { return s.gpu.tail_fraction; }));
+  // ---- environment ----
+  // A new file or mapping is read and checked by the load hook (refresh_environment), so every
+  // entry point that sets them (scene file, flags, --set, the workbench) reads the map.
+  {
+    Setting file = field("environment.file", "--env", T::kString, 0, 0, "",
+                         "Environment map lighting the scene from infinitely far: a .hdr, .pfm "
+                         "or .exr file (\"\": none; then environment.color, when not black, is "
+                         "a constant environment).",
+                         E::kImage, [](Scene& s) -> std::string& { return s.environment.file; });
+    file.path = true;
+    file.load = refresh_environment;
+    t.push_back(file);
+  }
+  {
+    Setting mapping = choice<EnvMapping>(
+        "environment.mapping", "--env-mapping", {"auto", "equirect", "octahedral"},
+        {EnvMapping::kAuto, EnvMapping::kEquirect, EnvMapping::kOctahedral},
+        "How the map's image covers the sphere: equirect (latitude-longitude, the top row "
+        "straight up), octahedral (pbrt-v4's equal-area square) or auto (a square image is "
+        "octahedral, any other equirect: a guess from the shape).",
+        E::kImage, [](Scene& s) -> EnvMapping& { return s.environment.mapping; });
+    mapping.load = refresh_environment;
+    t.push_back(mapping);
+  }
+  t.push_back(field("environment.strength", "--env-strength", T::kFloat, 0.0, kHuge, "",
+                    "Multiplies the environment's radiance (map or colour).", E::kImage,
+                    [](Scene& s) -> float& { return s.environment.strength; }));
+  t.push_back(field("environment.rotation", "--env-rotation", T::kFloat, -360.0, 360.0, "degrees",
+                    "Turns the environment about the up axis (+y), counter-clockwise seen from "
+                    "above.",
+                    E::kImage, [](Scene& s) -> float& { return s.environment.rotation_deg; }));
+  t.push_back(field("environment.visible", "--env-visible", T::kBool, 0, 0, "",
+                    "Camera rays see the environment (off: they see environment.background; "
+                    "the environment still lights the scene and shows in reflections).",
+                    E::kImage, [](Scene& s) -> bool& { return s.environment.visible; }));
+  t.push_back(field("environment.background", "", T::kVec3, 0.0, kHuge, "radiance",
+                    "What camera rays see where environment.visible is off.", E::kImage,
+                    [](Scene& s) -> vec3& { return s.environment.background; }));
+  t.push_back(field("environment.color", "", T::kVec3, 0.0, kHuge, "radiance",
+                    "A constant environment's radiance, used when there is no environment.file "
+                    "(0,0,0: none).",
+                    E::kImage, [](Scene& s) -> vec3& { return s.environment.color; }));
   // ---- display ----
   t.push_back(field("display.exposure", "--exposure", T::kFloat, -20.0, 20.0, "stops",
                     "Exposure of the display and of PNG exports (EXR stays linear).", E::kDisplay,
@@ -273,6 +321,8 @@ const char* type_words(const Setting& s) {
       return "three numbers x,y,z";
     case T::kChoice:
       return "a name";
+    case T::kString:
+      return "a file name";
   }
   return "";
 }
@@ -359,6 +409,9 @@ std::string check_setting(const Setting& s, const json& v) {
       }
       return "";
     }
+    case T::kString:
+      if (!v.is_string()) return quoted(s.key) + " must be a string, not " + shown;
+      return "";
     case T::kChoice: {
       if (v.is_string())
         for (const std::string& c : s.choices)
@@ -419,13 +472,22 @@ std::string parse_setting_text(const Setting& s, const std::string& text, json* 
     case T::kChoice:
       *value = text;
       return check_setting(s, *value);
+    case T::kString:
+      *value = text;
+      return "";
   }
   return "";
 }
 
 std::string set_setting(Scene& scene, const Setting& s, const json& value) {
-  const std::string problem = check_setting(s, value);
-  if (problem.empty()) s.put(scene, value);
+  std::string problem = check_setting(s, value);
+  if (!problem.empty()) return problem;
+  const json old = s.get(scene);
+  s.put(scene, value);
+  if (s.load) {
+    problem = s.load(scene);
+    if (!problem.empty()) s.put(scene, old);
+  }
   return problem;
 }
 
@@ -454,6 +516,7 @@ std::string value_text(const Setting& s, const json& v) {
       return number_text(v[0].get<double>()) + "," + number_text(v[1].get<double>()) + "," +
              number_text(v[2].get<double>());
     case T::kChoice:
+    case T::kString:
       return v.get<std::string>();
   }
   return "";
@@ -470,6 +533,7 @@ std::string setting_default_text(const Setting& s) {
 }
 
 std::string setting_values_text(const Setting& s) {
+  if (s.type == T::kString) return s.path ? "a file name, \"\" for none" : "text";
   if (s.type == T::kBool || s.type == T::kChoice) {
     std::string out;
     for (size_t i = 0; i < s.choices.size(); ++i) out += (i ? "|" : "") + s.choices[i];
@@ -704,10 +768,13 @@ std::string settings_markdown() {
     std::string value;
     if (s.type == T::kChoice || s.type == T::kBool)
       value = choice_list(s);
+    else if (s.type == T::kString)
+      value = s.path ? "a file name (in a scene file, relative to its folder)" : "text";
     else
       value = std::string(type_words(s)) + ", " + range_text(s);
     if (!s.unit.empty()) value += " (" + s.unit + ")";
     std::string def = setting_default_text(s);
+    if (s.type == T::kString && def.empty()) def = "\"\"";
     const char* effect = "";
     switch (s.effect) {
       case E::kDisplay:

@@ -60,7 +60,7 @@ struct DisplaySettings {
 
 struct Scene;
 
-enum class SettingType { kBool, kInt, kFloat, kChoice, kVec3 };
+enum class SettingType { kBool, kInt, kFloat, kChoice, kVec3, kString };
 
 // What an edit of a setting touches in the workbench: kImage, kCamera and kResize change the
 // expected image (the accumulator restarts); kDisplay only how it is shown; kGpu only speed;
@@ -77,8 +77,14 @@ struct Setting {
   std::string help;
   SettingEffect effect = SettingEffect::kImage;
   bool bare_flag = false;  // kBool: the command-line flag takes no value and means "on"
+  // kString: the value names a file; a scene file's relative name is taken relative to the
+  // scene file's folder (the command line's to the working directory).
+  bool path = false;
   std::function<nlohmann::json(const Scene&)> get;
   std::function<void(Scene&, const nlohmann::json&)> put;  // the value is already checked
+  // Optional, run by set_setting after put: reads what the value names (a file) into the scene.
+  // "" or the problem, in which case set_setting restores the previous value.
+  std::function<std::string(Scene&)> load;
 
   std::string section() const { return key.substr(0, key.find('.')); }
   std::string name() const { return key.substr(key.find('.') + 1); }
@@ -97,7 +103,8 @@ std::string check_setting(const Setting& s, const nlohmann::json& value);
 // Reads a value as the command line and --set spell it (on/off, numbers, "x,y,z", a choice's
 // name) into the scene format's type; "" or the problem (the same texts as check_setting's).
 std::string parse_setting_text(const Setting& s, const std::string& text, nlohmann::json* value);
-// check_setting then put: "" or the problem; the scene is unchanged on a problem.
+// check_setting, put, then the setting's load hook: "" or the problem; the scene's value is
+// unchanged on a problem.
 std::string set_setting(Scene& scene, const Setting& s, const nlohmann::json& value);
 // "KEY=VALUE" (the --set language) for table keys: "" or the problem.
 std::string set_setting_assignment(Scene& scene, const std::string& assignment);

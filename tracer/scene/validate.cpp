@@ -376,6 +376,9 @@ void validate_scene(Scene& scene) {
   for (const SphereDesc& s : scene.spheres)
     lit |= scene.materials[s.material].material.is_emissive();
   for (uint32_t m : scene.mesh.materials) lit |= scene.materials[m].material.is_emissive();
+  const EnvironmentDesc& env = scene.environment;
+  lit |= env.strength > 0.0f && (!env.file.empty() || max_component(env.color) > 0.0f);
+  for (const DistantLightDesc& d : scene.distant_lights) lit |= max_component(d.irradiance) > 0.0f;
   if (!lit) {
     warn_once(scene, {scene.source, 0}, "scene has no light; it will render black",
               "rendering anyway");
