@@ -33,5 +33,9 @@ done
 # ImGui's OpenGL loader dlopens libGL.so.1 (glvnd), which needs libGLX.so.0.
 for lib in libGL.so.1 libGLX.so.0; do cp -L "/usr/lib/x86_64-linux-gnu/$lib" "$DIST/lib/"; done
 cp /usr/share/glmark2/models/bunny.obj "$DIST/"  # for assets/scenes/cornell_bunnies.json
+# Blender's world maps (Debian blender-data) for the environment tests and env_sunrise.json;
+# gpu-check.sh puts them where the Debian package would.
+W=/usr/share/blender/datafiles/studiolights/world
+if [ -d "$W" ]; then mkdir -p "$DIST/world" && cp "$W"/*.exr "$DIST/world/"; fi
 du -sh "$DIST"
 ls "$DIST/lib"

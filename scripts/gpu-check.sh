@@ -25,6 +25,11 @@ if ldd $DIST/pathtracer | grep -q "not found"; then echo "MISSING LIBRARIES"; fi
 
 # The bunny scene names Debian's glmark2 bunny; the device has no Debian packages, so point it at
 # the copy carried in $DIST.
+# Blender's world maps likewise, where the tests and env_sunrise.json look for them.
+W=/usr/share/blender/datafiles/studiolights/world
+if [ -d "$DIST/world" ] && [ ! -d "$W" ]; then
+  mkdir -p "$W" 2>/dev/null && cp "$DIST/world/"*.exr "$W/" || echo "cannot install the world maps in $W"
+fi
 BUNNIES=/tmp/cornell_bunnies.json
 sed "s|/usr/share/glmark2/models/bunny.obj|$PWD/$DIST/bunny.obj|" \
   assets/scenes/cornell_bunnies.json > $BUNNIES
@@ -36,7 +41,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize (not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli (the last two not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -110,6 +115,33 @@ if [ "$MODE" = all ] || [ "$MODE" = error ]; then
   # The 512x512 reference comes back (the CPU and peer comparison use it); larger ones stay there.
   tar czf "$OUT/error-bench.tgz" -C /tmp --exclude='*1920x1080*.exr' --exclude='*960x540*.exr' \
     error-bench
+fi
+if [ "$MODE" = bitterli ]; then
+  # The shared Bitterli scenes (docs/BENCHMARKS.md) against their Tungsten references: two seeds
+  # per scene at the reference's resolution and depth, Tungsten's tent filter of radius 1, then
+  # compare's 4x4 regions with the two renders' noise. Not part of `all`: the scenes travel
+  # separately (copy ../shared/scenes/bitterli to .devbuild/bitterli here, carry it with $DIST).
+  # The seed-1 render of each scene comes back as NAME.exr, the tables in the log and
+  # bitterli-compare.tgz (NAME.compare.json).
+  B=${BITTERLI:-.devbuild/bitterli}
+  # name:max_depth:spp per seed. max_depth = the original pbrt maxdepth - 1 (the segments the
+  # references hold; ../shared/scenes/bitterli/README.md).
+  for row in ${BITTERLI_SCENES:-cornell-box:64:2048 veach-mis:2:2048 water-caustic:8:1024 coffee:16:1024 classroom:16:1024}; do
+    IFS=: read -r name depth spp <<< "$row"
+    [ -f "$B/$name/scene-v4.pbrt" ] || { echo "---- $name: absent from $B"; continue; }
+    echo "---- $name (max depth $depth, 2 x $spp spp)"
+    for seed in 1 2; do
+      $DIST/pathtracer render "$B/$name/scene-v4.pbrt" --backend cuda --spp "$spp" \
+        --max-depth "$depth" --seed $seed --filter tent --filter-radius 1 \
+        --out /tmp/$name.$seed.exr 2>&1 | grep -vE "^$" | tail -4
+    done
+    $DIST/pathtracer compare --grid 4x4 --test2 /tmp/$name.2.exr /tmp/$name.1.exr \
+      "$B/$name/TungstenRender.exr"
+    $DIST/pathtracer compare --json --grid 4x4 --test2 /tmp/$name.2.exr /tmp/$name.1.exr \
+      "$B/$name/TungstenRender.exr" > "/tmp/$name.compare.json"
+    cp /tmp/$name.1.exr "$OUT/$name.exr"
+  done
+  (cd /tmp && tar czf "$OUT/bitterli-compare.tgz" *.compare.json)  # $OUT holds at most 8 files
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction

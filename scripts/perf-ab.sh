@@ -12,6 +12,8 @@ nvidia-smi --query-gpu=name,clocks.sm,clocks.max.sm,driver_version --format=csv,
 date -u
 sed "s|/usr/share/glmark2/models/bunny.obj|$PWD/$D/bunny.obj|" assets/scenes/cornell_bunnies.json \
   > /tmp/cornell_bunnies.json
+W=/usr/share/blender/datafiles/studiolights/world  # Blender's maps, as gpu-check.sh does
+if [ -d "$D/world" ] && [ ! -d "$W" ]; then mkdir -p "$W" && cp "$D/world/"*.exr "$W/"; fi
 bench() {  # binary scene-file
   echo "==== $1 $(basename "$2" .json)"
   "$D/$1" bench "$2" --width 1920 --height 1080 --max-depth 8 --spp 16 --cpu-spp 0 \

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "cpu/cpu_backend.h"
@@ -172,6 +174,47 @@ TEST(Workbench, BadSceneKeepsTheCurrentOne) {
   EXPECT_NE(err.find("unknown_key.json"), std::string::npos) << err;
   EXPECT_EQ(wb->scene().source, "<built-in>");
   EXPECT_NE(wb->export_image("/proc/forbidden/x.png"), "");
+}
+
+// The Scene panel's Load takes every format load_scene reads: a pbrt-v4 file (with a PLY mesh
+// beside it) replaces the scene and renders; a broken one names file:line and keeps the old one.
+TEST(Workbench, LoadsPbrtScenesAndKeepsTheOldOneOnAnError) {
+  auto wb = small_cornell(1);
+  const std::string dir = tmpdir() + "/pbrt_load";
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream ply(dir + "/quad.ply");
+    ply << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+           "end_header\n-5 -5 0\n5 -5 0\n5 5 0\n-5 5 0\n4 0 1 2 3\n";
+    std::ofstream f(dir + "/scene.pbrt");
+    f << "LookAt 0 0 10  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 40\n"
+         "Film \"rgb\" \"integer xresolution\" 32 \"integer yresolution\" 24\n"
+         "WorldBegin\n"
+         "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [2 2 2]\n"
+         "  Translate 0 0 4\n  Shape \"sphere\" \"float radius\" 0.5\nAttributeEnd\n"
+         "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+         "Shape \"plymesh\" \"string filename\" \"quad.ply\"\n";
+    std::ofstream bad(dir + "/bad.pbrt");
+    bad << "WorldBegin\nShape \"trianglemesh\" \"integer indices\" [0 1 7]\n"
+           "  \"point3 P\" [0 0 0 1 0 0 0 1 0]\n";
+  }
+  std::string err;
+  ASSERT_TRUE(wb->load_scene(dir + "/scene.pbrt", &err)) << err;
+  EXPECT_EQ(wb->width(), 32);
+  EXPECT_EQ(wb->scene().settings.height, 24);
+  EXPECT_EQ(wb->scene().source, dir + "/scene.pbrt");
+  EXPECT_TRUE(wb->apply("render.spp=2", &err)) << err;
+  converge(*wb);
+  ASSERT_EQ(wb->export_image(dir + "/out.exr"), "");
+  const tracer::ImageRGB img = tracer::read_image(dir + "/out.exr");
+  double sum = 0;
+  for (float v : img.pixels) sum += v;
+  EXPECT_GT(sum, 0.0) << "the lit quad renders";
+
+  EXPECT_FALSE(wb->load_scene(dir + "/bad.pbrt", &err));
+  EXPECT_NE(err.find("bad.pbrt:2"), std::string::npos) << err;
+  EXPECT_EQ(wb->scene().source, dir + "/scene.pbrt") << "the loaded scene stays";
 }
 
 TEST(Workbench, ErrorCurveAgainstAReferenceFallsAsOneOverTime) {

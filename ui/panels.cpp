@@ -92,6 +92,8 @@ void scene_panel(Workbench& wb, PanelState& ps) {
                                                     : "error: " + err;
     if (!err.empty()) wb.messages.error(err);
   }
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip(".json scene, .obj, .gltf/.glb, .ply or pbrt-v4 .pbrt (docs/SCENE_FORMAT.md)");
   check_fit(ps, "Load");
   const auto& objects = wb.scene().objects;
   // As tall as the list up to 8 lines, then it scrolls.
