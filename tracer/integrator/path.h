@@ -172,10 +172,12 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
 }
 
 // Shades the hit of st.ray. Adds emission to st.radiance, may fill `shadow`, and returns whether
-// the path continues, in which case st.ray is the next segment.
+// the path continues, in which case st.ray is the next segment. Forced inline: nvcc outlines it
+// in the specular kernels once the material switch is large, and the call then passes the scene,
+// the path state and the hit through local memory (2.6x slower; PERFORMANCE.md).
 template <uint32_t F = kAllFeatures>
-TRACER_HD inline bool shade_path(const SceneView& s, const IntegratorSettings& cfg, PathState& st,
-                                 const Hit& hit, ShadowRequest& shadow) {
+TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSettings& cfg,
+                                        PathState& st, const Hit& hit, ShadowRequest& shadow) {
   shadow.valid = false;
   if ((F & kFeatureSubsurface) && (st.flags & kPathInMedium) && hit.valid()) {
     const SurfaceHit b = make_surface_hit<F>(s, st.ray, hit);

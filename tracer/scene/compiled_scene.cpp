@@ -15,7 +15,7 @@ std::string describe_features(uint32_t f) {
     const char* name;
   } kNames[] = {
       {kFeatureDepthOfField, "depth of field"},    {kFeatureDielectric, "dielectrics"},
-      {kFeatureAbsorption, "absorption"},          {kFeatureMirror, "mirrors and conductors"},
+      {kFeatureAbsorption, "absorption"},          {kFeatureMirror, "conductors, plastics and sheets"},
       {kFeatureSubsurface, "subsurface"},          {kFeatureTextures, "textures"},
       {kFeatureEmissiveMeshes, "emissive meshes"}, {kFeatureSpheres, "spheres"},
       {kFeatureShadingNormals, "shading normals"}, {kFeatureInfiniteLights, "lights at infinity"}};
