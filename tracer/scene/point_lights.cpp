@@ -27,20 +27,6 @@ std::string quoted(const std::string& s) {
   return "\"" + s + "\"";
 }
 
-bool parse_floats(const std::string& s, float* out, int n) {
-  size_t start = 0;
-  for (int i = 0; i < n; ++i) {
-    const size_t comma = s.find(',', start);
-    if ((i < n - 1) != (comma != std::string::npos)) return false;
-    const std::string part = s.substr(start, comma - start);
-    char* end = nullptr;
-    out[i] = std::strtof(part.c_str(), &end);
-    if (part.empty() || *end != '\0' || !std::isfinite(out[i])) return false;
-    start = comma + 1;
-  }
-  return true;
-}
-
 }  // namespace
 
 const std::vector<std::string> kLightSetKeys = {

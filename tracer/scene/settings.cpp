@@ -583,7 +583,6 @@ const std::vector<std::string> kMaterialSetKeys = {
     "materials.NAME.eta",        "materials.NAME.k",
     "materials.NAME.thickness",  "materials.NAME.transmittance"};
 
-namespace {
 bool parse_floats(const std::string& s, float* out, int n) {
   size_t start = 0;
   for (int i = 0; i < n; ++i) {
@@ -597,7 +596,6 @@ bool parse_floats(const std::string& s, float* out, int n) {
   }
   return true;
 }
-}  // namespace
 
 std::string set_material_assignment(Scene& scene, const std::string& assignment) {
   const size_t eq = assignment.find('=');
