@@ -770,6 +770,9 @@ TEST(PbrtLights, PointAndSpot) {
   EXPECT_EQ(a.position, ours(vec3(1, 2, 4)));  // "from" under the CTM
   EXPECT_EQ(a.intensity, vec3(2, 4, 6));       // I x scale
   EXPECT_EQ(a.name, "point (scene.pbrt:4)");
+  Scene edited = s;  // the name works in lights.NAME.FIELD, dots and all
+  EXPECT_EQ(set_setting_assignment(edited, "lights.point (scene.pbrt:4).intensity=1,1,1"), "");
+  EXPECT_EQ(edited.point_lights[0].intensity, vec3(1.0f));
   // power: I (pbrt's default illuminant, white) x power / 4 pi.
   EXPECT_NEAR(s.point_lights[1].intensity.x, 100.0 / (4.0 * M_PI), 1e-4);
   EXPECT_NEAR(luminance(s.point_lights[2].intensity), 1.0f, 1e-3f) << "one nit before scale";

@@ -76,7 +76,7 @@ namespace {
 
 // The light's world transform without its scale: the rotation (or reflection, under our
 // mirrored world) that pbrt applies to the light's directions, Gram-Schmidt on its columns.
-// `scaled`: whether the transform scaled non-uniformly or sheared (the caller warns).
+// `sheared`: whether the transform scaled non-uniformly or sheared (the caller warns).
 mat3 light_rotation(const mat4& world, bool* sheared) {
   const mat3 m(world);
   const float sx = glm::length(m[0]), sy = glm::length(m[1]), sz = glm::length(m[2]);
