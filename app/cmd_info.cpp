@@ -70,6 +70,13 @@ int run_info(const InfoOptions& o) {
   uint32_t emitters = 0;  // the light list also holds the lights at infinity
   for (const tracer::Light& l : cs.lights()) emitters += l.kind == tracer::kLightPrimitive;
   j["lights"] = emitters;
+  uint32_t points = 0, spots = 0;  // those the light list holds (black ones are left out)
+  for (const tracer::Light& l : cs.lights()) {
+    points += l.kind == tracer::kLightPoint;
+    spots += l.kind == tracer::kLightSpot;
+  }
+  j["point_lights"] = points;
+  j["spot_lights"] = spots;
   j["environment"] = tracer::describe_environment(scene);
   const tracer::CameraDesc& cam = scene.camera;
   auto vec = [](tracer::vec3 p) { return nlohmann::json::array({p.x, p.y, p.z}); };
@@ -118,14 +125,17 @@ int run_info(const InfoOptions& o) {
             << "objects     " << scene.objects.size() << "\n"
             << "primitives  " << v.tri_count + v.sphere_count << " (" << v.tri_count
             << " triangles, " << v.sphere_count << " spheres)\n"
-            << "materials   " << scene.materials.size() << " (" << by_type_text << "; "
-            << emissive << " emissive)\n"
-            << "lights      " << emitters << " emissive primitives\n"
+            << "materials   " << scene.materials.size() << " (" << by_type_text << "; " << emissive
+            << " emissive)\n"
+            << "lights      " << emitters << " emissive primitives"
+            << (scene.point_lights.empty()
+                    ? std::string()
+                    : "; " + tracer::describe_point_lights(scene.point_lights))
+            << "\n"
             << "environment " << tracer::describe_environment(scene) << "\n"
             << "camera      " << tracer::vec3_str(cam.position, 4) << " looking at "
             << tracer::vec3_str(cam.look_at, 4) << ", " << cam.vfov_deg << " degree field of view"
-            << (framed(scene) ? " (framed; the note above says why)" : "")
-            << "\n"
+            << (framed(scene) ? " (framed; the note above says why)" : "") << "\n"
             << "bvh         " << st.node_count << " " << tracer::kBvhWidth << "-wide nodes ("
             << st.leaf_count << " leaves, " << st.node_count * sizeof(tracer::BvhNode) / 1024.0
             << " KiB), depth " << st.max_depth << ", SAH cost " << std::fixed

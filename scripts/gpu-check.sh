@@ -124,16 +124,19 @@ if [ "$MODE" = bitterli ]; then
   # The seed-1 render of each scene comes back as NAME.exr, the tables in the log and
   # bitterli-compare.tgz (NAME.compare.json).
   B=${BITTERLI:-.devbuild/bitterli}
-  # name:max_depth:spp per seed:WxH. max_depth = the original pbrt maxdepth - 1 (the segments
-  # the references hold; ../shared/scenes/bitterli/README.md); WxH = the reference's size.
+  # name:max_depth:spp per seed:WxH[:EDIT+EDIT...]. max_depth = the original pbrt maxdepth - 1
+  # (the segments the references hold; ../shared/scenes/bitterli/README.md); WxH = the
+  # reference's size; EDITs (--set) restore what the pbrt-v4 conversion changed (BENCHMARKS.md).
   for row in ${BITTERLI_SCENES:-cornell-box:64:8192:1024x1024 veach-mis:2:8192:1280x720 water-caustic:8:8192:1024x1024 coffee:16:8192:800x1000 classroom:16:4096:1280x720}; do
-    IFS=: read -r name depth spp size <<< "$row"
+    IFS=: read -r name depth spp size edits <<< "$row"
+    sets=()
+    for e in ${edits//+/ }; do sets+=(--set "$e"); done
     [ -f "$B/$name/scene-v4.pbrt" ] || { echo "---- $name: absent from $B"; continue; }
-    echo "---- $name (max depth $depth, 2 x $spp spp)"
+    echo "---- $name (max depth $depth, 2 x $spp spp${edits:+; $edits})"
     for seed in 1 2; do
       $DIST/pathtracer render "$B/$name/scene-v4.pbrt" --backend cuda --spp "$spp" \
         --max-depth "$depth" --width "${size%x*}" --height "${size#*x}" --seed $seed \
-        --filter tent --filter-radius 1 \
+        --filter tent --filter-radius 1 "${sets[@]}" \
         --out /tmp/$name.$seed.exr 2>&1 | grep -vE "^$" | tail -4
     done
     $DIST/pathtracer compare --grid 4x4 --test2 /tmp/$name.2.exr /tmp/$name.1.exr \

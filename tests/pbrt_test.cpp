@@ -460,13 +460,13 @@ TEST(Pbrt, UnsupportedLightsAndOptionsWarnOncePerKind) {
   const Scene s = load(
       "PixelFilter \"gaussian\"\nAccelerator \"bvh\"\nIntegrator \"bdpt\" \"integer maxdepth\" 3\n"
       "WorldBegin\n"
-      "LightSource \"distant\" \"point3 from\" [0 1 0] \"point3 to\" [0 0 0]\n"
-      "LightSource \"distant\" \"rgb L\" [1 1 1]\n"
-      "LightSource \"infinite\" \"string filename\" \"sky.exr\"\n"
+      "LightSource \"goniometric\" \"rgb I\" [1 1 1]\n"
+      "LightSource \"goniometric\"\n"
+      "LightSource \"projection\" \"string filename\" \"slide.exr\"\n"
       "LightSource \"point\" \"rgb I\" [1 1 1]\nLightSource \"spot\"\n"
       "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\n"
       "Shape \"sphere\" \"float radus\" 2\n");
-  for (const char* kind : {"distant", "infinite", "point", "spot"})
+  for (const char* kind : {"goniometric", "projection"})
     EXPECT_EQ(count_warnings(
                   s, "LightSource \"" + std::string(kind) + "\" is not supported yet; skipped"),
               1)
@@ -474,8 +474,11 @@ TEST(Pbrt, UnsupportedLightsAndOptionsWarnOncePerKind) {
         << all_warnings(s);
   EXPECT_EQ(
       count_warnings(
-          s, "scene.pbrt:5: LightSource \"distant\" is not supported yet; skipped (and 1 more"),
+          s, "scene.pbrt:5: LightSource \"goniometric\" is not supported yet; skipped (and 1 more"),
       1);
+  EXPECT_EQ(s.point_lights.size(), 2u) << "point and spot lights are supported";
+  EXPECT_EQ(count_warnings(s, "LightSource \"point\""), 0);
+  EXPECT_EQ(count_warnings(s, "LightSource \"spot\""), 0);
   EXPECT_EQ(count_warnings(s, "PixelFilter"), 0);  // a supported filter (render.filter)
   EXPECT_EQ(s.settings.filter, tracer::PixelFilter::kGaussian);
   EXPECT_EQ(count_warnings(s, "Integrator \"bdpt\" is not supported; substituted our path tracer"),
@@ -606,11 +609,8 @@ TEST(Pbrt, BitterliScenesLoadAndRenderWithTheirExpectedWarnings) {
       {"veach-mis", {}, true},  // rough conductors (eta, k) map without a warning
       {"coffee", {}, true},     // coated diffuse, silver's named spectra: likewise
       {"water-caustic", {"Integrator \"sppm\" is not supported"}, true},
-      {"classroom",
-       {"LightSource \"distant\" is not supported yet; skipped",
-        "LightSource \"infinite\" is not supported yet; skipped", "blackboard.tga\" not found",
-        "scene has no light"},
-       false},
+      // A distant light and an infinite light (its sky through the windows).
+      {"classroom", {"blackboard.tga\" not found"}, true},
   };
   // Everything a warning of these scenes may say.
   const std::vector<std::string> allowed = {"Integrator \"sppm\"",
@@ -723,3 +723,279 @@ TEST(PbrtFilter, PixelFiltersMapOntoTheRenderFilter) {
 }
 
 }  // namespace
+
+// ---- LightSource -------------------------------------------------------------------------------
+
+namespace {
+
+// Our world from pbrt's, for a scene without a camera (pbrt's camera space is left-handed:
+// the reader mirrors x).
+vec3 ours(vec3 p) {
+  return vec3(pbrt_world_to_ours(mat4(1.0f)) * vec4(p, 1.0f));
+}
+
+// A square PFM whose texels are `value`, but for one texel (hx, hy) of `hot` (rows top to
+// bottom, as pbrt-v4 and our reader lay them out).
+std::string write_octahedral_pfm(const std::string& path, int n, float value, int hx = -1,
+                                 int hy = -1, float hot = 0.0f) {
+  std::ofstream f(path, std::ios::binary);
+  f << "PF\n" << n << " " << n << "\n-1\n";
+  for (int y = n - 1; y >= 0; --y)
+    for (int x = 0; x < n; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const float v = x == hx && y == hy ? hot : value;
+        f.write(reinterpret_cast<const char*>(&v), 4);
+      }
+  return path;
+}
+
+}  // namespace
+
+TEST(PbrtLights, PointAndSpot) {
+  const Scene s = load(
+      "WorldBegin\n"
+      "AttributeBegin\nTranslate 1 2 3\n"
+      "LightSource \"point\" \"rgb I\" [1 2 3] \"float scale\" 2 \"point3 from\" [0 0 1]\n"
+      "AttributeEnd\n"
+      "LightSource \"point\" \"float power\" 100\n"
+      "LightSource \"point\" \"blackbody I\" 3000\n"
+      "LightSource \"spot\" \"point3 from\" [0 5 0] \"point3 to\" [1 0 0] \"float coneangle\" 40 "
+      "\"float conedeltaangle\" 10 \"rgb I\" [5 5 5]\n"
+      "LightSource \"spot\" \"float power\" 50\n" +
+      std::string(kTriangle));
+  ASSERT_EQ(s.point_lights.size(), 5u) << all_warnings(s);
+  EXPECT_TRUE(s.diagnostics.warnings.empty()) << all_warnings(s);
+  const PointLightDesc& a = s.point_lights[0];
+  EXPECT_FALSE(a.spot);
+  EXPECT_EQ(a.position, ours(vec3(1, 2, 4)));  // "from" under the CTM
+  EXPECT_EQ(a.intensity, vec3(2, 4, 6));       // I x scale
+  EXPECT_EQ(a.name, "point (scene.pbrt:4)");
+  Scene edited = s;  // the name works in lights.NAME.FIELD, dots and all
+  EXPECT_EQ(set_setting_assignment(edited, "lights.point (scene.pbrt:4).intensity=1,1,1"), "");
+  EXPECT_EQ(edited.point_lights[0].intensity, vec3(1.0f));
+  // power: I (pbrt's default illuminant, white) x power / 4 pi.
+  EXPECT_NEAR(s.point_lights[1].intensity.x, 100.0 / (4.0 * M_PI), 1e-4);
+  EXPECT_NEAR(luminance(s.point_lights[2].intensity), 1.0f, 1e-3f) << "one nit before scale";
+  EXPECT_GT(s.point_lights[2].intensity.x, s.point_lights[2].intensity.z) << "3000 K is red";
+  const PointLightDesc& sp = s.point_lights[3];
+  EXPECT_TRUE(sp.spot);
+  EXPECT_EQ(sp.position, ours(vec3(0, 5, 0)));
+  const vec3 axis = glm::normalize(ours(vec3(1, -5, 0)) - ours(vec3(0)));
+  EXPECT_NEAR(glm::length(sp.direction - axis), 0.0f, 1e-6f);
+  EXPECT_FLOAT_EQ(sp.cone_angle_deg, 40.0f);
+  EXPECT_FLOAT_EQ(sp.cone_delta_angle_deg, 10.0f);
+  EXPECT_EQ(sp.intensity, vec3(5.0f));
+  // pbrt's defaults: from (0,0,0) to (0,0,1), coneangle 30, conedeltaangle 5; power over
+  // k_e = 2 pi ((1 - cos 25) + (cos 25 - cos 30) / 2).
+  const PointLightDesc& d = s.point_lights[4];
+  EXPECT_NEAR(glm::length(d.direction - glm::normalize(ours(vec3(0, 0, 1)) - ours(vec3(0)))), 0.0f,
+              1e-6f);
+  const double c25 = std::cos(glm::radians(25.0)), c30 = std::cos(glm::radians(30.0));
+  EXPECT_NEAR(d.intensity.x, 50.0 / (2.0 * M_PI * ((1.0 - c25) + (c25 - c30) / 2.0)), 1e-3);
+}
+
+TEST(PbrtLights, Distant) {
+  const Scene s = load(
+      "WorldBegin\nRotate 90 0 0 1\n"
+      "LightSource \"distant\" \"point3 from\" [1 0 0] \"point3 to\" [0 0 0] \"rgb L\" [1 2 3] "
+      "\"float scale\" 2\n"
+      "LightSource \"distant\" \"float illuminance\" 5\n"
+      "LightSource \"distant\" \"rgb L\" [0 0 0]\n" +
+      std::string(kTriangle));
+  ASSERT_EQ(s.distant_lights.size(), 2u) << all_warnings(s);
+  // Towards the light: from - to under the CTM (x turned to y).
+  const vec3 up = glm::normalize(ours(vec3(0, 1, 0)) - ours(vec3(0)));
+  EXPECT_NEAR(glm::length(glm::normalize(s.distant_lights[0].direction) - up), 0.0f, 1e-6f);
+  EXPECT_EQ(s.distant_lights[0].irradiance, vec3(2, 4, 6));  // L x scale on a facing surface
+  EXPECT_FLOAT_EQ(s.distant_lights[0].angular_diameter_deg, 0.0f);
+  EXPECT_EQ(s.distant_lights[1].irradiance, vec3(5.0f));  // "illuminance" in lux, L at one nit
+  EXPECT_EQ(count_warnings(s, "scene.pbrt:5: LightSource \"distant\" has zero radiance"), 1)
+      << all_warnings(s);
+}
+
+TEST(PbrtLights, InfiniteMapFollowsTheLightTransform) {
+  // One hot texel of an equal-area map: pbrt-v4 sees it in light-space direction
+  // EqualAreaSquareToSphere(uv); under the classroom's transform (light +z to world +y) and our
+  // mirror, that is where our environment must show it.
+  const std::string dir = temp_dir();
+  const int n = 16, hx = 3, hy = 5;
+  write_octahedral_pfm(dir + "/sky.pfm", n, 0.1f, hx, hy, 50.0f);
+  const std::string xform =
+      "ConcatTransform [ -1 0 8.74228e-8 0 -8.74228e-8 0 -1 0 0 1 0 0 0 0 0 1 ]\n";
+  const Scene s = load_pbrt_string(
+      "WorldBegin\nAttributeBegin\nRotate 30 0 1 0\n" + xform +
+          "LightSource \"infinite\" \"string filename\" \"sky.pfm\" \"float scale\" 3\n"
+          "AttributeEnd\n" +
+          std::string(kTriangle),
+      dir + "/scene.pbrt");
+  EXPECT_TRUE(s.diagnostics.warnings.empty()) << all_warnings(s);
+  EXPECT_EQ(s.environment.file, dir + "/sky.pfm");
+  EXPECT_EQ(s.environment.mapping, EnvMapping::kOctahedral);
+  EXPECT_FLOAT_EQ(s.environment.strength, 3.0f);
+  ASSERT_TRUE(s.environment_image);
+  InfiniteLightsData data;
+  build_infinite_lights(s.environment, s.environment_image, {}, &data);
+  const vec2 uv((hx + 0.5f) / n, (hy + 0.5f) / n);
+  const vec3 w_light = equal_area_square_to_sphere(uv);
+  // pbrt's Transform lists the matrix column by column; Rotate 30 about y comes first.
+  const mat4 m = glm::rotate(mat4(1.0f), glm::radians(30.0f), vec3(0, 1, 0)) *
+                 mat4(-1, 0, 8.74228e-8f, 0, -8.74228e-8f, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1);
+  const vec3 w = glm::normalize(mat3(pbrt_world_to_ours(mat4(1.0f))) * (mat3(m) * w_light));
+  const vec2 got = env_map_uv(kEnvOctahedral, env_world_to_map(data.view, w));
+  EXPECT_NEAR(got.x, uv.x, 1e-5f);
+  EXPECT_NEAR(got.y, uv.y, 1e-5f);
+  EXPECT_NEAR(env_radiance(data.view, w).x, 3.0f * 50.0f, 1e-2f) << "the hot texel, x scale";
+  // pbrt-v4's "illuminance": the map scaled so that its estimate of the upper hemisphere's
+  // illuminance (sum of luminance x cos over the texels above, times 2 pi / texels) is E.
+  write_octahedral_pfm(dir + "/grey.pfm", 32, 1.0f);
+  const Scene e = load_pbrt_string(
+      "WorldBegin\nLightSource \"infinite\" \"string filename\" \"grey.pfm\" "
+      "\"float illuminance\" 3.14159265\n" +
+          std::string(kTriangle),
+      dir + "/scene.pbrt");
+  EXPECT_NEAR(e.environment.strength, 2.0f, 0.02f) << "pi / (pi / 2), as pbrt-v4 estimates it";
+}
+
+TEST(PbrtLights, InfiniteConstantsAddAndASecondMapIsSkipped) {
+  const std::string dir = temp_dir();
+  write_octahedral_pfm(dir + "/sky.pfm", 8, 1.0f);
+  const Scene s = load_pbrt_string(
+      "WorldBegin\n"
+      "LightSource \"infinite\" \"rgb L\" [0.5 0.6 0.7] \"float scale\" 2\n"
+      "LightSource \"infinite\" \"blackbody L\" 6500 \"float illuminance\" 3.14159265\n"
+      "LightSource \"infinite\" \"string filename\" \"sky.pfm\"\n"
+      "LightSource \"infinite\" \"string filename\" \"sky.pfm\" \"point3 portal\" "
+      "[0 0 0 1 0 0 1 1 0 0 1 0]\n" +
+          std::string(kTriangle),
+      dir + "/scene.pbrt");
+  EXPECT_TRUE(s.environment.file.empty());
+  const vec3 second = blackbody_rgb(6500.0f);  // luminance 1 x (E / pi = 1)
+  EXPECT_NEAR(
+      glm::length(s.environment.color * s.environment.strength - (vec3(1.0f, 1.2f, 1.4f) + second)),
+      0.0f, 1e-5f);
+  EXPECT_EQ(count_warnings(s,
+                           "scene.pbrt:4: LightSource \"infinite\": a second environment (the "
+                           "scene has one, from line 2); skipped this one (and 1 more"),
+            1)
+      << all_warnings(s);
+  // The default infinite light is pbrt's illuminant: white radiance 1.
+  EXPECT_EQ(
+      load("WorldBegin\nLightSource \"infinite\"\n" + std::string(kTriangle)).environment.color,
+      vec3(1.0f));
+  const Scene p = load_pbrt_string(
+      "WorldBegin\nLightSource \"infinite\" \"string filename\" \"sky.pfm\" \"point3 portal\" "
+      "[0 0 0 1 0 0 1 1 0 0 1 0]\n" +
+          std::string(kTriangle),
+      dir + "/scene.pbrt");
+  EXPECT_EQ(count_warnings(p, "portals are not supported"), 1) << all_warnings(p);
+  EXPECT_FALSE(p.environment.file.empty());
+}
+
+TEST(PbrtLights, ErrorsNameFileAndLine) {
+  const std::string dir = temp_dir();
+  write_file(dir + "/wide.pfm", "PF\n2 1\n-1\n" + std::string(24, '\0'));
+  struct Case {
+    std::string text, expected;
+  };
+  const Case cases[] = {
+      {"WorldBegin\nLightSource \"infinite\" \"string filename\" \"sky.pfm\" \"rgb L\" [1 1 1]\n",
+       "scene.pbrt:2: LightSource \"infinite\": \"L\" and \"filename\" cannot both be given"},
+      {"WorldBegin\n\nLightSource \"infinite\" \"string filename\" \"missing.pfm\"\n",
+       "scene.pbrt:3: LightSource \"infinite\": " + dir + "/missing.pfm: no such file"},
+      {"WorldBegin\nLightSource \"infinite\" \"string filename\" \"wide.pfm\"\n",
+       "scene.pbrt:2: LightSource \"infinite\": " + dir +
+           "/wide.pfm: an octahedral map must be square, not 2x1"},
+      {"WorldBegin\nLightSource \"spot\" \"float coneangle\" 0\n",
+       "scene.pbrt:2: LightSource \"spot\": \"coneangle\" 0"},
+      {"WorldBegin\nLightSource \"spot\" \"point3 from\" [1 1 1] \"point3 to\" [1 1 1]\n",
+       "scene.pbrt:2: LightSource \"spot\": \"from\" and \"to\" are the same point"},
+      {"WorldBegin\nLightSource \"distant\" \"point3 from\" [0 0 1]\n",
+       "scene.pbrt:2: LightSource \"distant\": \"from\" and \"to\" are the same point"},
+      {"WorldBegin\nScale 0 1 1\nLightSource \"point\"\n",
+       "scene.pbrt:3: LightSource \"point\": the current transform is singular"},
+      {"WorldBegin\nLightSource \"point\" \"rgb I\" [1 1]\n", "scene.pbrt:2:"},
+      {"WorldBegin\nLightSource \"pointt\"\n",
+       "scene.pbrt:2: unknown LightSource \"pointt\" (did you mean \"point\"?)"},
+  };
+  for (const Case& c : cases) {
+    const std::string e = error_of(c.text, dir + "/scene.pbrt");
+    EXPECT_TRUE(contains(e, c.expected)) << "input:\n" << c.text << "error:\n" << e;
+    EXPECT_TRUE(contains(e, "; nothing was rendered")) << e;
+  }
+  // A falloff wider than the cone is clamped, with a warning (pbrt-v4 takes it as given).
+  const Scene s = load(
+      "WorldBegin\nLightSource \"spot\" \"float coneangle\" 10 "
+      "\"float conedeltaangle\" 20\n" +
+      std::string(kTriangle));
+  ASSERT_EQ(s.point_lights.size(), 1u);
+  EXPECT_FLOAT_EQ(s.point_lights[0].cone_delta_angle_deg, 10.0f);
+  EXPECT_EQ(count_warnings(s, "\"conedeltaangle\" 20"), 1) << all_warnings(s);
+}
+
+// The classroom's sky as pbrt-v4 places it (its light transform takes the map's +z to the
+// scene's up): the pixels that see the sky straight through the windows match Tungsten's
+// reference there, left and right windows apart (they face different parts of the sky), far
+// better than the map turned half a turn.
+TEST(PbrtLights, ClassroomSkyThroughTheWindowsMatchesTheReference) {
+  const std::string dir = test::source_dir() + "/../shared/scenes/bitterli/classroom";
+  if (!std::filesystem::exists(dir + "/scene-v4.pbrt"))
+    GTEST_SKIP() << "no shared scene at " << dir;
+  const ImageRGB full = read_image(dir + "/TungstenRender.exr");  // 1280 x 720
+  constexpr int kDown = 4;
+  ImageRGB ref = make_image(full.width / kDown, full.height / kDown);
+  for (int y = 0; y < ref.height; ++y)
+    for (int x = 0; x < ref.width; ++x) {
+      vec3 sum(0.0f);
+      for (int j = 0; j < kDown; ++j)
+        for (int i = 0; i < kDown; ++i) sum += full.at(kDown * x + i, kDown * y + j);
+      ref.set(x, y, sum / float(kDown * kDown));
+    }
+  Scene s = load_scene(dir + "/scene-v4.pbrt");
+  s.settings.width = ref.width;
+  s.settings.height = ref.height;
+  s.settings.filter = PixelFilter::kBox;
+  struct Match {
+    vec3 ratio[2];  // mean of ours over the reference's, left and right windows
+    double correlation;
+  };
+  auto match = [&](float rotation) {
+    s.environment.rotation_deg = rotation;
+    const ImageRGB img = render(s, 8, 1);  // camera rays only: what they see of the sky
+    glm::dvec3 ours[2] = {}, theirs[2] = {};
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    int n = 0;
+    for (int y = 2; y < img.height - 2; ++y)
+      for (int x = 2; x < img.width - 2; ++x) {
+        // The whole 5 x 5 neighbourhood sky (no window frame, black at this depth, in the
+        // pixel: it is lit in the reference).
+        const float centre = img.at(x, y).y;
+        bool sky = centre > 0.02f;
+        for (int j = -2; j <= 2; ++j)
+          for (int i = -2; i <= 2; ++i) sky &= img.at(x + i, y + j).y > 0.7f * centre;
+        if (!sky) continue;
+        const int side = x < img.width / 2 ? 0 : 1;
+        ours[side] += glm::dvec3(img.at(x, y));
+        theirs[side] += glm::dvec3(ref.at(x, y));
+        const double a = img.at(x, y).y, b = ref.at(x, y).y;
+        sx += a, sy += b, sxx += a * a, syy += b * b, sxy += a * b, ++n;
+      }
+    EXPECT_GT(n, 40);
+    Match m;
+    for (int side = 0; side < 2; ++side) m.ratio[side] = vec3(ours[side] / theirs[side]);
+    const double cov = sxy / n - sx / n * sy / n;
+    m.correlation = cov / std::sqrt((sxx / n - sx / n * sx / n) * (syy / n - sy / n * sy / n));
+    return m;
+  };
+  const Match placed = match(0.0f), turned = match(180.0f);
+  for (int side = 0; side < 2; ++side) {
+    std::printf("%s windows: ours / Tungsten's %s (turned half a turn: %s)\n",
+                side ? "right" : "left", vec3_str(placed.ratio[side], 3).c_str(),
+                vec3_str(turned.ratio[side], 3).c_str());
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(placed.ratio[side][c], 1.0f, 0.1f) << side;
+  }
+  std::printf("correlation of the sky pixels: %.3f (turned: %.3f)\n", placed.correlation,
+              turned.correlation);
+  EXPECT_GT(placed.correlation, 0.95);
+  EXPECT_GT(placed.correlation, turned.correlation);
+  EXPECT_GT(std::abs(turned.ratio[0].y - 1.0f), std::abs(placed.ratio[0].y - 1.0f));
+}

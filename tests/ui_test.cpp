@@ -377,6 +377,34 @@ TEST(UiPanels, FitAt1280x720And1600x900WithEveryPanelOpen) {
   }
 }
 
+TEST(UiPanels, LightsPanelFitsWithEveryKindOfLight) {
+  tracer::Scene scene = tracer::builtin_default_scene();
+  tracer::PointLightDesc bulb;
+  bulb.name = "a point light with a rather long name";
+  bulb.position = tracer::vec3(278.0f, 400.0f, 278.0f);
+  bulb.intensity = tracer::vec3(30000.0f);
+  tracer::PointLightDesc stage = bulb;
+  stage.name = "stage";
+  stage.spot = true;
+  tracer::DistantLightDesc sun;
+  sun.name = "sun";
+  scene.point_lights = {bulb, stage};
+  scene.distant_lights = {sun};
+  for (const ImVec2 size : {ImVec2(1280, 720), ImVec2(1600, 900)}) {
+    ui::Workbench wb(scene, tracer::BackendChoice::kCpu);
+    std::string err;
+    ASSERT_TRUE(wb.apply("render.spp=1", &err)) << err;
+    HeadlessImGui imgui(size.x, size.y);
+    ui::PanelState ps;
+    ps.expand_all = true;
+    imgui.frames(wb, ps);
+    EXPECT_TRUE(ps.layout_problems.empty()) << joined(ps.layout_problems);
+    // Drawing them edits nothing.
+    EXPECT_EQ(wb.scene().point_lights[1].cone_angle_deg, 30.0f);
+    EXPECT_EQ(wb.scene().point_lights[0].position, bulb.position);
+  }
+}
+
 TEST(UiPanels, TheLayoutCheckSeesClippedLabels) {
   // The check above is not vacuous: with twice the font size the labels no longer fit.
   ui::Workbench wb(tracer::builtin_default_scene(), tracer::BackendChoice::kCpu);

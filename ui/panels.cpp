@@ -323,6 +323,81 @@ void environment_panel(Workbench& wb, PanelState& ps) {
   }
 }
 
+// The lights that are no geometry: the scene's distant, point and spot lights, each a tree node
+// with its position or direction, its intensity or irradiance and, for spot lights, the cone.
+// Every edit goes through lights.NAME.FIELD (Workbench::apply), so it is checked as on the
+// command line and restarts the image.
+void lights_panel(Workbench& wb, PanelState& ps) {
+  if (!section(ps, "Lights")) return;
+  const tracer::Scene& scene = wb.scene();
+  if (scene.point_lights.empty() && scene.distant_lights.empty()) {
+    ImGui::TextWrapped(
+        "No point, spot or distant lights (the scene file's \"lights\"; pbrt's LightSource). "
+        "Emissive objects are edited as materials, the environment above.");
+    return;
+  }
+  auto edit = [&](const std::string& name, const char* field, const float* v, int n) {
+    std::string value;
+    char num[32];
+    for (int i = 0; i < n; ++i) {
+      std::snprintf(num, sizeof num, "%.9g", double(v[i]));
+      value += (i ? "," : "") + std::string(num);
+    }
+    std::string err;
+    if (!wb.apply("lights." + name + "." + field + "=" + value, &err)) {
+      ps.status = "error: " + err;
+      wb.messages.error(err);
+    }
+  };
+  const float reach = std::max(1.0f, glm::length(scene.camera.look_at - scene.camera.position));
+  // Copies: an edit may change the scene's lists while they are drawn.
+  const std::vector<tracer::PointLightDesc> points = scene.point_lights;
+  const std::vector<tracer::DistantLightDesc> suns = scene.distant_lights;
+  for (size_t i = 0; i < points.size(); ++i) {
+    tracer::PointLightDesc d = points[i];
+    ImGui::PushID(int(i));
+    const std::string title = d.name + (d.spot ? " (spot)" : " (point)");
+    if (tree_node(ps, title.c_str())) {
+      if (drag(ps, "position", &d.position.x, 3, 0.005f * reach, -1e30f, 1e30f, "%.3f"))
+        edit(d.name, "position", &d.position.x, 3);
+      const float peak = std::max(1e-3f, tracer::max_component(d.intensity));
+      if (drag(ps, "intensity (W/sr)", &d.intensity.x, 3, 0.005f * peak, 0.0f, 1e30f, "%.4g"))
+        edit(d.name, "intensity", &d.intensity.x, 3);
+      if (d.spot) {
+        if (drag(ps, "direction", &d.direction.x, 3, 0.01f, -1e30f, 1e30f, "%.3f"))
+          edit(d.name, "direction", &d.direction.x, 3);
+        if (slider(ps, "cone angle", &d.cone_angle_deg, 1, 0.1f, 180.0f, "%.1f deg"))
+          edit(d.name, "cone_angle", &d.cone_angle_deg, 1);
+        if (slider(ps, "cone delta angle", &d.cone_delta_angle_deg, 1, 0.0f, d.cone_angle_deg,
+                   "%.1f deg"))
+          edit(d.name, "cone_delta_angle", &d.cone_delta_angle_deg, 1);
+        if (ImGui::IsItemHovered())
+          ImGui::SetTooltip(
+              "the falloff's width: full intensity within cone - delta of the "
+              "axis, none beyond the cone angle");
+      }
+      ImGui::TreePop();
+    }
+    ImGui::PopID();
+  }
+  for (size_t i = 0; i < suns.size(); ++i) {
+    tracer::DistantLightDesc d = suns[i];
+    ImGui::PushID(int(points.size() + i));
+    const std::string title = d.name + " (distant)";
+    if (tree_node(ps, title.c_str())) {
+      if (drag(ps, "direction", &d.direction.x, 3, 0.01f, -1e30f, 1e30f, "%.3f"))
+        edit(d.name, "direction", &d.direction.x, 3);
+      const float peak = std::max(1e-3f, tracer::max_component(d.irradiance));
+      if (drag(ps, "irradiance", &d.irradiance.x, 3, 0.005f * peak, 0.0f, 1e30f, "%.4g"))
+        edit(d.name, "irradiance", &d.irradiance.x, 3);
+      if (slider(ps, "angular diameter", &d.angular_diameter_deg, 1, 0.0f, 10.0f, "%.2f deg"))
+        edit(d.name, "angular_diameter", &d.angular_diameter_deg, 1);
+      ImGui::TreePop();
+    }
+    ImGui::PopID();
+  }
+}
+
 void render_panel(Workbench& wb, PanelState& ps) {
   if (!section(ps, "Render", ImGuiTreeNodeFlags_DefaultOpen)) return;
   setting_widget(wb, ps, "render.backend", "backend");
@@ -591,6 +666,7 @@ bool draw_workbench(Workbench& wb, PanelState& ps) {
   material_panel(wb, ps);
   camera_panel(wb, ps);
   environment_panel(wb, ps);
+  lights_panel(wb, ps);
   render_panel(wb, ps);
   stats_panel(wb, ps);
   display_panel(wb, ps);

@@ -436,6 +436,12 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
     changed(Edit::kMaterial);
     return true;
   }
+  if (key.rfind("lights.", 0) == 0) {
+    const std::string problem = tracer::set_light_assignment(scene_, assignment);
+    if (!problem.empty()) return fail(problem);
+    changed(Edit::kSettings);  // the light list and its CDF are rebuilt
+    return true;
+  }
   const tracer::Setting* s = tracer::find_setting(key);
   if (!s) return fail(tracer::unknown_setting_message(key));
   nlohmann::json value;
@@ -567,6 +573,11 @@ std::string Workbench::save_scene(const std::string& path) {
     settings["render"].erase("backend");
     settings["render"].erase("threads");
     for (auto it = settings.begin(); it != settings.end(); ++it) j[it.key()] = it.value();
+    // The lights as edited (the Lights panel, lights.NAME.FIELD), also those of a pbrt scene.
+    if (!scene_.distant_lights.empty() || !scene_.point_lights.empty())
+      j["lights"] = tracer::lights_to_json(scene_.distant_lights, scene_.point_lights);
+    else
+      j.erase("lights");
     if (json_source && j.contains("materials")) {
       for (auto it = j["materials"].begin(); it != j["materials"].end(); ++it) {
         const uint32_t idx = scene_.find_material(it.key());

@@ -79,10 +79,10 @@ bool parallelogram(const TriangleVerts& a, const TriangleVerts& b, int& ip, int&
   return length(sub(s, want)) <= 1e-5 * size;
 }
 
-// Whether the plane of triangle (p0, p1, p2) has every vertex and sphere of the scene on one
-// side, within kFlatHullTolerance of the scene's size.
+// Whether the plane of triangle (p0, p1, p2) has every vertex and sphere of the scene, and every
+// point light, on one side, within kFlatHullTolerance of the scene's size.
 bool on_hull(vec3 p0, vec3 p1, vec3 p2, const std::vector<TriangleVerts>& tris,
-             const std::vector<Sphere>& spheres, double size) {
+             const std::vector<Sphere>& spheres, const std::vector<vec3>& points, double size) {
   const DVec o = dv(p0);
   DVec n = cross(sub(dv(p1), o), sub(dv(p2), o));
   const double len = length(n);
@@ -101,6 +101,7 @@ bool on_hull(vec3 p0, vec3 p1, vec3 p2, const std::vector<TriangleVerts>& tris,
     see(dv(t.v2), 0.0);
   }
   for (const Sphere& sp : spheres) see(dv(sp.center), double(sp.radius));
+  for (const vec3& p : points) see(dv(p), 0.0);
   return !(above && below);
 }
 
@@ -122,7 +123,7 @@ std::string describe_flat_list(const FlatList& list, uint32_t sphere_count) {
 }
 
 FlatList build_flat_list(const std::vector<TriangleVerts>& tris, const std::vector<Sphere>& spheres,
-                         bool open) {
+                         bool open, const std::vector<vec3>& light_points) {
   FlatList out;
   const size_t n = tris.size();
   const size_t sphere_count = spheres.size();
@@ -181,8 +182,9 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris, const std::vect
       barycentric_map(cb, fi.map1);
       used[j] = true;
       entry_of[i] = entry_of[j] = uint32_t(quads.size());
-      quad_class.push_back(open ? 0
-                                : on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
+      quad_class.push_back(
+          open ? 0
+               : on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, light_points, size));
       {
         const DVec p = dv(corner(tris[i], ip)), q = dv(corner(tris[i], iq)),
                    r = dv(corner(tris[i], ir));
@@ -204,7 +206,8 @@ FlatList build_flat_list(const std::vector<TriangleVerts>& tris, const std::vect
       entry_of[i] = uint32_t(singles.size());
       is_single[i] = true;
       single_class.push_back(
-          open ? 0 : on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, size));
+          open ? 0
+               : on_hull(tris[i].v0, tris[i].v1, tris[i].v2, tris, spheres, light_points, size));
       singles.push_back(probe);
       single_info.push_back(fi);
     }

@@ -95,7 +95,9 @@ std::string describe_flat_list(const FlatList& list, uint32_t sphere_count);
 // Builds the list for a scene of these triangles and spheres; `enabled` is false (and the arrays
 // empty) when the scene is too large for it. `open`: shadow rays may leave the scene (lights at
 // infinity), so no entry is on the hull (every one can block them) and there are no box faces.
+// `light_points`: further points shadow rays end at (point and spot lights), which an entry's
+// plane must also have on the scene's side for the entry to be on the hull.
 FlatList build_flat_list(const std::vector<TriangleVerts>& tris, const std::vector<Sphere>& spheres,
-                         bool open = false);
+                         bool open = false, const std::vector<vec3>& light_points = {});
 
 }  // namespace tracer

@@ -23,6 +23,8 @@ enum SceneFeature : uint32_t {
   // Lights at infinity: an environment (map or constant colour) or distant lights (suns), or a
   // background colour that replaces the environment for camera rays.
   kFeatureInfiniteLights = 1u << 10,
+  // Point and spot lights (delta lights at a position, SceneView::point_lights).
+  kFeaturePointLights = 1u << 11,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
@@ -33,13 +35,14 @@ constexpr uint32_t kAllFeatures = 0xffffffffu;
 // Infinite lights as well: a fourth bit would double the kernels compiled (the megakernels alone
 // from 32 to 64), for scenes that are rarely diffuse-only; grouped, the diffuse kernels of
 // closed rooms compile neither the environment's lookups nor its sampling, and a diffuse scene
-// under a sky runs the specular kernels, which test the material type it does not need.)
+// under a sky runs the specular kernels, which test the material type it does not need. Point and
+// spot lights join them for the same reason.)
 constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption |
                                       kFeatureSubsurface | kFeatureTextures |
-                                      kFeatureInfiniteLights;
+                                      kFeatureInfiniteLights | kFeaturePointLights;
 
 // Specialisations: three bits (1 spheres, 2 depth of field, 4 specular materials, textures,
-// subsurface or infinite lights) name the eight
+// subsurface, infinite lights or point lights) name the eight
 // compiled variants both backends run; kGeneralSpec is the one for all features.
 constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4;
 constexpr uint32_t kGeneralSpec = 7;

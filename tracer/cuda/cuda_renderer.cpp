@@ -39,6 +39,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<float> env_texels, env_func, env_cond_cdf, env_marg_cdf;
   DeviceBuffer<DistantLight> distant;
   DeviceBuffer<InfiniteLights> infinite;
+  DeviceBuffer<PointLight> point_lights;  // SceneView::point_lights
   DeviceBuffer<FlatPrim> flat;       // the flat primitive list, small scenes only
   DeviceBuffer<FlatPrimInfo> flat_info;
   DeviceBuffer<FlatPrim> flat_solids;  // the solid boxes' maps
@@ -413,6 +414,8 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
     m.infinite.upload(std::vector<InfiniteLights>{dv});
     m.view.infinite = m.infinite.get();
   }
+  m.point_lights.upload(scene.point_lights());
+  m.view.point_lights = scene.point_lights().empty() ? nullptr : m.point_lights.get();
   m.features = scene.features();
   m.has_scene = true;
   set_settings(cfg);
@@ -478,8 +481,8 @@ size_t CudaRenderer::scene_bytes() const {
   return m.nodes.bytes() + m.prim_indices.bytes() + m.tri_verts.bytes() + m.tri_shading.bytes() +
          m.spheres.bytes() + m.materials.bytes() + m.lights.bytes() + m.light_cdf.bytes() +
          m.env_texels.bytes() + m.env_func.bytes() + m.env_cond_cdf.bytes() +
-         m.env_marg_cdf.bytes() + m.distant.bytes() + m.infinite.bytes() + m.flat.bytes() +
-         m.flat_info.bytes() + m.tri_to_flat.bytes();
+         m.env_marg_cdf.bytes() + m.distant.bytes() + m.infinite.bytes() + m.point_lights.bytes() +
+         m.flat.bytes() + m.flat_info.bytes() + m.tri_to_flat.bytes();
 }
 
 FrameStats CudaRenderer::render(uint32_t spp) {

@@ -35,7 +35,8 @@ vec3 geometric_normal(const TriangleVerts& t) { return glm::cross(t.v1 - t.v0, t
 std::string explain_black_image(const Scene& scene, const CompiledScene& cs) {
   const SceneView& v = cs.view();
   if (cs.lights().empty())
-    return "the scene has no light: no object uses an emissive material";
+    return "the scene has no light: no object uses an emissive material, and there is no "
+           "environment and no light in \"lights\" (or they are all black)";
 
   // Inside a closed object: every ray from the camera hits the back of a surface.
   const vec3 eye = scene.camera.position;
@@ -74,6 +75,11 @@ std::string explain_black_image(const Scene& scene, const CompiledScene& cs) {
   const size_t step = std::max<size_t>(1, lights.size() / 64);
   bool any_faces_in = false;
   for (size_t l = 0; l < lights.size() && !any_faces_in; l += step) {
+    // Lights at infinity, point and spot lights have no side to face away with.
+    if (lights[l].kind != kLightPrimitive) {
+      any_faces_in = true;
+      break;
+    }
     const uint32_t prim = lights[l].prim;
     if (prim >= v.tri_count) {
       any_faces_in = true;  // spheres emit outwards, all around

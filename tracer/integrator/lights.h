@@ -1,7 +1,8 @@
 // Sampling emissive geometry for next-event estimation, and the matching pdf for multiple
 // importance sampling when a BSDF-sampled ray hits an emitter. Lights are chosen in proportion to
 // their power; triangles are sampled by area, spheres by the cone of directions they subtend,
-// the environment by its map's luminance, distant lights by their cone (or their direction).
+// the environment by its map's luminance, distant lights by their cone (or their direction),
+// point and spot lights by their position.
 #pragma once
 
 #include "core/sampling.h"
@@ -14,13 +15,15 @@ namespace tracer {
 struct LightSample {
   vec3 p;     // point on the light; a light at infinity: the unit direction towards it
   vec3 n;     // its geometric normal
-  vec3 le;    // radiance emitted towards the reference point (a delta light: its irradiance)
+  vec3 le;    // radiance emitted towards the reference point (a delta light: its irradiance,
+              // for a point light I / d^2)
   float pdf;  // solid-angle pdf at the reference point, including the choice of light (a delta
               // light: the choice alone)
   uint32_t prim;
   bool valid;
   bool infinite;  // a direction, not a point: the shadow ray leaves the scene
-  bool delta;     // a delta distribution (a distant light of angular diameter 0): no MIS
+  bool delta;     // a delta distribution (a distant light of angular diameter 0, a point or
+                  // spot light): no MIS
 };
 
 // A light at infinity once chosen (select: the probability of that choice).
@@ -54,6 +57,33 @@ TRACER_HD inline LightSample sample_infinite_light(const SceneView& s, const Lig
   ls.valid = ls.pdf > 0.0f && is_finite(ls.pdf);
   return ls;
 }
+
+// ---- Point and spot lights ----------------------------------------------------------------------
+// A point or spot light once chosen (select: the probability of that choice): the light's
+// position, and its intensity towards ref over the squared distance as the "radiance" (pbrt-v4
+// sec. 12.1, PointLight::SampleLi). A delta light: its pdf is the choice alone, no MIS, and no
+// BSDF-sampled ray ever hits it.
+TRACER_HD inline LightSample sample_point_light(const SceneView& s, const Light& light,
+                                                float select, vec3 ref) {
+  LightSample ls;
+  ls.valid = false;
+  ls.infinite = false;
+  ls.delta = true;
+  ls.prim = kInvalid;  // nothing for the shadow ray to skip
+  const PointLight& pl = s.point_lights[light.prim];
+  const vec3 to_ref = ref - pl.position;
+  const float d2 = glm::dot(to_ref, to_ref);
+  if (!(d2 > 0.0f)) return ls;
+  const vec3 w = to_ref * fast_rsqrt(d2);
+  ls.p = pl.position;
+  // No surface there: the shadow ray's far end is offset along n, towards ref (spawn_ray_to).
+  ls.n = w;
+  ls.le = point_light_intensity(pl, w) * fast_rcp(d2);
+  ls.pdf = select;
+  ls.valid = ls.pdf > 0.0f && is_finite(ls.le);
+  return ls;
+}
+// ---- end of point and spot lights --------------------------------------------------------------
 
 // Index of the light whose CDF interval holds u (binary search over light_count + 1 entries).
 TRACER_HD TRACER_INLINE uint32_t pick_light(const SceneView& s, float u) {
@@ -111,7 +141,10 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
   const Light& light = s.lights[li];
   const float select = light_select_pdf(s, li);
   if (select <= 0.0f) return ls;
-  if ((F & kFeatureInfiniteLights) && light.kind != kLightPrimitive)
+  if ((F & kFeaturePointLights) && (light.kind == kLightPoint || light.kind == kLightSpot))
+    return sample_point_light(s, light, select, ref);
+  if ((F & kFeatureInfiniteLights) &&
+      (light.kind == kLightEnvironment || light.kind == kLightDistant))
     return sample_infinite_light<F>(s, light, select, u);
   ls.prim = light.prim;
   uint32_t material;

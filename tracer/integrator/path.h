@@ -288,7 +288,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
     const LightSample ls = sample_light_2d<F>(s, sh.p, sh.ng, u.light());
     if (ls.valid && !is_black(ls.le)) {
-      // A light at infinity gives a direction; the others a point.
+      // A light at infinity gives a direction; the others a point (point and spot lights: their
+      // position, whose shadow ray ends just short of it, as an area light's).
       const bool at_infinity = (F & kFeatureInfiniteLights) && ls.infinite;
       const vec3 wi_world = at_infinity ? ls.p : fast_normalize(ls.p - sh.p);
       const vec3 wi = frame.to_local(wi_world);
@@ -300,7 +301,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       if (usable) {
         const vec3 f = bsdf_eval<F>(m, wo, wi);
         if (!is_black(f)) {
-          const bool delta = (F & kFeatureInfiniteLights) && ls.delta;
+          const bool delta = (F & (kFeatureInfiniteLights | kFeaturePointLights)) && ls.delta;
           const float w =
               cfg.mis && !delta ? power_heuristic(ls.pdf, bsdf_pdf<F>(m, wo, wi)) : 1.0f;
           shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * fast_div(w, ls.pdf);

@@ -48,7 +48,8 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
   nlohmann::json mats = nlohmann::json::object();
   for (const auto& m : scene.materials) mats[m.name] = material_to_json(m.material);
   j["materials"] = mats;
-  if (!scene.distant_lights.empty()) j["lights"] = distant_lights_to_json(scene.distant_lights);
+  if (!scene.distant_lights.empty() || !scene.point_lights.empty())
+    j["lights"] = lights_to_json(scene.distant_lights, scene.point_lights);
   if (scene.environment_image) {  // the map as it was read (the mapping "auto" chose)
     const EnvironmentImage& img = *scene.environment_image;
     j["environment_map"] = {{"file", img.path},

@@ -1,6 +1,9 @@
 // Scene flattening: world-space triangles and spheres into flat arrays, the BVH over both, the
-// power-proportional light CDF and the scene's feature flags.
+// power-proportional light CDF (emitters, lights at infinity, point and spot lights) and the
+// scene's feature flags.
 #include "scene/compiled_scene.h"
+
+#include <cmath>
 
 namespace tracer {
 
@@ -18,7 +21,8 @@ std::string describe_features(uint32_t f) {
       {kFeatureAbsorption, "absorption"},          {kFeatureMirror, "conductors, plastics and sheets"},
       {kFeatureSubsurface, "subsurface"},          {kFeatureTextures, "textures"},
       {kFeatureEmissiveMeshes, "emissive meshes"}, {kFeatureSpheres, "spheres"},
-      {kFeatureShadingNormals, "shading normals"}, {kFeatureInfiniteLights, "lights at infinity"}};
+      {kFeatureShadingNormals, "shading normals"}, {kFeatureInfiniteLights, "lights at infinity"},
+      {kFeaturePointLights, "point lights"}};
   std::string out;
   for (const auto& n : kNames) {
     if (!(f & n.bit)) continue;
@@ -139,6 +143,25 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
       infinite_->distant[i].light =
           add_infinite(kLightDistant, uint32_t(i), r2 * infinite_->distant_luminance[i]);
   }
+  // Point and spot lights, chosen in proportion to their flux (pbrt-v4's Phi; Light::power is
+  // flux / pi like the others'). Black ones light nothing and are left out.
+  std::vector<vec3> light_points;
+  for (const PointLightDesc& d : scene.point_lights) {
+    double lum = double(luminance(d.intensity));
+    if (!(lum > 0.0)) lum = double(max_component(d.intensity));
+    if (!(lum > 0.0)) continue;
+    PointLight pl = make_point_light(d);
+    Light l;
+    l.prim = uint32_t(point_lights_.size());
+    l.area = 0.0f;
+    l.power = float(lum * point_light_solid_angle(d) / M_PI);
+    l.kind = d.spot ? kLightSpot : kLightPoint;
+    lights_.push_back(l);
+    pl.light = uint32_t(lights_.size() - 1);
+    point_lights_.push_back(pl);
+    light_points.push_back(d.position);
+    features |= kFeaturePointLights;
+  }
   double total = 0.0;
   for (const Light& l : lights_) total += l.power;
   light_cdf_.resize(lights_.size() + 1);
@@ -204,7 +227,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   bvh_ = build_bvh(bounds);
   cpu_bvh_ = build_cpu_bvh(bvh_, tri_verts_, tri_count);
   // With lights at infinity shadow rays leave the scene, so no entry may be skipped as hull.
-  flat_ = build_flat_list(tri_verts_, spheres_, infinite_->any());
+  // Point lights are ends of shadow rays too: a wall with one behind it is no hull.
+  flat_ = build_flat_list(tri_verts_, spheres_, infinite_->any(), light_points);
 
   view_.nodes = bvh_.nodes.data();
   view_.prim_indices = bvh_.prim_indices.data();
@@ -218,6 +242,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.textures = textures_.data();
   view_.texels = texels_.data();
   view_.infinite = infinite_->any() ? &infinite_->view : nullptr;
+  view_.point_lights = point_lights_.empty() ? nullptr : point_lights_.data();
+  view_.point_light_count = uint32_t(point_lights_.size());
   view_.texture_count = uint32_t(textures_.size());
   view_.node_count = uint32_t(bvh_.nodes.size());
   view_.tri_count = tri_count;

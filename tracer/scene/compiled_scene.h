@@ -38,6 +38,8 @@ class CompiledScene {
   // The environment's and the distant lights' arrays (view().infinite points at its view when
   // the scene has any).
   const InfiniteLightsData& infinite() const { return *infinite_; }
+  // The point and spot lights (view().point_lights points at them when there are any).
+  const std::vector<PointLight>& point_lights() const { return point_lights_; }
 
  private:
   Bvh bvh_;
@@ -53,6 +55,7 @@ class CompiledScene {
   std::vector<TextureDesc> textures_;
   std::vector<uint32_t> texels_;  // RGBA8 packed little-endian (R in the low byte)
   std::unique_ptr<InfiniteLightsData> infinite_;  // on the heap: view_ keeps its address
+  std::vector<PointLight> point_lights_;
   SceneView view_;
 };
 

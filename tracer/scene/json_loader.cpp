@@ -11,6 +11,7 @@
 #include "scene/json_lines.h"
 #include "scene/loader.h"
 #include "scene/loader_util.h"
+#include "scene/pbrt_shapes.h"
 
 namespace tracer {
 
@@ -167,8 +168,8 @@ class JsonSceneReader {
     }
   }
 
-  // "lights": lights that are no geometry. Today the distant light (a sun): "direction" towards
-  // it, "irradiance" on a surface facing it, "angular_diameter" in degrees (0: a delta light).
+  // "lights": lights that are no geometry: the distant light (a sun), the point light and the
+  // spot light.
   void read_lights(const json& ls, const std::string& ptr) {
     if (!ls.is_array())
       fail(ptr, std::string("\"lights\" must be an array [...], not ") + json_type_name(ls));
@@ -177,36 +178,104 @@ class JsonSceneReader {
       const std::string lp = json_pointer_child(ptr, i);
       const std::string where = "light " + std::to_string(i);
       require_object(l, lp, where);
-      check_keys(l, lp, {"type", "name", "direction", "irradiance", "angular_diameter"}, where);
       const std::string type = get_string(l, lp, "type", "", where);
-      if (type != "distant") {
-        const std::string guess = did_you_mean(type, {"distant"});
+      const std::vector<std::string> types = {"distant", "point", "spot"};
+      if (std::find(types.begin(), types.end(), type) == types.end()) {
+        const std::string guess = did_you_mean(type, types);
         fail(l.contains("type") ? json_pointer_child(lp, "type") : lp,
              (type.empty() ? where + " has no \"type\"" : "unknown light type " + in_quotes(type)) +
-                 (guess.empty() ? " (expected \"distant\")" : " (did you mean \"distant\"?)"));
+                 (guess.empty() ? " (expected distant, point or spot)"
+                                : " (did you mean " + in_quotes(guess) + "?)"));
       }
-      DistantLightDesc d;
-      d.name = get_string(l, lp, "name", where, where);
-      d.loc = at(lp);
-      if (!l.contains("direction")) fail(lp, where + " has no \"direction\" (towards the light)");
-      d.direction = get_vec3(l, lp, "direction", d.direction, where);
+      if (type == "distant")
+        read_distant_light(l, lp, where);
+      else
+        read_point_light(l, lp, where, type == "spot");
+    }
+  }
+
+  // A sun: "direction" towards it, "irradiance" on a surface facing it, "angular_diameter" in
+  // degrees (0: a delta light).
+  void read_distant_light(const json& l, const std::string& lp, const std::string& where) {
+    check_keys(l, lp, {"type", "name", "direction", "irradiance", "angular_diameter"}, where);
+    DistantLightDesc d;
+    d.name = get_string(l, lp, "name", where, where);
+    d.loc = at(lp);
+    if (!l.contains("direction")) fail(lp, where + " has no \"direction\" (towards the light)");
+    d.direction = get_vec3(l, lp, "direction", d.direction, where);
+    const double len2 = double(d.direction.x) * d.direction.x +
+                        double(d.direction.y) * d.direction.y +
+                        double(d.direction.z) * d.direction.z;
+    if (!(len2 > 1e-30) || !std::isfinite(len2))
+      fail(json_pointer_child(lp, "direction"),
+           "\"direction\" of " + where + " must be a non-zero vector of moderate length");
+    d.irradiance = get_vec3(l, lp, "irradiance", d.irradiance, where);
+    if (glm::any(glm::lessThan(d.irradiance, vec3(0.0f))))
+      fail(json_pointer_child(lp, "irradiance"), "\"irradiance\" of " + where + " must be >= 0");
+    d.angular_diameter_deg = get_float(l, lp, "angular_diameter", 0.0f, where);
+    if (!(d.angular_diameter_deg >= 0.0f && d.angular_diameter_deg < 180.0f))
+      fail(json_pointer_child(lp, "angular_diameter"),
+           "\"angular_diameter\" of " + where + " must be in [0, 180) degrees");
+    if (max_component(d.irradiance) <= 0.0f)
+      scene_.diagnostics.warn(at(lp), where + " has zero irradiance", "it lights nothing");
+    scene_.distant_lights.push_back(d);
+  }
+
+  // A point light: "position", "intensity" (W/sr) or "power" (W, the flux in all directions).
+  // A spot light also "direction" or "look_at" (where the cone points), "cone_angle" (where the
+  // falloff ends) and "cone_delta_angle" (its width), in degrees, as pbrt-v4's.
+  void read_point_light(const json& l, const std::string& lp, const std::string& where, bool spot) {
+    if (spot)
+      check_keys(l, lp,
+                 {"type", "name", "position", "direction", "look_at", "intensity", "power",
+                  "cone_angle", "cone_delta_angle"},
+                 where);
+    else
+      check_keys(l, lp, {"type", "name", "position", "intensity", "power"}, where);
+    PointLightDesc d;
+    d.spot = spot;
+    d.name = get_string(l, lp, "name", where, where);
+    d.loc = at(lp);
+    if (!l.contains("position")) fail(lp, where + " has no \"position\"");
+    d.position = get_vec3(l, lp, "position", d.position, where);
+    if (spot) {
+      if (l.contains("direction") && l.contains("look_at"))
+        fail(json_pointer_child(lp, "look_at"),
+             where + " has both \"direction\" and \"look_at\": give one");
+      if (!l.contains("direction") && !l.contains("look_at"))
+        fail(lp, where + " has no \"direction\" or \"look_at\" (where the cone points)");
+      const char* key = l.contains("direction") ? "direction" : "look_at";
+      const vec3 v = get_vec3(l, lp, key, vec3(0.0f), where);
+      d.direction = l.contains("direction") ? v : v - d.position;
       const double len2 = double(d.direction.x) * d.direction.x +
                           double(d.direction.y) * d.direction.y +
                           double(d.direction.z) * d.direction.z;
       if (!(len2 > 1e-30) || !std::isfinite(len2))
-        fail(json_pointer_child(lp, "direction"),
-             "\"direction\" of " + where + " must be a non-zero vector of moderate length");
-      d.irradiance = get_vec3(l, lp, "irradiance", d.irradiance, where);
-      if (glm::any(glm::lessThan(d.irradiance, vec3(0.0f))))
-        fail(json_pointer_child(lp, "irradiance"), "\"irradiance\" of " + where + " must be >= 0");
-      d.angular_diameter_deg = get_float(l, lp, "angular_diameter", 0.0f, where);
-      if (!(d.angular_diameter_deg >= 0.0f && d.angular_diameter_deg < 180.0f))
-        fail(json_pointer_child(lp, "angular_diameter"),
-             "\"angular_diameter\" of " + where + " must be in [0, 180) degrees");
-      if (max_component(d.irradiance) <= 0.0f)
-        scene_.diagnostics.warn(at(lp), where + " has zero irradiance", "it lights nothing");
-      scene_.distant_lights.push_back(d);
+        fail(json_pointer_child(lp, key),
+             l.contains("direction")
+                 ? "\"direction\" of " + where + " must be a non-zero vector of moderate length"
+                 : "\"look_at\" of " + where + " must differ from its \"position\"");
+      d.cone_angle_deg = get_float(l, lp, "cone_angle", d.cone_angle_deg, where);
+      if (!(d.cone_angle_deg > 0.0f && d.cone_angle_deg <= 180.0f))
+        fail(json_pointer_child(lp, "cone_angle"),
+             "\"cone_angle\" of " + where + " must be in (0, 180] degrees");
+      d.cone_delta_angle_deg = get_float(l, lp, "cone_delta_angle",
+                                         std::min(d.cone_delta_angle_deg, d.cone_angle_deg), where);
+      if (!(d.cone_delta_angle_deg >= 0.0f && d.cone_delta_angle_deg <= d.cone_angle_deg))
+        fail(json_pointer_child(lp, "cone_delta_angle"),
+             "\"cone_delta_angle\" of " + where + " must be in [0, cone_angle] degrees");
     }
+    if (l.contains("intensity") && l.contains("power"))
+      fail(json_pointer_child(lp, "power"),
+           where + " has both \"intensity\" and \"power\": give one");
+    const char* key = l.contains("power") ? "power" : "intensity";
+    const vec3 v = get_vec3(l, lp, key, vec3(1.0f), where);
+    if (glm::any(glm::lessThan(v, vec3(0.0f))))
+      fail(json_pointer_child(lp, key), in_quotes(key) + " of " + where + " must be >= 0");
+    d.intensity = l.contains("power") ? v / float(point_light_solid_angle(d)) : v;
+    if (max_component(d.intensity) <= 0.0f)
+      scene_.diagnostics.warn(at(lp), where + " has zero " + key, "it lights nothing");
+    scene_.point_lights.push_back(d);
   }
 
   void read_materials(const json& ms, const std::string& ptr) {
@@ -615,12 +684,12 @@ class JsonSceneReader {
     require_object(o, ptr, "object " + std::to_string(index));
     if (!o.contains("type")) fail(ptr, "object " + std::to_string(index) + " has no \"type\"");
     const std::string type = get_string(o, ptr, "type", "", "object " + std::to_string(index));
-    const std::vector<std::string> types = {"sphere", "box", "quad", "mesh"};
+    const std::vector<std::string> types = {"sphere", "box", "quad", "disk", "mesh"};
     if (std::find(types.begin(), types.end(), type) == types.end()) {
       const std::string guess = did_you_mean(type, types);
       fail(json_pointer_child(ptr, "type"),
            "unknown object type " + in_quotes(type) +
-               (guess.empty() ? " (expected sphere, box, quad or mesh)"
+               (guess.empty() ? " (expected sphere, box, quad, disk or mesh)"
                               : " (did you mean " + in_quotes(guess) + "?)"));
     }
     ObjectInfo info;
@@ -683,6 +752,30 @@ class JsonSceneReader {
       q.materials = {mat, mat};
       info.first = append_part(scene_, q, xform);
       info.count = 2;
+    } else if (type == "disk") {
+      check_keys(o, ptr, {"type", "name", "center", "normal", "radius", "material", "transform"},
+                 where);
+      const uint32_t mat = object_material(o, ptr, where, true);
+      const vec3 c = get_vec3(o, ptr, "center", vec3(0.0f), where);
+      const vec3 n = get_vec3(o, ptr, "normal", vec3(0, 1, 0), where);
+      const float r = get_float(o, ptr, "radius", 1.0f, where);
+      if (!(r > 0.0f))
+        fail(json_pointer_child(ptr, "radius"), "\"radius\" of " + where + " must be > 0");
+      if (!(glm::dot(n, n) > 1e-30f) || !std::isfinite(glm::dot(n, n)))
+        fail(json_pointer_child(ptr, "normal"),
+             "\"normal\" of " + where + " must be a non-zero vector of moderate length");
+      // pbrt's disk (a polygon of 96 segments, facing +z), turned so that +z is the normal and
+      // moved to the centre: an emissive disk is sampled by area as its triangles.
+      MeshPart d = pbrt_disk_mesh(0.0f, r, 0.0f, 360.0f);
+      d.materials.assign(d.indices.size(), mat);
+      const Frame f = Frame::from_normal(glm::normalize(n));
+      mat4 place(1.0f);
+      place[0] = vec4(f.t, 0.0f);
+      place[1] = vec4(f.b, 0.0f);
+      place[2] = vec4(f.n, 0.0f);
+      place[3] = vec4(c, 1.0f);
+      info.first = append_part(scene_, d, xform * place);
+      info.count = uint32_t(d.indices.size());
     } else {  // mesh
       check_keys(o, ptr, {"type", "name", "file", "material", "materials", "transform"}, where);
       if (!o.contains("file")) fail(ptr, where + " has no \"file\"");

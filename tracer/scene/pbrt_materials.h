@@ -74,9 +74,10 @@ class PbrtMaterials {
   int mix(PbrtParams& p, const Ctx& c);
   Material unsupported(const std::string& type, PbrtParams& p, const Ctx& c);
 
-  // One function per unsupported light type, so each can be connected on its own.
+  // One function per light type (pbrt_lights.cpp); light_not_yet for those not supported.
   void light_point(PbrtParams& p, const mat4& world, const SourceLoc& loc);
   void light_spot(PbrtParams& p, const mat4& world, const SourceLoc& loc);
+  void point_or_spot(PbrtParams& p, const mat4& world, const SourceLoc& loc, bool spot);
   void light_distant(PbrtParams& p, const mat4& world, const SourceLoc& loc);
   void light_infinite(PbrtParams& p, const mat4& world, const SourceLoc& loc);
   void light_not_yet(const std::string& type, PbrtParams& p, const SourceLoc& loc);
@@ -113,6 +114,7 @@ class PbrtMaterials {
   std::map<std::tuple<std::string, bool, int>, uint32_t> images_;
   std::map<std::tuple<int, float, float, float, bool>, uint32_t> emissive_;
   uint32_t default_material_ = kInvalid;
+  SourceLoc env_loc_;  // the infinite light that set the environment map
 };
 
 }  // namespace tracer

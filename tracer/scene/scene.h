@@ -11,6 +11,7 @@
 #include "materials/material.h"
 #include "materials/texture.h"
 #include "scene/environment.h"
+#include "scene/point_lights.h"
 #include "scene/settings.h"
 
 namespace tracer {
@@ -125,6 +126,9 @@ struct Scene {
   EnvironmentDesc environment;
   std::shared_ptr<const EnvironmentImage> environment_image;
   std::vector<DistantLightDesc> distant_lights;
+  // Point and spot lights (the scene file's "lights" of type "point" and "spot", pbrt's
+  // LightSource "point" and "spot").
+  std::vector<PointLightDesc> point_lights;
   Diagnostics diagnostics;
 
   uint32_t add_material(const std::string& name, const Material& m);

@@ -8,6 +8,7 @@
 #include "materials/material.h"
 #include "materials/texture.h"
 #include "scene/environment_view.h"
+#include "scene/point_light_view.h"
 
 namespace tracer {
 
@@ -29,15 +30,20 @@ enum LightKind : uint32_t {
   kLightPrimitive = 0,    // an emissive triangle or sphere
   kLightEnvironment = 1,  // SceneView::infinite's environment
   kLightDistant = 2,      // SceneView::infinite->distant[prim]
+  kLightPoint = 3,        // SceneView::point_lights[prim], a point light
+  kLightSpot = 4,         // SceneView::point_lights[prim], a spot light
 };
 
 // A light to choose for next-event estimation: an emissive primitive (`prim` a unified primitive
-// id, triangles first, then spheres) or a light at infinity (kind; `prim` the distant light).
+// id, triangles first, then spheres), a light at infinity (kind; `prim` the distant light) or a
+// point or spot light (`prim` its index in SceneView::point_lights).
 struct Light {
   uint32_t prim;
   float area;
   // How often it is chosen: flux / pi (luminance x area for a one-sided emitter; for lights at
-  // infinity the flux through the disc of the scene's bounding sphere, pbrt-v4's estimate).
+  // infinity the flux through the disc of the scene's bounding sphere, pbrt-v4's estimate; a
+  // point light's flux is 4 pi I, a spot light's 2 pi I (1 - (cos start + cos end) / 2), as
+  // pbrt-v4's Phi).
   float power;
   uint32_t kind;  // LightKind
 };
@@ -55,6 +61,9 @@ struct SceneView : TraceView {
   // The environment and the distant lights; null when the scene has neither (its rays that
   // escape see black).
   const InfiniteLights* infinite = nullptr;
+  // Point and spot lights (point_light_count entries; null when there are none).
+  const PointLight* point_lights = nullptr;
+  uint32_t point_light_count = 0;
   uint32_t texture_count = 0;
   uint32_t material_count = 0, light_count = 0;
   uint32_t features = 0;

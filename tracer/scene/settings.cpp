@@ -381,6 +381,7 @@ std::string unknown_setting_message(const std::string& key, const std::string& s
     if (section.empty() || s.section() == section)
       keys.push_back(section.empty() ? s.key : s.name());
   if (section.empty()) keys.insert(keys.end(), kMaterialSetKeys.begin(), kMaterialSetKeys.end());
+  if (section.empty()) keys.insert(keys.end(), kLightSetKeys.begin(), kLightSetKeys.end());
   std::string msg = "unknown setting " + quoted(key);
   const std::string guess = did_you_mean(key, keys);
   if (!guess.empty()) msg += " (did you mean " + quoted(guess) + "?)";
@@ -496,6 +497,7 @@ std::string set_setting_assignment(Scene& scene, const std::string& assignment) 
   if (eq == std::string::npos) return "expected KEY=VALUE, not " + quoted(assignment);
   const std::string key = assignment.substr(0, eq);
   if (key.rfind("materials.", 0) == 0) return set_material_assignment(scene, assignment);
+  if (key.rfind("lights.", 0) == 0) return set_light_assignment(scene, assignment);
   const Setting* s = find_setting(key);
   if (!s) return unknown_setting_message(key);
   json value;
@@ -581,7 +583,6 @@ const std::vector<std::string> kMaterialSetKeys = {
     "materials.NAME.eta",        "materials.NAME.k",
     "materials.NAME.thickness",  "materials.NAME.transmittance"};
 
-namespace {
 bool parse_floats(const std::string& s, float* out, int n) {
   size_t start = 0;
   for (int i = 0; i < n; ++i) {
@@ -595,7 +596,6 @@ bool parse_floats(const std::string& s, float* out, int n) {
   }
   return true;
 }
-}  // namespace
 
 std::string set_material_assignment(Scene& scene, const std::string& assignment) {
   const size_t eq = assignment.find('=');

@@ -114,6 +114,8 @@ std::string set_setting_assignment(Scene& scene, const std::string& assignment);
 // spells it on every command. "" or the problem.
 std::string set_material_assignment(Scene& scene, const std::string& assignment);
 extern const std::vector<std::string> kMaterialSetKeys;  // "materials.NAME.albedo", ...
+// The values of such edits: exactly n finite numbers separated by commas ("1,2,3").
+bool parse_floats(const std::string& s, float* out, int n);
 // A material in the scene format (what the scene reader reads back).
 nlohmann::json material_to_json(const Material& m);
 

@@ -379,6 +379,7 @@ void validate_scene(Scene& scene) {
   const EnvironmentDesc& env = scene.environment;
   lit |= env.strength > 0.0f && (!env.file.empty() || max_component(env.color) > 0.0f);
   for (const DistantLightDesc& d : scene.distant_lights) lit |= max_component(d.irradiance) > 0.0f;
+  for (const PointLightDesc& d : scene.point_lights) lit |= max_component(d.intensity) > 0.0f;
   if (!lit) {
     warn_once(scene, {scene.source, 0}, "scene has no light; it will render black",
               "rendering anyway");
