@@ -1,6 +1,8 @@
 // Scene flattening: world-space triangles and spheres into flat arrays, the BVH over both, the
-// power-proportional light CDF and the scene's feature flags.
+// power-proportional light CDF, the light tree and the scene's feature flags.
 #include "scene/compiled_scene.h"
+
+#include <stdexcept>
 
 namespace tracer {
 
@@ -145,8 +147,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   light_cdf_[0] = 0.0f;
   double acc = 0.0;
   for (size_t i = 0; i < lights_.size(); ++i) {
-    acc += lights_[i].power;
-    light_cdf_[i + 1] = float(acc / total);
+    acc += total > 0.0 ? lights_[i].power : 1.0;  // no power at all: every light alike
+    light_cdf_[i + 1] = float(acc / (total > 0.0 ? total : double(lights_.size())));
   }
   if (!lights_.empty()) light_cdf_.back() = 1.0f;
 
@@ -224,6 +226,22 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.sphere_count = uint32_t(spheres_.size());
   view_.material_count = uint32_t(materials_.size());
   view_.light_count = uint32_t(lights_.size());
+  // The light tree over every light but those at infinity, which the light choice expects last
+  // (integrator/lights.h, choose_light: they take the tail of the power CDF).
+  uint32_t finite = 0;
+  while (finite < lights_.size() && !light_at_infinity(lights_[finite].kind)) ++finite;
+  for (size_t i = finite; i < lights_.size(); ++i)
+    if (!light_at_infinity(lights_[i].kind))
+      throw std::logic_error("CompiledScene: a light of kind " + std::to_string(lights_[i].kind) +
+                             " follows the lights at infinity");
+  std::vector<LightBounds> light_bounds_list;
+  light_bounds_list.reserve(lights_.size());
+  for (const Light& l : lights_) light_bounds_list.push_back(light_bounds(view_, l));
+  light_tree_ = build_light_tree(light_bounds_list);
+  view_.light_tree.nodes = light_tree_.nodes.empty() ? nullptr : light_tree_.nodes.data();
+  view_.light_tree.leaves = light_tree_.leaves.data();
+  view_.light_tree.trails = light_tree_.trails.data();
+  view_.finite_light_count = finite;
   view_.features = features;
   view_.camera = make_camera(scene.camera, width, height);
   view_.cpu_bvh = cpu_bvh_.view();
