@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Generates the procedural assets under assets/: smooth OBJ meshes (with an MTL) and the glTF
-scene with an embedded buffer. The JSON scenes are written by hand. Run from anywhere:
+"""Generates the procedural assets under assets/: smooth OBJ meshes (with an MTL), the glTF
+scene with an embedded buffer and the many-lights room (many_lights.json). The other JSON scenes
+are written by hand. Run from anywhere:
     python3 scripts/gen_assets.py
 Standard library only, so that it runs on a bare machine; the outputs are committed."""
 
@@ -8,6 +9,7 @@ import base64
 import json
 import math
 import os
+import random
 import struct
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
@@ -254,8 +256,107 @@ def gen_gltf():
         f.write("\n")
 
 
+def gen_many_lights():
+    """A closed room lit by 104 small emitters whose radiances span three orders of magnitude
+    (log-uniform): 64 ceiling tiles (every eighth faces the ceiling), 24 wall lamps (every sixth
+    faces its wall) and 16 small spheres; pillars and balls cast their shadows. The scene of the
+    light samplers' comparison (render.light_sampler; docs/PERFORMANCE.md)."""
+    rng = random.Random(21)
+    colours = [(1.0, 0.78, 0.52), (1.0, 0.92, 0.8), (0.62, 0.8, 1.0), (1.0, 0.55, 0.3),
+               (0.55, 1.0, 0.75), (1.0, 1.0, 1.0)]
+    materials = {
+        "wall": {"type": "diffuse", "albedo": [0.7, 0.7, 0.68]},
+        "floor": {"type": "diffuse", "albedo": [0.45, 0.42, 0.4]},
+        "pillar": {"type": "diffuse", "albedo": [0.6, 0.35, 0.25]},
+        "ball": {"type": "diffuse", "albedo": [0.25, 0.45, 0.65]},
+        "gold": {"type": "conductor", "metal": "Au", "roughness": 0.3},
+    }
+    objects = []
+
+    def r(x):
+        return round(x, 4)
+
+    def lamp(name):
+        c = rng.choice(colours)
+        materials[name] = {"type": "diffuse", "albedo": [0, 0, 0], "emission": list(c),
+                           "emission_strength": r(0.1 * 10 ** rng.uniform(0, 3))}
+        return name
+
+    def quad(name, corner, e1, e2, material):
+        objects.append({"type": "quad", "name": name, "corner": [r(v) for v in corner],
+                        "edge1": [r(v) for v in e1], "edge2": [r(v) for v in e2],
+                        "material": material})
+
+    h, top = 6.0, 4.0  # the room: x, z in [-6, 6], y in [0, 4]
+    quad("floor", (-h, 0, -h), (0, 0, 2 * h), (2 * h, 0, 0), "floor")
+    quad("ceiling", (-h, top, -h), (2 * h, 0, 0), (0, 0, 2 * h), "wall")
+    quad("back wall", (-h, 0, h), (0, top, 0), (2 * h, 0, 0), "wall")
+    quad("front wall", (-h, 0, -h), (2 * h, 0, 0), (0, top, 0), "wall")
+    quad("left wall", (-h, 0, -h), (0, top, 0), (0, 0, 2 * h), "wall")
+    quad("right wall", (h, 0, -h), (0, 0, 2 * h), (0, top, 0), "wall")
+    for i, (x, z) in enumerate([(-2.5, -0.5), (2.5, -0.5), (-2.5, 3.5), (2.5, 3.5)]):
+        objects.append({"type": "box", "name": "pillar %d" % i, "min": [x - 0.35, 0, z - 0.35],
+                        "max": [x + 0.35, 2.6, z + 0.35], "material": "pillar"})
+    objects.append({"type": "sphere", "name": "ball", "center": [-0.9, 0.7, 1.2], "radius": 0.7,
+                    "material": "ball"})
+    objects.append({"type": "sphere", "name": "gold ball", "center": [1.0, 0.5, 0.4],
+                    "radius": 0.5, "material": "gold"})
+    n = 0
+    w = 0.25  # ceiling tiles: 8 x 8, every eighth turned to face the ceiling
+    for i in range(8):
+        for j in range(8):
+            x, z, y = -5.25 + 1.5 * i, -5.25 + 1.5 * j, top - 0.05
+            name = lamp("lamp %03d" % n)
+            if n % 8 == 5:
+                quad(name, (x - w / 2, y, z - w / 2), (0, 0, w), (w, 0, 0), name)  # up
+            else:
+                quad(name, (x - w / 2, y, z - w / 2), (w, 0, 0), (0, 0, w), name)  # down
+            n += 1
+    for k in range(24):  # wall lamps, 0.3 x 0.15: left, right and back walls
+        wall, m = divmod(k, 8)
+        y = 1.2 if m % 2 == 0 else 2.6
+        t = -4.5 + 9.0 * m / 7
+        away = k % 6 == 3
+        name = lamp("lamp %03d" % n)
+        if wall == 0:  # x = -h + 0.05, into the room is +x
+            e1, e2 = (0, 0.15, 0), (0, 0, 0.3)
+            c = (-h + 0.05, y, t - 0.15)
+        elif wall == 1:  # x = h - 0.05, into the room is -x
+            e1, e2 = (0, 0, 0.3), (0, 0.15, 0)
+            c = (h - 0.05, y, t - 0.15)
+        else:  # z = h - 0.05, into the room is -z
+            e1, e2 = (0, 0.15, 0), (0.3, 0, 0)
+            c = (t - 0.15, y, h - 0.05)
+        if away:
+            e1, e2 = e2, e1
+        quad(name, c, e1, e2, name)
+        n += 1
+    for k in range(16):  # small spheres floating about the room
+        name = lamp("lamp %03d" % n)
+        objects.append({"type": "sphere", "name": name,
+                        "center": [r(rng.uniform(-5, 5)), r(rng.uniform(0.3, 3.5)),
+                                   r(rng.uniform(-3, 5.5))],
+                        "radius": r(rng.uniform(0.04, 0.12)), "material": name})
+        n += 1
+    doc = {"camera": {"position": [0, 2.2, -5.6], "look_at": [0, 1.1, 2], "up": [0, 1, 0],
+                      "vfov": 62},
+           "render": {"width": 640, "height": 400, "spp": 64, "max_depth": 8},
+           "materials": materials, "objects": objects}
+    with open(os.path.join(SCENES, "many_lights.json"), "w") as f:
+        f.write("{\n")
+        f.write(' "camera": %s,\n' % json.dumps(doc["camera"]))
+        f.write(' "render": %s,\n' % json.dumps(doc["render"]))
+        f.write(' "materials": {\n')
+        f.write(",\n".join("  %s: %s" % (json.dumps(k), json.dumps(v))
+                           for k, v in materials.items()))
+        f.write("\n },\n \"objects\": [\n")
+        f.write(",\n".join("  " + json.dumps(o) for o in objects))
+        f.write("\n ]\n}\n")
+
+
 if __name__ == "__main__":
     os.makedirs(MESHES, exist_ok=True)
     os.makedirs(SCENES, exist_ok=True)
     gen_objs()
     gen_gltf()
+    gen_many_lights()
