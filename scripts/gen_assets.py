@@ -257,16 +257,17 @@ def gen_gltf():
 
 
 def gen_many_lights():
-    """A closed room lit by 104 small emitters whose radiances span three orders of magnitude
-    (log-uniform): 64 ceiling tiles (every eighth faces the ceiling), 24 wall lamps (every sixth
-    faces its wall) and 16 small spheres; pillars and balls cast their shadows. The scene of the
-    light samplers' comparison (render.light_sampler; docs/PERFORMANCE.md)."""
+    """A hall of 32 x 32 units under the night sky, lit by 108 small lamps whose radiances span
+    two and a half orders of magnitude (log-uniform): 100 on a jittered grid at heights 0.4-2.5
+    (quads facing down, every seventh facing up, away from everything; every fourth a small
+    sphere) and 8 on the walls, some facing the wall. Each point is lit mostly by the lamps near
+    it: the scene of the light samplers' comparison (render.light_sampler; docs/PERFORMANCE.md)."""
     rng = random.Random(21)
     colours = [(1.0, 0.78, 0.52), (1.0, 0.92, 0.8), (0.62, 0.8, 1.0), (1.0, 0.55, 0.3),
                (0.55, 1.0, 0.75), (1.0, 1.0, 1.0)]
     materials = {
+        "floor": {"type": "diffuse", "albedo": [0.5, 0.48, 0.45]},
         "wall": {"type": "diffuse", "albedo": [0.7, 0.7, 0.68]},
-        "floor": {"type": "diffuse", "albedo": [0.45, 0.42, 0.4]},
         "pillar": {"type": "diffuse", "albedo": [0.6, 0.35, 0.25]},
         "ball": {"type": "diffuse", "albedo": [0.25, 0.45, 0.65]},
         "gold": {"type": "conductor", "metal": "Au", "roughness": 0.3},
@@ -279,7 +280,7 @@ def gen_many_lights():
     def lamp(name):
         c = rng.choice(colours)
         materials[name] = {"type": "diffuse", "albedo": [0, 0, 0], "emission": list(c),
-                           "emission_strength": r(0.1 * 10 ** rng.uniform(0, 3))}
+                           "emission_strength": r(1.0 * 10 ** rng.uniform(0, 2.5))}
         return name
 
     def quad(name, corner, e1, e2, material):
@@ -287,59 +288,48 @@ def gen_many_lights():
                         "edge1": [r(v) for v in e1], "edge2": [r(v) for v in e2],
                         "material": material})
 
-    h, top = 6.0, 4.0  # the room: x, z in [-6, 6], y in [0, 4]
+    h, top = 16.0, 3.0  # the hall: x, z in [-16, 16], walls 3 high on three sides, no roof
     quad("floor", (-h, 0, -h), (0, 0, 2 * h), (2 * h, 0, 0), "floor")
-    quad("ceiling", (-h, top, -h), (2 * h, 0, 0), (0, 0, 2 * h), "wall")
     quad("back wall", (-h, 0, h), (0, top, 0), (2 * h, 0, 0), "wall")
-    quad("front wall", (-h, 0, -h), (2 * h, 0, 0), (0, top, 0), "wall")
     quad("left wall", (-h, 0, -h), (0, top, 0), (0, 0, 2 * h), "wall")
     quad("right wall", (h, 0, -h), (0, 0, 2 * h), (0, top, 0), "wall")
-    for i, (x, z) in enumerate([(-2.5, -0.5), (2.5, -0.5), (-2.5, 3.5), (2.5, 3.5)]):
-        objects.append({"type": "box", "name": "pillar %d" % i, "min": [x - 0.35, 0, z - 0.35],
-                        "max": [x + 0.35, 2.6, z + 0.35], "material": "pillar"})
-    objects.append({"type": "sphere", "name": "ball", "center": [-0.9, 0.7, 1.2], "radius": 0.7,
+    for i, (x, z) in enumerate([(-7, -3), (6, -5), (-4, 8), (8, 6), (0, 1)]):
+        objects.append({"type": "box", "name": "pillar %d" % i, "min": [x - 0.5, 0, z - 0.5],
+                        "max": [x + 0.5, 2.8, z + 0.5], "material": "pillar"})
+    objects.append({"type": "sphere", "name": "ball", "center": [-2.5, 1.0, -6], "radius": 1.0,
                     "material": "ball"})
-    objects.append({"type": "sphere", "name": "gold ball", "center": [1.0, 0.5, 0.4],
-                    "radius": 0.5, "material": "gold"})
+    objects.append({"type": "sphere", "name": "gold ball", "center": [3.0, 0.8, -8.5],
+                    "radius": 0.8, "material": "gold"})
     n = 0
-    w = 0.25  # ceiling tiles: 8 x 8, every eighth turned to face the ceiling
-    for i in range(8):
-        for j in range(8):
-            x, z, y = -5.25 + 1.5 * i, -5.25 + 1.5 * j, top - 0.05
+    w = 0.3
+    for i in range(10):
+        for j in range(10):
+            x = -13.5 + 3.0 * i + rng.uniform(-0.8, 0.8)
+            z = -13.5 + 3.0 * j + rng.uniform(-0.8, 0.8)
+            y = rng.uniform(0.4, 2.5)
             name = lamp("lamp %03d" % n)
-            if n % 8 == 5:
-                quad(name, (x - w / 2, y, z - w / 2), (0, 0, w), (w, 0, 0), name)  # up
-            else:
-                quad(name, (x - w / 2, y, z - w / 2), (w, 0, 0), (0, 0, w), name)  # down
+            if n % 4 == 1:
+                objects.append({"type": "sphere", "name": name, "center": [r(x), r(y), r(z)],
+                                "radius": r(rng.uniform(0.05, 0.15)), "material": name})
+            elif n % 7 == 3:  # facing up: lights nothing
+                quad(name, (x - w / 2, y, z - w / 2), (0, 0, w), (w, 0, 0), name)
+            else:  # facing down
+                quad(name, (x - w / 2, y, z - w / 2), (w, 0, 0), (0, 0, w), name)
             n += 1
-    for k in range(24):  # wall lamps, 0.3 x 0.15: left, right and back walls
-        wall, m = divmod(k, 8)
-        y = 1.2 if m % 2 == 0 else 2.6
-        t = -4.5 + 9.0 * m / 7
-        away = k % 6 == 3
+    for k in range(8):  # wall lamps, 0.4 x 0.2, facing into the hall (two face their wall)
+        wall, m = divmod(k, 4)
+        t = -12.0 + 8.0 * m
         name = lamp("lamp %03d" % n)
-        if wall == 0:  # x = -h + 0.05, into the room is +x
-            e1, e2 = (0, 0.15, 0), (0, 0, 0.3)
-            c = (-h + 0.05, y, t - 0.15)
-        elif wall == 1:  # x = h - 0.05, into the room is -x
-            e1, e2 = (0, 0, 0.3), (0, 0.15, 0)
-            c = (h - 0.05, y, t - 0.15)
-        else:  # z = h - 0.05, into the room is -z
-            e1, e2 = (0, 0.15, 0), (0.3, 0, 0)
-            c = (t - 0.15, y, h - 0.05)
-        if away:
+        if wall == 0:  # left wall, into the hall is +x
+            c, e1, e2 = (-h + 0.05, 1.8, t - 0.2), (0, 0.2, 0), (0, 0, 0.4)
+        else:  # right wall, into the hall is -x
+            c, e1, e2 = (h - 0.05, 1.8, t - 0.2), (0, 0, 0.4), (0, 0.2, 0)
+        if m == 2:
             e1, e2 = e2, e1
         quad(name, c, e1, e2, name)
         n += 1
-    for k in range(16):  # small spheres floating about the room
-        name = lamp("lamp %03d" % n)
-        objects.append({"type": "sphere", "name": name,
-                        "center": [r(rng.uniform(-5, 5)), r(rng.uniform(0.3, 3.5)),
-                                   r(rng.uniform(-3, 5.5))],
-                        "radius": r(rng.uniform(0.04, 0.12)), "material": name})
-        n += 1
-    doc = {"camera": {"position": [0, 2.2, -5.6], "look_at": [0, 1.1, 2], "up": [0, 1, 0],
-                      "vfov": 62},
+    doc = {"camera": {"position": [0, 9, -21], "look_at": [0, 0, 1], "up": [0, 1, 0],
+                      "vfov": 55},
            "render": {"width": 640, "height": 400, "spp": 64, "max_depth": 8},
            "materials": materials, "objects": objects}
     with open(os.path.join(SCENES, "many_lights.json"), "w") as f:

@@ -147,16 +147,19 @@ TEST(LightTree, PmfSumsToOneAndReachesEveryLightThatCanContribute) {
   }
   // Lost choices are wasted samples, not bias; bounds as tight as pbrt-v4's lose few.
   EXPECT_LT(lost / 300, 0.02);
-  // The many-lights room: points inside the room (several lamps face the walls or the ceiling).
+  // The many-lights hall: points inside it (several lamps face up or their wall).
   const SceneView& v = many_lights().view();
   lost = 0.0;
   for (int i = 0; i < 200; ++i) {
-    LightContext ctx{vec3(rng.f(-5.9f, 5.9f), rng.f(0.05f, 3.9f), rng.f(-5.9f, 5.9f)), rng.dir()};
+    LightContext ctx{vec3(rng.f(-15.9f, 15.9f), rng.f(0.05f, 3.0f), rng.f(-15.9f, 15.9f)),
+                     rng.dir()};
     lost +=
         check_pmf_sums(v, kLightSamplerBvh, ctx, "many_lights.json, point " + std::to_string(i));
     if (HasFailure()) return;
   }
-  EXPECT_LT(lost / 200, 0.02);
+  // More here: a node holding a lamp facing up above the point and one facing down below it
+  // has a cone of every direction, though neither lamp can light the point.
+  EXPECT_LT(lost / 200, 0.08);
 }
 
 TEST(LightTree, ChoicesFollowThePmf) {
@@ -206,12 +209,15 @@ TEST(LightTree, ChoiceReportsTheRetracedPmfAndAUniformRemainder) {
   const SceneView& v = many_lights().view();
   const LightContext ctx{vec3(0.5f, 1.0f, 0.5f), vec3(0.0f, 1.0f, 0.0f)};
   Rng rng(7);
-  uint32_t light = kInvalid;
+  uint32_t light = 0;  // the light chosen most often from ctx
+  for (uint32_t li = 1; li < v.light_count; ++li)
+    if (light_choice_pmf(v, kLightSamplerBvh, ctx, li) >
+        light_choice_pmf(v, kLightSamplerBvh, ctx, light))
+      light = li;
   std::vector<double> bins(32, 0.0);
   double n = 0.0;
   for (int i = 0; i < 400000; ++i) {
     const LightChoice c = choose_light(v, kLightSamplerBvh, ctx, rng.f());
-    if (light == kInvalid) light = c.light;
     if (c.light != light) continue;
     bins[std::min(31, int(c.u * 32.0f))] += 1.0;
     n += 1.0;
@@ -278,10 +284,11 @@ TEST(LightTree, HoldsEveryLightOnceInBoundsThatHoldTheirChildren) {
     bounds.push_back(light_bounds(cs.view(), cs.lights()[i]));
   check_structure(cs.light_tree(), bounds);
   EXPECT_GT(cs.light_tree().leaf_count, 400u);  // random triangles rarely share a leaf
-  // The quad lamps of the many-lights room: both triangles of a quad in one leaf.
+  // The many-lights hall's 108 lamps, 83 quads and 25 spheres: both triangles of a quad in one
+  // leaf, each lamp a leaf of its own.
   const LightTree& ml = many_lights().light_tree();
-  EXPECT_EQ(ml.leaves.size(), 192u);
-  EXPECT_EQ(ml.leaf_count, 104u);
+  EXPECT_EQ(ml.leaves.size(), 191u);
+  EXPECT_EQ(ml.leaf_count, 108u);
 }
 
 TEST(LightTree, StaysWithinItsDepthWhereTheSplitsPeel) {
