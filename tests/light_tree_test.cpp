@@ -91,8 +91,8 @@ LightContext random_context(Rng& rng, float extent) {
 // The probability that the tree's descent from ctx stops at a node none of whose children can
 // light the point (then no light is chosen): the lights below it get none, and are the only ones.
 double lost_mass(const SceneView& v, const LightContext& ctx) {
+  if (!v.light_tree.nodes) return 0.0;  // the power sampler's choice
   const double p_tree = v.light_cdf[v.finite_light_count];
-  if (!v.light_tree.nodes) return p_tree;
   std::function<double(uint32_t, double)> walk = [&](uint32_t k, double reach) -> double {
     const LightTreeNode& n = v.light_tree.nodes[k];
     if (n.flags & kLightNodeLeaf) return 0.0;
@@ -354,6 +354,7 @@ TEST(LightTree, DegenerateScenes) {
     validate_scene(s);
     const CompiledScene cs(s, 8, 8);
     EXPECT_EQ(cs.light_tree().nodes.size(), 1u);
+    EXPECT_EQ(cs.view().light_tree.nodes, nullptr);  // a single leaf: bvh chooses as power does
     points(cs.view(), "one quad");
     const LightChoice c =
         choose_light(cs.view(), kLightSamplerBvh, LightContext{vec3(0, 1, 0), vec3(0, 1, 0)}, 0.3f);

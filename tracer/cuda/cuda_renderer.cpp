@@ -396,7 +396,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.materials = m.materials.get();
   m.view.lights = m.lights.get();
   m.view.light_cdf = m.light_cdf.get();
-  m.view.light_tree.nodes = scene.light_tree().nodes.empty() ? nullptr : m.light_nodes.get();
+  m.view.light_tree.nodes = scene.view().light_tree.nodes ? m.light_nodes.get() : nullptr;
   m.view.light_tree.leaves = m.light_leaves.get();
   m.view.light_tree.trails = m.light_trails.get();
   m.view.tri_uvs = scene.tri_uvs().empty() ? nullptr : m.tri_uvs.get();

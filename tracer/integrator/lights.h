@@ -80,7 +80,9 @@ TRACER_HD TRACER_INLINE float light_select_pdf(const SceneView& s, uint32_t ligh
 // the tree gets the share of power of the lights in it (light_cdf[finite_light_count], the
 // lights at infinity being last) and each light at infinity its own share. (pbrt-v4's
 // BVHLightSampler gives each light at infinity as much probability as the whole tree; by power,
-// a dim sky around a room of lamps does not take half the samples.)
+// a dim sky around a room of lamps does not take half the samples.) Where the tree would be a
+// single leaf, whose lights it chooses by power, SceneView has no tree and bvh is the power
+// sampler (the Cornell box's one lamp: no cost).
 
 // A chosen light, its probability, and the choosing number rescaled to [0, 1) within the choice
 // (reused as the first coordinate of the point on the light, see sample_light_2d).
@@ -115,10 +117,9 @@ TRACER_HD inline LightChoice choose_light(const SceneView& s, uint32_t sampler,
     c.u = glm::clamp(x - float(c.light), 0.0f, 0x1.fffffep-1f);
     return c;
   }
-  if (sampler == kLightSamplerBvh) {
+  if (sampler == kLightSamplerBvh && s.light_tree.nodes) {
     const float p_tree = s.light_cdf[s.finite_light_count];
     if (u < p_tree) {
-      if (!s.light_tree.nodes) return c;
       const LightTreeChoice t =
           light_tree_choose(s.light_tree, ctx, glm::min(u / p_tree, 0x1.fffffep-1f));
       c.light = t.light;
@@ -139,10 +140,8 @@ TRACER_HD inline LightChoice choose_light(const SceneView& s, uint32_t sampler,
 TRACER_HD inline float light_choice_pmf(const SceneView& s, uint32_t sampler,
                                         const LightContext& ctx, uint32_t light) {
   if (sampler == kLightSamplerUniform) return 1.0f / float(s.light_count);
-  if (sampler == kLightSamplerBvh && light < s.finite_light_count) {
-    if (!s.light_tree.nodes) return 0.0f;
+  if (sampler == kLightSamplerBvh && s.light_tree.nodes && light < s.finite_light_count)
     return s.light_cdf[s.finite_light_count] * light_tree_pmf(s.light_tree, light, ctx);
-  }
   return light_select_pdf(s, light);
 }
 // ---- end of light choice ---------------------------------------------------------------------

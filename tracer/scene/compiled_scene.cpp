@@ -238,7 +238,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   light_bounds_list.reserve(lights_.size());
   for (const Light& l : lights_) light_bounds_list.push_back(light_bounds(view_, l));
   light_tree_ = build_light_tree(light_bounds_list);
-  view_.light_tree.nodes = light_tree_.nodes.empty() ? nullptr : light_tree_.nodes.data();
+  // A tree of one leaf chooses by power: bvh then runs the power sampler (integrator/lights.h).
+  view_.light_tree.nodes = light_tree_.nodes.size() > 1 ? light_tree_.nodes.data() : nullptr;
   view_.light_tree.leaves = light_tree_.leaves.data();
   view_.light_tree.trails = light_tree_.trails.data();
   view_.finite_light_count = finite;

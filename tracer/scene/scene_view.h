@@ -55,8 +55,8 @@ struct SceneView : TraceView {
   const Material* materials = nullptr;
   const Light* lights = nullptr;
   const float* light_cdf = nullptr;       // light_count + 1 entries, 0 .. 1
-  // The light tree (scene/light_tree_view.h): nodes (null when no light is in it), leaves and
-  // each light's trail. The lights at infinity, outside the tree, are lights
+  // The light tree (scene/light_tree_view.h): nodes (null when it would be one leaf or none),
+  // leaves and each light's trail. The lights at infinity, outside the tree, are lights
   // [finite_light_count, light_count).
   LightTreeView light_tree = {nullptr, nullptr, nullptr};
   const TriangleUv* tri_uvs = nullptr;    // tri_count entries, or null when the mesh has none
