@@ -100,6 +100,15 @@ int run_info(const InfoOptions& o) {
                        "by slab tests) instead of the BVH"
                  : "none (more than " + std::to_string(tracer::kFlatMaxCost) +
                        " entries): the GPU walks the BVH";
+  const tracer::LightTree& lt = cs.light_tree();
+  j["light_tree"] = {{"nodes", lt.nodes.size()},
+                     {"leaves", lt.leaf_count},
+                     {"lights", lt.leaves.size()},
+                     {"depth", lt.depth},
+                     {"build_ms", lt.build_ms},
+                     {"bytes", lt.nodes.size() * sizeof(tracer::LightTreeNode) +
+                                   lt.leaves.size() * sizeof(tracer::LightLeafEntry) +
+                                   lt.trails.size() * sizeof(uint64_t)}};
   j["flat_list"] = {{"enabled", fl.enabled},
                     {"entries", fl.prims.size()},
                     {"quads", fl.quad_count},
@@ -141,6 +150,9 @@ int run_info(const InfoOptions& o) {
             << " KiB), depth " << st.max_depth << ", SAH cost " << std::fixed
             << std::setprecision(2) << st.sah_cost << ", built in " << std::setprecision(2)
             << st.build_ms << " ms\n"
+            << "light tree  " << lt.nodes.size() << " nodes over " << lt.leaves.size()
+            << " lights (" << lt.leaf_count << " leaves), depth " << lt.depth << ", built in "
+            << std::setprecision(2) << lt.build_ms << " ms\n"
             << "flat list   " << flat_text << "\n"
             << "features    " << tracer::describe_features(cs.features()) << "\n"
             << "GPU kernels " << tracer::spec_name_for_features(cs.features()) << "\n"

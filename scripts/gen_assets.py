@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Generates the procedural assets under assets/: smooth OBJ meshes (with an MTL) and the glTF
-scene with an embedded buffer. The JSON scenes are written by hand. Run from anywhere:
+"""Generates the procedural assets under assets/: smooth OBJ meshes (with an MTL), the glTF
+scene with an embedded buffer and the many-lights room (many_lights.json). The other JSON scenes
+are written by hand. Run from anywhere:
     python3 scripts/gen_assets.py
 Standard library only, so that it runs on a bare machine; the outputs are committed."""
 
@@ -8,6 +9,7 @@ import base64
 import json
 import math
 import os
+import random
 import struct
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
@@ -254,8 +256,97 @@ def gen_gltf():
         f.write("\n")
 
 
+def gen_many_lights():
+    """A hall of 32 x 32 units under the night sky, lit by 108 small lamps whose radiances span
+    two and a half orders of magnitude (log-uniform): 100 on a jittered grid at heights 0.4-2.5
+    (quads facing down, every seventh facing up, away from everything; every fourth a small
+    sphere) and 8 on the walls, some facing the wall. Each point is lit mostly by the lamps near
+    it: the scene of the light samplers' comparison (render.light_sampler; docs/PERFORMANCE.md)."""
+    rng = random.Random(21)
+    colours = [(1.0, 0.78, 0.52), (1.0, 0.92, 0.8), (0.62, 0.8, 1.0), (1.0, 0.55, 0.3),
+               (0.55, 1.0, 0.75), (1.0, 1.0, 1.0)]
+    materials = {
+        "floor": {"type": "diffuse", "albedo": [0.5, 0.48, 0.45]},
+        "wall": {"type": "diffuse", "albedo": [0.7, 0.7, 0.68]},
+        "pillar": {"type": "diffuse", "albedo": [0.6, 0.35, 0.25]},
+        "ball": {"type": "diffuse", "albedo": [0.25, 0.45, 0.65]},
+        "gold": {"type": "conductor", "metal": "Au", "roughness": 0.3},
+    }
+    objects = []
+
+    def r(x):
+        return round(x, 4)
+
+    def lamp(name):
+        c = rng.choice(colours)
+        materials[name] = {"type": "diffuse", "albedo": [0, 0, 0], "emission": list(c),
+                           "emission_strength": r(1.0 * 10 ** rng.uniform(0, 2.5))}
+        return name
+
+    def quad(name, corner, e1, e2, material):
+        objects.append({"type": "quad", "name": name, "corner": [r(v) for v in corner],
+                        "edge1": [r(v) for v in e1], "edge2": [r(v) for v in e2],
+                        "material": material})
+
+    h, top = 16.0, 3.0  # the hall: x, z in [-16, 16], walls 3 high on three sides, no roof
+    quad("floor", (-h, 0, -h), (0, 0, 2 * h), (2 * h, 0, 0), "floor")
+    quad("back wall", (-h, 0, h), (0, top, 0), (2 * h, 0, 0), "wall")
+    quad("left wall", (-h, 0, -h), (0, top, 0), (0, 0, 2 * h), "wall")
+    quad("right wall", (h, 0, -h), (0, 0, 2 * h), (0, top, 0), "wall")
+    for i, (x, z) in enumerate([(-7, -3), (6, -5), (-4, 8), (8, 6), (0, 1)]):
+        objects.append({"type": "box", "name": "pillar %d" % i, "min": [x - 0.5, 0, z - 0.5],
+                        "max": [x + 0.5, 2.8, z + 0.5], "material": "pillar"})
+    objects.append({"type": "sphere", "name": "ball", "center": [-2.5, 1.0, -6], "radius": 1.0,
+                    "material": "ball"})
+    objects.append({"type": "sphere", "name": "gold ball", "center": [3.0, 0.8, -8.5],
+                    "radius": 0.8, "material": "gold"})
+    n = 0
+    w = 0.3
+    for i in range(10):
+        for j in range(10):
+            x = -13.5 + 3.0 * i + rng.uniform(-0.8, 0.8)
+            z = -13.5 + 3.0 * j + rng.uniform(-0.8, 0.8)
+            y = rng.uniform(0.4, 2.5)
+            name = lamp("lamp %03d" % n)
+            if n % 4 == 1:
+                objects.append({"type": "sphere", "name": name, "center": [r(x), r(y), r(z)],
+                                "radius": r(rng.uniform(0.05, 0.15)), "material": name})
+            elif n % 7 == 3:  # facing up: lights nothing
+                quad(name, (x - w / 2, y, z - w / 2), (0, 0, w), (w, 0, 0), name)
+            else:  # facing down
+                quad(name, (x - w / 2, y, z - w / 2), (w, 0, 0), (0, 0, w), name)
+            n += 1
+    for k in range(8):  # wall lamps, 0.4 x 0.2, facing into the hall (two face their wall)
+        wall, m = divmod(k, 4)
+        t = -12.0 + 8.0 * m
+        name = lamp("lamp %03d" % n)
+        if wall == 0:  # left wall, into the hall is +x
+            c, e1, e2 = (-h + 0.05, 1.8, t - 0.2), (0, 0.2, 0), (0, 0, 0.4)
+        else:  # right wall, into the hall is -x
+            c, e1, e2 = (h - 0.05, 1.8, t - 0.2), (0, 0, 0.4), (0, 0.2, 0)
+        if m == 2:
+            e1, e2 = e2, e1
+        quad(name, c, e1, e2, name)
+        n += 1
+    doc = {"camera": {"position": [0, 9, -21], "look_at": [0, 0, 1], "up": [0, 1, 0],
+                      "vfov": 55},
+           "render": {"width": 640, "height": 400, "spp": 64, "max_depth": 8},
+           "materials": materials, "objects": objects}
+    with open(os.path.join(SCENES, "many_lights.json"), "w") as f:
+        f.write("{\n")
+        f.write(' "camera": %s,\n' % json.dumps(doc["camera"]))
+        f.write(' "render": %s,\n' % json.dumps(doc["render"]))
+        f.write(' "materials": {\n')
+        f.write(",\n".join("  %s: %s" % (json.dumps(k), json.dumps(v))
+                           for k, v in materials.items()))
+        f.write("\n },\n \"objects\": [\n")
+        f.write(",\n".join("  " + json.dumps(o) for o in objects))
+        f.write("\n ]\n}\n")
+
+
 if __name__ == "__main__":
     os.makedirs(MESHES, exist_ok=True)
     os.makedirs(SCENES, exist_ok=True)
     gen_objs()
     gen_gltf()
+    gen_many_lights()

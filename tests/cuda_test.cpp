@@ -100,7 +100,7 @@ Scene small_asset(const char* name, RenderSettings* rs) {
 const char* kScenes[] = {"cornell_box.json",    "cornell_spheres.json", "depth_of_field.json",
                          "obj_scene.json",      "gltf_scene.gltf",      "cornell_closed.json",
                          "rough_materials.json", "subsurface.json",      "textured.gltf",
-                         "materials.json"};
+                         "materials.json",      "many_lights.json"};
 
 TEST(Gpu, MatchesCpuOnEveryAsset) {
   REQUIRE_GPU(gpu);

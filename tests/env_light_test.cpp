@@ -148,32 +148,6 @@ Scene map_scene(const std::string& map, EnvMapping mapping, float rotation) {
   return s;
 }
 
-// Means of 4x4-pixel blocks of two independent renders, z-tested against each other.
-void expect_same_means(const PixelStats& a, const PixelStats& b, const std::string& what) {
-  constexpr int k = 4;
-  std::vector<double> zs;
-  for (int by = 0; by + k <= a.height; by += k)
-    for (int bx = 0; bx + k <= a.width; bx += k)
-      for (int c = 0; c < 3; ++c) {
-        double ma = 0, va = 0, mb = 0, vb = 0;
-        for (int y = by; y < by + k; ++y)
-          for (int x = bx; x < bx + k; ++x) {
-            const size_t i = size_t(y) * a.width + x;
-            ma += a.mean[i][c];
-            mb += b.mean[i][c];
-            va += a.var[i][c] / a.spp;
-            vb += b.var[i][c] / b.spp;
-          }
-        zs.push_back((ma - mb) / std::sqrt(std::max(va + vb, 1e-20)));
-      }
-  const double zmax = sidak_z(1e-3, zs.size());
-  int failures = 0;
-  for (size_t i = 0; i < zs.size(); ++i)
-    if (std::abs(zs[i]) > zmax && failures++ < 5)
-      ADD_FAILURE() << what << ": block " << i / 3 << " channel " << i % 3 << " z = " << zs[i];
-  EXPECT_NEAR(a.image_mean().y, b.image_mean().y, 0.02 * b.image_mean().y) << what;
-}
-
 TEST(EnvLight, ImportanceSamplingIsUnbiased) {
   struct Case {
     const char* name;

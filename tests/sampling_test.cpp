@@ -345,7 +345,8 @@ struct LightScene {
       const double v = glm::dot(w, qv) / det, t = glm::dot(e2, qv) / det;
       if (u < 0.0 || v < 0.0 || u + v > 1.0 || t <= 0.0) continue;
       const vec3 ng = glm::normalize(glm::cross(tris[i].v1 - tris[i].v0, tris[i].v2 - tris[i].v0));
-      sum += light_pdf(view, shading[i].light, ref, vec3(o + t * w), ng);
+      sum += light_pdf(view, shading[i].light, light_select_pdf(view, shading[i].light), ref,
+                       vec3(o + t * w), ng);
     }
     for (const Sphere& s : spheres) {
       if (s.light == kInvalid) continue;
@@ -357,7 +358,8 @@ struct LightScene {
       const double t = t0 > 0.0 ? t0 : t1;
       if (t <= 0.0) continue;
       const glm::dvec3 p = o + t * w;
-      sum += light_pdf(view, s.light, ref, vec3(p), vec3(glm::normalize(p - glm::dvec3(s.center))));
+      sum += light_pdf(view, s.light, light_select_pdf(view, s.light), ref, vec3(p),
+                       vec3(glm::normalize(p - glm::dvec3(s.center))));
     }
     return sum;
   }
@@ -385,7 +387,7 @@ std::vector<double> check_light_sampling(const LightScene& sc, vec3 ref, vec3 re
     // The pdf sample_light reports is the one MIS will recompute when a BSDF ray hits ls.p.
     // (sample_light decides inside/outside from ref offset by a few ulps along ref_n, hence the
     // tolerance.)
-    const float pdf = light_pdf(sc.view, li, ref, ls.p, ls.n);
+    const float pdf = light_pdf(sc.view, li, light_select_pdf(sc.view, li), ref, ls.p, ls.n);
     if (!(std::abs(pdf - ls.pdf) <= 1e-4f * ls.pdf)) ++pdf_mismatch;
     if (ls.prim >= sc.tris.size()) {
       const Sphere& s = sc.spheres[ls.prim - sc.tris.size()];

@@ -31,6 +31,9 @@ struct CudaRenderer::Impl {
   DeviceBuffer<Material> materials;
   DeviceBuffer<Light> lights;
   DeviceBuffer<float> light_cdf;
+  DeviceBuffer<LightTreeNode> light_nodes;  // the light tree (render.light_sampler bvh)
+  DeviceBuffer<LightLeafEntry> light_leaves;
+  DeviceBuffer<uint64_t> light_trails;
   DeviceBuffer<TriangleUv> tri_uvs;  // empty unless the scene is textured
   DeviceBuffer<TextureDesc> textures;
   DeviceBuffer<uint32_t> texels;     // all textures' RGBA8 texels in one allocation
@@ -366,6 +369,9 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.materials.upload(scene.materials());
   m.lights.upload(scene.lights());
   m.light_cdf.upload(scene.light_cdf());
+  m.light_nodes.upload(scene.light_tree().nodes);
+  m.light_leaves.upload(scene.light_tree().leaves);
+  m.light_trails.upload(scene.light_tree().trails);
   m.tri_uvs.upload(scene.tri_uvs());
   m.textures.upload(scene.textures());
   m.texels.upload(scene.texels());
@@ -391,6 +397,9 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.materials = m.materials.get();
   m.view.lights = m.lights.get();
   m.view.light_cdf = m.light_cdf.get();
+  m.view.light_tree.nodes = scene.view().light_tree.nodes ? m.light_nodes.get() : nullptr;
+  m.view.light_tree.leaves = m.light_leaves.get();
+  m.view.light_tree.trails = m.light_trails.get();
   m.view.tri_uvs = scene.tri_uvs().empty() ? nullptr : m.tri_uvs.get();
   m.view.textures = m.textures.get();
   m.view.texels = m.texels.get();
@@ -480,6 +489,7 @@ size_t CudaRenderer::scene_bytes() const {
   const Impl& m = *impl_;
   return m.nodes.bytes() + m.prim_indices.bytes() + m.tri_verts.bytes() + m.tri_shading.bytes() +
          m.spheres.bytes() + m.materials.bytes() + m.lights.bytes() + m.light_cdf.bytes() +
+         m.light_nodes.bytes() + m.light_leaves.bytes() + m.light_trails.bytes() +
          m.env_texels.bytes() + m.env_func.bytes() + m.env_cond_cdf.bytes() +
          m.env_marg_cdf.bytes() + m.distant.bytes() + m.infinite.bytes() + m.point_lights.bytes() +
          m.flat.bytes() + m.flat_info.bytes() + m.tri_to_flat.bytes();

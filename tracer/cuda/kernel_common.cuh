@@ -83,11 +83,12 @@ __device__ __forceinline__ uint32_t take_pixel(unsigned need, uint32_t* next_pix
   return base + __popc(need & ((1u << lane) - 1u));
 }
 
-// The path's ray (with its pdf, depth and flags) into slot k of the ray arrays o, d.
+// The path's ray (with its pdf, depth, flags and previous normal) into slot k of the ray
+// arrays o, d: depth in bits 0-15, flags in 16-19, prev_normal's 12 bits in 20-31.
 __device__ __forceinline__ void store_ray(float4* o, float4* d, uint32_t k, const PathState& st) {
   o[k] = make_float4(st.ray.o.x, st.ray.o.y, st.ray.o.z, st.prev_pdf);
   d[k] = make_float4(st.ray.d.x, st.ray.d.y, st.ray.d.z,
-                     __uint_as_float(st.depth | (st.flags << 16)));
+                     __uint_as_float(st.depth | (st.flags << 16) | (st.prev_normal << 20)));
 }
 
 // Throughput and radiance, always at the path's id.
@@ -129,7 +130,8 @@ __device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_
   st.prev_pdf = o.w;
   const uint32_t bits = __float_as_uint(d.w);
   st.depth = bits & 0xffffu;
-  st.flags = bits >> 16;
+  st.flags = (bits >> 16) & 0xfu;
+  st.prev_normal = bits >> 20;
   st.throughput = vec3(t.x, t.y, t.z);
   st.radiance = vec3(r.x, r.y, r.z);
   st.pixel = id;

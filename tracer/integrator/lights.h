@@ -1,8 +1,9 @@
 // Sampling emissive geometry for next-event estimation, and the matching pdf for multiple
-// importance sampling when a BSDF-sampled ray hits an emitter. Lights are chosen in proportion to
-// their power; triangles are sampled by area, spheres by the cone of directions they subtend,
-// the environment by its map's luminance, distant lights by their cone (or their direction),
-// point and spot lights by their position.
+// importance sampling when a BSDF-sampled ray hits an emitter. Lights are chosen uniformly, in
+// proportion to their power or by the light tree (render.light_sampler, choose_light below);
+// triangles are sampled by area, spheres by the cone of directions they subtend, the environment
+// by its map's luminance, distant lights by their cone (or their direction), point and spot
+// lights by their position.
 #pragma once
 
 #include "core/sampling.h"
@@ -98,9 +99,82 @@ TRACER_HD TRACER_INLINE uint32_t pick_light(const SceneView& s, float u) {
   return lo;
 }
 
+// The power sampler's probability of choosing `light`.
 TRACER_HD TRACER_INLINE float light_select_pdf(const SceneView& s, uint32_t light) {
   return s.light_cdf[light + 1] - s.light_cdf[light];
 }
+
+// ---- Light choice: render.light_sampler (kLightSampler*, scene/light_tree_view.h) ----------
+// uniform: 1 / light_count each. power: the CDF above. bvh: the light tree for every light but
+// those at infinity, which are chosen apart in proportion to power, as the power sampler would:
+// the tree gets the share of power of the lights in it (light_cdf[finite_light_count], the
+// lights at infinity being last) and each light at infinity its own share. (pbrt-v4's
+// BVHLightSampler gives each light at infinity as much probability as the whole tree; by power,
+// a dim sky around a room of lamps does not take half the samples.) Where the tree would be a
+// single leaf, whose lights it chooses by power, SceneView has no tree and bvh is the power
+// sampler (the Cornell box's one lamp: no cost).
+
+// A chosen light, its probability, and the choosing number rescaled to [0, 1) within the choice
+// (reused as the first coordinate of the point on the light, see sample_light_2d).
+struct LightChoice {
+  uint32_t light;  // kInvalid: none (no light, or none of the tree's can reach ctx)
+  float pmf;
+  float u;
+};
+
+// The context at a surface vertex for the bvh sampler: the point its reflected BSDF rays start
+// from (spawn_ray's offset to the viewer's side) and its normal as PathState::prev_normal keeps
+// it. The tree's pmf at an emitter such a ray hits, from the ray's origin and that normal, is
+// then exactly the probability next-event estimation gave it (for transmitted rays the point
+// differs by the two offsets).
+TRACER_HD TRACER_INLINE LightContext vertex_light_context(vec3 p, vec3 n_viewer,
+                                                          uint32_t normal_code) {
+  return LightContext{offset_ray_origin(p, n_viewer), unpack_light_normal(normal_code)};
+}
+
+TRACER_HD inline LightChoice choose_light(const SceneView& s, uint32_t sampler,
+                                          const LightContext& ctx, float u) {
+  LightChoice c;
+  c.light = kInvalid;
+  c.pmf = 0.0f;
+  c.u = u;
+  const uint32_t n = s.light_count;
+  if (n == 0) return c;
+  if (sampler == kLightSamplerUniform) {
+    const float x = u * float(n);
+    c.light = glm::min(uint32_t(x), n - 1);
+    c.pmf = 1.0f / float(n);
+    c.u = glm::clamp(x - float(c.light), 0.0f, 0x1.fffffep-1f);
+    return c;
+  }
+  if (sampler == kLightSamplerBvh && s.light_tree.nodes) {
+    const float p_tree = s.light_cdf[s.finite_light_count];
+    if (u < p_tree) {
+      const LightTreeChoice t =
+          light_tree_choose(s.light_tree, ctx, glm::min(u / p_tree, 0x1.fffffep-1f));
+      c.light = t.light;
+      c.pmf = t.light == kInvalid ? 0.0f : p_tree * t.pmf;
+      c.u = t.u;
+      return c;
+    }
+    // Lights at infinity: u >= light_cdf[finite_light_count] lands on one of them below.
+  }
+  c.light = pick_light(s, u);
+  const float lo = s.light_cdf[c.light], width = s.light_cdf[c.light + 1] - lo;
+  c.pmf = width;
+  c.u = width > 0.0f ? glm::max(glm::min(fast_div(u - lo, width), 0x1.fffffep-1f), 0.0f) : 0.0f;
+  return c;
+}
+
+// The probability that choose_light(s, sampler, ctx, .) returns `light`.
+TRACER_HD inline float light_choice_pmf(const SceneView& s, uint32_t sampler,
+                                        const LightContext& ctx, uint32_t light) {
+  if (sampler == kLightSamplerUniform) return 1.0f / float(s.light_count);
+  if (sampler == kLightSamplerBvh && s.light_tree.nodes && light < s.finite_light_count)
+    return s.light_cdf[s.finite_light_count] * light_tree_pmf(s.light_tree, light, ctx);
+  return light_select_pdf(s, light);
+}
+// ---- end of light choice ---------------------------------------------------------------------
 
 // Half-angle cosine of the cone a sphere subtends from ref; returns false when ref is inside.
 TRACER_HD TRACER_INLINE bool sphere_cone(const Sphere& sph, vec3 ref, float& cos_max,
@@ -115,31 +189,33 @@ TRACER_HD TRACER_INLINE bool sphere_cone(const Sphere& sph, vec3 ref, float& cos
 
 // ref_n: the geometric normal at ref (either orientation), used to decide robustly whether ref
 // is inside a sphere light even when ref lies on that sphere's own surface.
+// select: the probability with which light `li` was chosen.
 template <uint32_t F = kAllFeatures>
-TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li, vec3 ref,
-                                                 vec3 ref_n, vec2 u);
+TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li, float select,
+                                                 vec3 ref, vec3 ref_n, vec2 u);
 
+// A light chosen by u_pick (the bvh sampler from the context (ref, ref_n)), then a point on it.
 template <uint32_t F = kAllFeatures>
 TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref_n, float u_pick,
-                                          vec2 u) {
-  if (s.light_count == 0) {
+                                          vec2 u, uint32_t sampler = kLightSamplerPower) {
+  const LightChoice c = choose_light(s, sampler, LightContext{ref, ref_n}, u_pick);
+  if (!(c.pmf > 0.0f)) {
     LightSample none;
     none.valid = false;
     return none;
   }
-  return sample_chosen_light<F>(s, pick_light(s, u_pick), ref, ref_n, u);
+  return sample_chosen_light<F>(s, c.light, c.pmf, ref, ref_n, u);
 }
 
 // sample_light once light `li` is chosen.
 template <uint32_t F>
-TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li, vec3 ref,
-                                                 vec3 ref_n, vec2 u) {
+TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li, float select,
+                                                 vec3 ref, vec3 ref_n, vec2 u) {
   LightSample ls;
   ls.valid = false;
   ls.infinite = false;
   ls.delta = false;
   const Light& light = s.lights[li];
-  const float select = light_select_pdf(s, li);
   if (select <= 0.0f) return ls;
   if ((F & kFeaturePointLights) && (light.kind == kLightPoint || light.kind == kLightSpot))
     return sample_point_light(s, light, select, ref);
@@ -213,32 +289,33 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
   return ls;
 }
 
-// Next-event estimation from one 2D point: u.x chooses the light and, rescaled to [0, 1) within
-// that light's CDF interval, is reused as the first coordinate of the point on it. Drawing the
-// choice from a dimension of its own would leave each light with a random subset of the 2D
-// points, which loses their stratification; reused, the points that land on a light are still a
-// stratified set (the two triangles of a quad light together get the stratification of the whole
-// quad). The same reuse as pbrt-v3's SampleDiscrete(u, &pdf, &u_remapped).
+// Next-event estimation from one 2D point: u.x chooses the light (choose_light, by `sampler`
+// from ctx) and, rescaled to [0, 1) within that choice, is reused as the first coordinate of the
+// point on it. Drawing the choice from a dimension of its own would leave each light with a
+// random subset of the 2D points, which loses their stratification; reused, the points that land
+// on a light are still a stratified set (the two triangles of a quad light together get the
+// stratification of the whole quad). The same reuse as pbrt-v3's SampleDiscrete(u, &pdf,
+// &u_remapped), and pbrt-v4's light tree descent.
 template <uint32_t F = kAllFeatures>
-TRACER_HD inline LightSample sample_light_2d(const SceneView& s, vec3 ref, vec3 ref_n, vec2 u) {
-  if (s.light_count == 0) {
+TRACER_HD inline LightSample sample_light_2d(const SceneView& s, uint32_t sampler,
+                                             const LightContext& ctx, vec3 ref, vec3 ref_n,
+                                             vec2 u) {
+  const LightChoice c = choose_light(s, sampler, ctx, u.x);
+  if (!(c.pmf > 0.0f)) {
     LightSample none;
     none.valid = false;
     return none;
   }
-  const uint32_t li = pick_light(s, u.x);
-  const float lo = s.light_cdf[li], width = s.light_cdf[li + 1] - lo;
-  const float x = width > 0.0f ? glm::min(fast_div(u.x - lo, width), 0x1.fffffep-1f) : 0.0f;
-  return sample_chosen_light<F>(s, li, ref, ref_n, vec2(glm::max(x, 0.0f), u.y));
+  return sample_chosen_light<F>(s, c.light, c.pmf, ref, ref_n, vec2(c.u, u.y));
 }
 
 // The solid-angle pdf with which sample_light would have produced point p (normal ng) on
-// primitive `light_index` as seen from ref, the (already offset) origin of the ray that hit p.
+// primitive `light_index`, chosen with probability `select`, as seen from ref, the (already
+// offset) origin of the ray that hit p.
 template <uint32_t F = kAllFeatures>
-TRACER_HD inline float light_pdf(const SceneView& s, uint32_t light_index, vec3 ref, vec3 p,
-                                 vec3 ng) {
+TRACER_HD inline float light_pdf(const SceneView& s, uint32_t light_index, float select, vec3 ref,
+                                 vec3 p, vec3 ng) {
   const Light& light = s.lights[light_index];
-  const float select = light_select_pdf(s, light_index);
   if ((F & kFeatureSpheres) && light.prim >= s.tri_count) {
     const Sphere& sph = s.spheres[light.prim - s.tri_count];
     float cos_max, sin2_max;
@@ -259,9 +336,11 @@ TRACER_HD inline float light_pdf(const SceneView& s, uint32_t light_index, vec3 
 // weighted against the light sampling that could have produced d at the previous vertex (MIS:
 // prev_pdf is the BSDF's solid-angle pdf of d; no weight after a delta bounce or for the camera).
 // Camera rays see the background instead where the environment is not visible.
+// sampler: render.light_sampler (lights at infinity are chosen with no regard to the point).
 template <uint32_t F = kAllFeatures>
 TRACER_HD inline vec3 escaped_radiance(const SceneView& s, bool nee, bool mis, vec3 d,
-                                       float prev_pdf, uint32_t depth, bool prev_specular) {
+                                       float prev_pdf, uint32_t depth, bool prev_specular,
+                                       uint32_t sampler = kLightSamplerPower) {
   const InfiniteLights& inf = *s.infinite;
   if (depth == 1 && !inf.visible) return inf.background;
   // Lights that next-event estimation samples are weighted; without MIS BSDF sampling leaves
@@ -273,7 +352,9 @@ TRACER_HD inline vec3 escaped_radiance(const SceneView& s, bool nee, bool mis, v
     if (le.x > 0.0f || le.y > 0.0f || le.z > 0.0f) {
       float w = 1.0f;
       if (weighted)
-        w = mis ? power_heuristic(prev_pdf, light_select_pdf(s, inf.env_light) * env_pdf(inf, d))
+        w = mis ? power_heuristic(
+                      prev_pdf,
+                      light_choice_pmf(s, sampler, LightContext{}, inf.env_light) * env_pdf(inf, d))
                 : 0.0f;
       L += le * w;
     }
@@ -283,7 +364,8 @@ TRACER_HD inline vec3 escaped_radiance(const SceneView& s, bool nee, bool mis, v
     if (!(dl.one_minus_cos > 0.0f) || !distant_hit(dl, d)) continue;  // delta lights: never hit
     float w = 1.0f;
     if (weighted)
-      w = mis ? power_heuristic(prev_pdf, light_select_pdf(s, dl.light) * distant_cone_pdf(dl))
+      w = mis ? power_heuristic(prev_pdf, light_choice_pmf(s, sampler, LightContext{}, dl.light) *
+                                              distant_cone_pdf(dl))
               : 0.0f;
     L += dl.radiance * w;
   }

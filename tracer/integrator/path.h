@@ -25,6 +25,9 @@ struct IntegratorSettings {
   // The pixel filter (camera/filter.h) and its radius in pixels, applied to jittered samples.
   PixelFilter filter = PixelFilter::kBox;
   float filter_radius = 0.5f;
+  // How next-event estimation chooses a light: kLightSamplerUniform, kLightSamplerPower or
+  // kLightSamplerBvh (scene/light_tree_view.h, integrator/lights.h).
+  uint32_t light_sampler = kLightSamplerBvh;
 };
 
 // The dimension pairs of the Sobol sampler: each draw of a vertex has its own (a 1D draw takes
@@ -81,6 +84,8 @@ enum PathFlags : uint32_t {
   kPathWalkCapped = 1u << 2,    // ended: the random walk hit kMaxWalkSteps (counted)
   kPathMediumLeak = 1u << 3,    // ended: left a medium without crossing its boundary (counted)
 };
+// The wavefront keeps the flags in 4 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
+static_assert(kPathMediumLeak < (1u << 4), "PathFlags must fit in 4 bits");
 
 struct PathState {
   Ray ray;
@@ -94,6 +99,9 @@ struct PathState {
   uint32_t medium;       // material of the medium the path is in, when kPathInMedium
   uint32_t walk_steps;   // scattering events in the current random walk
   uint32_t origin_prim;  // the triangle `ray` leaves from (skipped by its traversal), or kInvalid
+  // The geometric normal of the vertex `ray` leaves from, as pack_light_normal codes it (bvh
+  // light sampler only): with the ray's origin, the context of the light tree's pmf for MIS.
+  uint32_t prev_normal;
 };
 
 // A shadow ray for next-event estimation: if nothing blocks it, `contribution` is added.
@@ -138,6 +146,7 @@ TRACER_HD inline void generate_path(const SceneView& s, const IntegratorSettings
   st.medium = 0;
   st.walk_steps = 0;
   st.origin_prim = kInvalid;
+  st.prev_normal = 0;
 }
 
 // A ray leaving surface point p (geometric normal ng) in unit direction d, its origin offset to
@@ -235,7 +244,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     if ((F & kFeatureInfiniteLights) && s.infinite)
       st.radiance +=
           st.throughput * escaped_radiance<F>(s, cfg.nee != 0, cfg.mis != 0, st.ray.d, st.prev_pdf,
-                                              st.depth, (st.flags & kPathPrevSpecular) != 0);
+                                              st.depth, (st.flags & kPathPrevSpecular) != 0,
+                                              cfg.light_sampler);
     return false;
   }
   SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
@@ -267,9 +277,18 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     if (!is_black(le)) {
       float w = 1.0f;
       if (cfg.nee && !(st.flags & kPathPrevSpecular) && sh.light != kInvalid) {
-        // This emitter could also have been reached by light sampling at the previous vertex.
-        w = cfg.mis ? power_heuristic(st.prev_pdf, light_pdf<F>(s, sh.light, st.ray.o, sh.p, sh.ng))
-                    : 0.0f;
+        // This emitter could also have been reached by light sampling at the previous vertex,
+        // chosen from there (the ray's origin and that vertex's normal, for the bvh sampler).
+        if (cfg.mis) {
+          const bool tree = cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
+          const LightContext prev{st.ray.o,
+                                  tree ? unpack_light_normal(st.prev_normal) : vec3(0.0f)};
+          const float select = light_choice_pmf(s, cfg.light_sampler, prev, sh.light);
+          w = power_heuristic(st.prev_pdf,
+                              light_pdf<F>(s, sh.light, select, st.ray.o, sh.p, sh.ng));
+        } else {
+          w = 0.0f;
+        }
       }
       st.radiance += st.throughput * le * w;
     }
@@ -284,9 +303,13 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   const Frame frame = bsdf_frame(m, type, transmits || sh.front ? sh.ns : -sh.ns);
   const vec3 wo = frame.to_local(wo_world);
   const vec3 ng_viewer = sh.front ? sh.ng : -sh.ng;
+  const bool light_tree = cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
+  const uint32_t normal_code = light_tree ? pack_light_normal(ng_viewer) : 0u;
 
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
-    const LightSample ls = sample_light_2d<F>(s, sh.p, sh.ng, u.light());
+    const LightContext ctx = light_tree ? vertex_light_context(sh.p, ng_viewer, normal_code)
+                                        : LightContext{sh.p, ng_viewer};
+    const LightSample ls = sample_light_2d<F>(s, cfg.light_sampler, ctx, sh.p, sh.ng, u.light());
     if (ls.valid && !is_black(ls.le)) {
       // A light at infinity gives a direction; the others a point (point and spot lights: their
       // position, whose shadow ray ends just short of it, as an area light's).
@@ -338,6 +361,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   }
   st.throughput *= bs.weight;
   st.prev_pdf = bs.pdf;
+  st.prev_normal = normal_code;
   st.flags = bs.specular ? (st.flags | kPathPrevSpecular) : (st.flags & ~kPathPrevSpecular);
   st.ray = spawn_ray(sh.p, sh.ng, wi_world);
   // Only random walks need the origin triangle skipped (see traverse); elsewhere the offset

@@ -1,9 +1,10 @@
 // Scene flattening: world-space triangles and spheres into flat arrays, the BVH over both, the
-// power-proportional light CDF (emitters, lights at infinity, point and spot lights) and the
-// scene's feature flags.
+// power-proportional light CDF (emitters, lights at infinity, point and spot lights), the light
+// tree and the scene's feature flags.
 #include "scene/compiled_scene.h"
 
 #include <cmath>
+#include <stdexcept>
 
 namespace tracer {
 
@@ -110,6 +111,26 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     const float area = 4.0f * kPi * spheres_[i].radius * spheres_[i].radius;
     spheres_[i].light = add_light(tri_count + i, area, m);
   }
+  // Point and spot lights, chosen in proportion to their flux (pbrt-v4's Phi; Light::power is
+  // flux / pi like the others'). Black ones light nothing and are left out. Before the lights at
+  // infinity, which the light choice expects last (integrator/lights.h, choose_light).
+  std::vector<vec3> light_points;
+  for (const PointLightDesc& d : scene.point_lights) {
+    double lum = double(luminance(d.intensity));
+    if (!(lum > 0.0)) lum = double(max_component(d.intensity));
+    if (!(lum > 0.0)) continue;
+    PointLight pl = make_point_light(d);
+    Light l;
+    l.prim = uint32_t(point_lights_.size());
+    l.area = 0.0f;
+    l.power = float(lum * point_light_solid_angle(d) / M_PI);
+    l.kind = d.spot ? kLightSpot : kLightPoint;
+    lights_.push_back(l);
+    pl.light = uint32_t(lights_.size() - 1);
+    point_lights_.push_back(pl);
+    light_points.push_back(d.position);
+    features |= kFeaturePointLights;
+  }
   // The lights at infinity: the environment's map (read here only when the scene's copy is
   // missing or stale, e.g. a scene built in code) and the distant lights. Their power is pbrt-v4's
   // estimate (PowerLightSampler): the flux through the disc of the scene's bounding sphere,
@@ -143,33 +164,14 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
       infinite_->distant[i].light =
           add_infinite(kLightDistant, uint32_t(i), r2 * infinite_->distant_luminance[i]);
   }
-  // Point and spot lights, chosen in proportion to their flux (pbrt-v4's Phi; Light::power is
-  // flux / pi like the others'). Black ones light nothing and are left out.
-  std::vector<vec3> light_points;
-  for (const PointLightDesc& d : scene.point_lights) {
-    double lum = double(luminance(d.intensity));
-    if (!(lum > 0.0)) lum = double(max_component(d.intensity));
-    if (!(lum > 0.0)) continue;
-    PointLight pl = make_point_light(d);
-    Light l;
-    l.prim = uint32_t(point_lights_.size());
-    l.area = 0.0f;
-    l.power = float(lum * point_light_solid_angle(d) / M_PI);
-    l.kind = d.spot ? kLightSpot : kLightPoint;
-    lights_.push_back(l);
-    pl.light = uint32_t(lights_.size() - 1);
-    point_lights_.push_back(pl);
-    light_points.push_back(d.position);
-    features |= kFeaturePointLights;
-  }
   double total = 0.0;
   for (const Light& l : lights_) total += l.power;
   light_cdf_.resize(lights_.size() + 1);
   light_cdf_[0] = 0.0f;
   double acc = 0.0;
   for (size_t i = 0; i < lights_.size(); ++i) {
-    acc += lights_[i].power;
-    light_cdf_[i + 1] = float(acc / total);
+    acc += total > 0.0 ? lights_[i].power : 1.0;  // no power at all: every light alike
+    light_cdf_[i + 1] = float(acc / (total > 0.0 ? total : double(lights_.size())));
   }
   if (!lights_.empty()) light_cdf_.back() = 1.0f;
 
@@ -250,6 +252,23 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.sphere_count = uint32_t(spheres_.size());
   view_.material_count = uint32_t(materials_.size());
   view_.light_count = uint32_t(lights_.size());
+  // The light tree over every light but those at infinity, which the light choice expects last
+  // (integrator/lights.h, choose_light: they take the tail of the power CDF).
+  uint32_t finite = 0;
+  while (finite < lights_.size() && !light_at_infinity(lights_[finite].kind)) ++finite;
+  for (size_t i = finite; i < lights_.size(); ++i)
+    if (!light_at_infinity(lights_[i].kind))
+      throw std::logic_error("CompiledScene: a light of kind " + std::to_string(lights_[i].kind) +
+                             " follows the lights at infinity");
+  std::vector<LightBounds> light_bounds_list;
+  light_bounds_list.reserve(lights_.size());
+  for (const Light& l : lights_) light_bounds_list.push_back(light_bounds(view_, l));
+  light_tree_ = build_light_tree(light_bounds_list);
+  // A tree of one leaf chooses by power: bvh then runs the power sampler (integrator/lights.h).
+  view_.light_tree.nodes = light_tree_.nodes.size() > 1 ? light_tree_.nodes.data() : nullptr;
+  view_.light_tree.leaves = light_tree_.leaves.data();
+  view_.light_tree.trails = light_tree_.trails.data();
+  view_.finite_light_count = finite;
   view_.features = features;
   view_.camera = make_camera(scene.camera, width, height);
   view_.cpu_bvh = cpu_bvh_.view();

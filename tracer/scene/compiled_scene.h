@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "scene/light_tree.h"
 #include "scene/scene.h"
 #include "scene/scene_view.h"
 
@@ -32,6 +33,8 @@ class CompiledScene {
   const std::vector<Material>& materials() const { return materials_; }
   const std::vector<Light>& lights() const { return lights_; }
   const std::vector<float>& light_cdf() const { return light_cdf_; }
+  // The light tree (render.light_sampler bvh): nodes and each light's trail.
+  const LightTree& light_tree() const { return light_tree_; }
   const std::vector<TriangleUv>& tri_uvs() const { return tri_uvs_; }
   const std::vector<TextureDesc>& textures() const { return textures_; }
   const std::vector<uint32_t>& texels() const { return texels_; }
@@ -51,6 +54,7 @@ class CompiledScene {
   std::vector<Material> materials_;
   std::vector<Light> lights_;
   std::vector<float> light_cdf_;
+  LightTree light_tree_;
   std::vector<TriangleUv> tri_uvs_;  // empty unless the scene has textures and uvs
   std::vector<TextureDesc> textures_;
   std::vector<uint32_t> texels_;  // RGBA8 packed little-endian (R in the low byte)

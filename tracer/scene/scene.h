@@ -12,6 +12,7 @@
 #include "materials/texture.h"
 #include "scene/environment.h"
 #include "scene/point_lights.h"
+#include "scene/light_tree_view.h"
 #include "scene/settings.h"
 
 namespace tracer {
@@ -45,6 +46,9 @@ struct RenderSettings {
   bool strict = false;        // every warning about the input is an error (headless: exit 1)
   PixelFilter filter = PixelFilter::kBox;
   float filter_radius = 0.0f;  // pixels; 0: the filter's default (camera/filter.h)
+  // How next-event estimation chooses a light: kLightSamplerUniform, kLightSamplerPower or
+  // kLightSamplerBvh (the light tree; scene/light_tree_view.h)
+  uint32_t light_sampler = kLightSamplerBvh;
 };
 
 // "random" / "sobol" / "sobol-pairs", as the scene format, the CLI and the workbench spell

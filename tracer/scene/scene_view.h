@@ -9,6 +9,7 @@
 #include "materials/texture.h"
 #include "scene/environment_view.h"
 #include "scene/point_light_view.h"
+#include "scene/light_tree_view.h"
 
 namespace tracer {
 
@@ -34,6 +35,11 @@ enum LightKind : uint32_t {
   kLightSpot = 4,         // SceneView::point_lights[prim], a spot light
 };
 
+// Lights at infinity are not in the light tree; they come last in SceneView::lights.
+TRACER_HD TRACER_INLINE bool light_at_infinity(uint32_t kind) {
+  return kind == kLightEnvironment || kind == kLightDistant;
+}
+
 // A light to choose for next-event estimation: an emissive primitive (`prim` a unified primitive
 // id, triangles first, then spheres), a light at infinity (kind; `prim` the distant light) or a
 // point or spot light (`prim` its index in SceneView::point_lights).
@@ -55,6 +61,10 @@ struct SceneView : TraceView {
   const Material* materials = nullptr;
   const Light* lights = nullptr;
   const float* light_cdf = nullptr;       // light_count + 1 entries, 0 .. 1
+  // The light tree (scene/light_tree_view.h): nodes (null when it would be one leaf or none),
+  // leaves and each light's trail. The lights at infinity, outside the tree, are lights
+  // [finite_light_count, light_count).
+  LightTreeView light_tree = {nullptr, nullptr, nullptr};
   const TriangleUv* tri_uvs = nullptr;    // tri_count entries, or null when the mesh has none
   const TextureDesc* textures = nullptr;  // texture_count entries
   const uint32_t* texels = nullptr;       // RGBA8 texels of all textures, one after another
@@ -65,7 +75,7 @@ struct SceneView : TraceView {
   const PointLight* point_lights = nullptr;
   uint32_t point_light_count = 0;
   uint32_t texture_count = 0;
-  uint32_t material_count = 0, light_count = 0;
+  uint32_t material_count = 0, light_count = 0, finite_light_count = 0;
   uint32_t features = 0;
   Camera camera;
 };

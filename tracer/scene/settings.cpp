@@ -197,6 +197,13 @@ std::vector<Setting> make_table() {
       "Sample points: sobol (Owen-scrambled Sobol, stratified), sobol-pairs (two independent "
       "Sobol halves: exact half-buffer noise) or random (PCG32).",
       E::kImage, [](Scene& s) -> uint32_t& { return s.settings.sampler; }));
+  t.push_back(choice<uint32_t>(
+      "render.light_sampler", "--light-sampler", {"uniform", "power", "bvh"},
+      {kLightSamplerUniform, kLightSamplerPower, kLightSamplerBvh},
+      "How next-event estimation chooses a light: uniform (every light alike), power (in "
+      "proportion to its power) or bvh (a light tree: by power, distance and orientation as seen "
+      "from the shading point; lights at infinity by power).",
+      E::kImage, [](Scene& s) -> uint32_t& { return s.settings.light_sampler; }));
   t.push_back(choice<PixelFilter>(
       "render.filter", "--filter", {"box", "tent", "gaussian", "blackman-harris"},
       {PixelFilter::kBox, PixelFilter::kTent, PixelFilter::kGaussian,
