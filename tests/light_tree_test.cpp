@@ -466,6 +466,21 @@ Scene sampler_scene() {
   sun.irradiance = vec3(0.4f);
   sun.angular_diameter_deg = 3.0f;
   s.distant_lights.push_back(sun);
+  // A point and a spot light: in the tree beside the emitters, before the lights at infinity.
+  PointLightDesc lamp;
+  lamp.name = "lamp";
+  lamp.position = vec3(1.0f, 1.5f, 1.0f);
+  lamp.intensity = vec3(2.0f, 1.8f, 1.5f);
+  s.point_lights.push_back(lamp);
+  PointLightDesc spot;
+  spot.name = "spot";
+  spot.spot = true;
+  spot.position = vec3(-2.0f, 3.0f, 0.0f);
+  spot.direction = vec3(0.3f, -1.0f, 0.0f);
+  spot.intensity = vec3(5.0f, 4.0f, 3.0f);
+  spot.cone_angle_deg = 25.0f;
+  spot.cone_delta_angle_deg = 5.0f;
+  s.point_lights.push_back(spot);
   s.camera.position = vec3(0.0f, 3.5f, 6.0f);
   s.camera.look_at = vec3(0.0f, 0.5f, 0.0f);
   s.camera.vfov_deg = 60.0f;
