@@ -23,6 +23,9 @@ enum SceneFeature : uint32_t {
   // Lights at infinity: an environment (map or constant colour) or distant lights (suns), or a
   // background colour that replaces the environment for camera rays.
   kFeatureInfiniteLights = 1u << 10,
+  // The light tree (SceneView::light_tree has nodes: more than one leaf of lights), which
+  // render.light_sampler bvh descends. (Bit 11 is left to point lights.)
+  kFeatureLightTree = 1u << 12,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
@@ -33,13 +36,15 @@ constexpr uint32_t kAllFeatures = 0xffffffffu;
 // Infinite lights as well: a fourth bit would double the kernels compiled (the megakernels alone
 // from 32 to 64), for scenes that are rarely diffuse-only; grouped, the diffuse kernels of
 // closed rooms compile neither the environment's lookups nor its sampling, and a diffuse scene
-// under a sky runs the specular kernels, which test the material type it does not need.)
+// under a sky runs the specular kernels, which test the material type it does not need. The light
+// tree too: its descent doubles the diffuse megakernels' spills, and a scene of one lamp, such as
+// the Cornell box, has no tree.)
 constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption |
                                       kFeatureSubsurface | kFeatureTextures |
-                                      kFeatureInfiniteLights;
+                                      kFeatureInfiniteLights | kFeatureLightTree;
 
 // Specialisations: three bits (1 spheres, 2 depth of field, 4 specular materials, textures,
-// subsurface or infinite lights) name the eight
+// subsurface, infinite lights or a light tree) name the eight
 // compiled variants both backends run; kGeneralSpec is the one for all features.
 constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4;
 constexpr uint32_t kGeneralSpec = 7;
