@@ -25,6 +25,9 @@ enum SceneFeature : uint32_t {
   kFeatureInfiniteLights = 1u << 10,
   // Point and spot lights (delta lights at a position, SceneView::point_lights).
   kFeaturePointLights = 1u << 11,
+  // The light tree (SceneView::light_tree has nodes: more than one leaf of lights), which
+  // render.light_sampler bvh descends.
+  kFeatureLightTree = 1u << 12,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
@@ -36,13 +39,15 @@ constexpr uint32_t kAllFeatures = 0xffffffffu;
 // from 32 to 64), for scenes that are rarely diffuse-only; grouped, the diffuse kernels of
 // closed rooms compile neither the environment's lookups nor its sampling, and a diffuse scene
 // under a sky runs the specular kernels, which test the material type it does not need. Point and
-// spot lights join them for the same reason.)
+// spot lights join them for the same reason, and the light tree: its descent doubles the diffuse
+// megakernels' spills, and a scene of one lamp, such as the Cornell box, has no tree.)
 constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption |
                                       kFeatureSubsurface | kFeatureTextures |
-                                      kFeatureInfiniteLights | kFeaturePointLights;
+                                      kFeatureInfiniteLights | kFeaturePointLights |
+                                      kFeatureLightTree;
 
 // Specialisations: three bits (1 spheres, 2 depth of field, 4 specular materials, textures,
-// subsurface, infinite lights or point lights) name the eight
+// subsurface, infinite lights, point lights or a light tree) name the eight
 // compiled variants both backends run; kGeneralSpec is the one for all features.
 constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4;
 constexpr uint32_t kGeneralSpec = 7;

@@ -132,6 +132,9 @@ TRACER_HD TRACER_INLINE LightContext vertex_light_context(vec3 p, vec3 n_viewer,
   return LightContext{offset_ray_origin(p, n_viewer), unpack_light_normal(normal_code)};
 }
 
+// F without kFeatureLightTree: the scene has no tree (bvh is the power sampler), and the GPU's
+// kernels for it compile no descent.
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline LightChoice choose_light(const SceneView& s, uint32_t sampler,
                                           const LightContext& ctx, float u) {
   LightChoice c;
@@ -147,7 +150,7 @@ TRACER_HD inline LightChoice choose_light(const SceneView& s, uint32_t sampler,
     c.u = glm::clamp(x - float(c.light), 0.0f, 0x1.fffffep-1f);
     return c;
   }
-  if (sampler == kLightSamplerBvh && s.light_tree.nodes) {
+  if ((F & kFeatureLightTree) && sampler == kLightSamplerBvh && s.light_tree.nodes) {
     const float p_tree = s.light_cdf[s.finite_light_count];
     if (u < p_tree) {
       const LightTreeChoice t =
@@ -166,11 +169,13 @@ TRACER_HD inline LightChoice choose_light(const SceneView& s, uint32_t sampler,
   return c;
 }
 
-// The probability that choose_light(s, sampler, ctx, .) returns `light`.
+// The probability that choose_light<F>(s, sampler, ctx, .) returns `light`.
+template <uint32_t F = kAllFeatures>
 TRACER_HD inline float light_choice_pmf(const SceneView& s, uint32_t sampler,
                                         const LightContext& ctx, uint32_t light) {
   if (sampler == kLightSamplerUniform) return 1.0f / float(s.light_count);
-  if (sampler == kLightSamplerBvh && s.light_tree.nodes && light < s.finite_light_count)
+  if ((F & kFeatureLightTree) && sampler == kLightSamplerBvh && s.light_tree.nodes &&
+      light < s.finite_light_count)
     return s.light_cdf[s.finite_light_count] * light_tree_pmf(s.light_tree, light, ctx);
   return light_select_pdf(s, light);
 }
@@ -198,7 +203,7 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
 template <uint32_t F = kAllFeatures>
 TRACER_HD inline LightSample sample_light(const SceneView& s, vec3 ref, vec3 ref_n, float u_pick,
                                           vec2 u, uint32_t sampler = kLightSamplerPower) {
-  const LightChoice c = choose_light(s, sampler, LightContext{ref, ref_n}, u_pick);
+  const LightChoice c = choose_light<F>(s, sampler, LightContext{ref, ref_n}, u_pick);
   if (!(c.pmf > 0.0f)) {
     LightSample none;
     none.valid = false;
@@ -300,7 +305,7 @@ template <uint32_t F = kAllFeatures>
 TRACER_HD inline LightSample sample_light_2d(const SceneView& s, uint32_t sampler,
                                              const LightContext& ctx, vec3 ref, vec3 ref_n,
                                              vec2 u) {
-  const LightChoice c = choose_light(s, sampler, ctx, u.x);
+  const LightChoice c = choose_light<F>(s, sampler, ctx, u.x);
   if (!(c.pmf > 0.0f)) {
     LightSample none;
     none.valid = false;
@@ -352,9 +357,9 @@ TRACER_HD inline vec3 escaped_radiance(const SceneView& s, bool nee, bool mis, v
     if (le.x > 0.0f || le.y > 0.0f || le.z > 0.0f) {
       float w = 1.0f;
       if (weighted)
-        w = mis ? power_heuristic(
-                      prev_pdf,
-                      light_choice_pmf(s, sampler, LightContext{}, inf.env_light) * env_pdf(inf, d))
+        w = mis ? power_heuristic(prev_pdf,
+                                  light_choice_pmf<F>(s, sampler, LightContext{}, inf.env_light) *
+                                      env_pdf(inf, d))
                 : 0.0f;
       L += le * w;
     }
@@ -364,8 +369,9 @@ TRACER_HD inline vec3 escaped_radiance(const SceneView& s, bool nee, bool mis, v
     if (!(dl.one_minus_cos > 0.0f) || !distant_hit(dl, d)) continue;  // delta lights: never hit
     float w = 1.0f;
     if (weighted)
-      w = mis ? power_heuristic(prev_pdf, light_choice_pmf(s, sampler, LightContext{}, dl.light) *
-                                              distant_cone_pdf(dl))
+      w = mis ? power_heuristic(prev_pdf,
+                                light_choice_pmf<F>(s, sampler, LightContext{}, dl.light) *
+                                    distant_cone_pdf(dl))
               : 0.0f;
     L += dl.radiance * w;
   }

@@ -280,10 +280,11 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
         // This emitter could also have been reached by light sampling at the previous vertex,
         // chosen from there (the ray's origin and that vertex's normal, for the bvh sampler).
         if (cfg.mis) {
-          const bool tree = cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
+          const bool tree = (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh &&
+                            s.light_tree.nodes;
           const LightContext prev{st.ray.o,
                                   tree ? unpack_light_normal(st.prev_normal) : vec3(0.0f)};
-          const float select = light_choice_pmf(s, cfg.light_sampler, prev, sh.light);
+          const float select = light_choice_pmf<F>(s, cfg.light_sampler, prev, sh.light);
           w = power_heuristic(st.prev_pdf,
                               light_pdf<F>(s, sh.light, select, st.ray.o, sh.p, sh.ng));
         } else {
@@ -303,7 +304,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   const Frame frame = bsdf_frame(m, type, transmits || sh.front ? sh.ns : -sh.ns);
   const vec3 wo = frame.to_local(wo_world);
   const vec3 ng_viewer = sh.front ? sh.ng : -sh.ng;
-  const bool light_tree = cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
+  const bool light_tree =
+      (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
   const uint32_t normal_code = light_tree ? pack_light_normal(ng_viewer) : 0u;
 
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {

@@ -23,7 +23,8 @@ std::string describe_features(uint32_t f) {
       {kFeatureSubsurface, "subsurface"},          {kFeatureTextures, "textures"},
       {kFeatureEmissiveMeshes, "emissive meshes"}, {kFeatureSpheres, "spheres"},
       {kFeatureShadingNormals, "shading normals"}, {kFeatureInfiniteLights, "lights at infinity"},
-      {kFeaturePointLights, "point lights"}};
+      {kFeaturePointLights, "point lights"},
+      {kFeatureLightTree, "light tree"}};
   std::string out;
   for (const auto& n : kNames) {
     if (!(f & n.bit)) continue;
@@ -269,6 +270,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.light_tree.leaves = light_tree_.leaves.data();
   view_.light_tree.trails = light_tree_.trails.data();
   view_.finite_light_count = finite;
+  if (view_.light_tree.nodes) features |= kFeatureLightTree;
   view_.features = features;
   view_.camera = make_camera(scene.camera, width, height);
   view_.cpu_bvh = cpu_bvh_.view();

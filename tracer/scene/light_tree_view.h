@@ -67,7 +67,7 @@ enum LightTreeNodeFlags : uint32_t {
 constexpr uint32_t kMaxLightsPerLeaf = 8;
 
 // One node, 64 bytes. The first child of an interior node follows it; `index` is its second
-// child, or a leaf's first entry in SceneView::light_leaves. The cone: every light below
+// child, or a leaf's first entry in SceneView::light_tree.leaves. The cone: every light below
 // emits only in directions within theta_e of some direction within theta_o of `axis`.
 struct alignas(16) LightTreeNode {
   vec3 lo;
@@ -164,7 +164,7 @@ struct LightLeafEntry {
   float power;
 };
 
-// The arrays the descent reads (SceneView's light_nodes, light_leaves and light_trails).
+// The arrays the descent reads (SceneView::light_tree).
 struct LightTreeView {
   const LightTreeNode* nodes;
   const LightLeafEntry* leaves;  // the lights of each leaf, one leaf after another
