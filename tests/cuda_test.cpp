@@ -97,6 +97,34 @@ Scene small_asset(const char* name, RenderSettings* rs) {
   return s;
 }
 
+// The GPU renders what the CPU renders, in the wavefront and the megakernel: with the same seed
+// (the same paths) over 90% of the pixel values agree to 1e-3, and 16 batches of independent
+// seeds pass the block z-test against the CPU's per-pixel mean and variance.
+void expect_gpu_matches_cpu(Renderer& gpu, const std::string& name, const Scene& s,
+                            const RenderSettings& rs) {
+  const PixelStats cpu = render_pixel_stats(s, rs, 1024);
+  ImageRGB cpu_img = make_image(rs.width, rs.height);
+  for (size_t i = 0; i < cpu.mean.size(); ++i)
+    cpu_img.set(int(i % rs.width), int(i / rs.width), cpu.mean[i]);
+  for (KernelMode mode : {KernelMode::kWavefront, KernelMode::kMegakernel}) {
+    GpuOptions o;
+    o.kernel = mode;
+    const double same = identical_fraction(render_gpu(gpu, s, rs, 1024, o), cpu_img);
+    std::vector<ImageRGB> batches;
+    for (uint32_t b = 0; b < 16; ++b) {
+      RenderSettings other = rs;
+      other.seed = 100 + b;
+      batches.push_back(render_gpu(gpu, s, other, 128, o));
+    }
+    const BlockZ z = block_z(batches, cpu);
+    std::printf("%-42s %-10s same-seed identical %.4f, independent chi2/dof %.3f (limit %.3f)\n",
+                name.c_str(), mode == KernelMode::kWavefront ? "wavefront" : "megakernel", same,
+                z.chi2_per_dof, z.limit);
+    EXPECT_GT(same, 0.9) << name;
+    EXPECT_LT(z.chi2_per_dof, z.limit) << name;
+  }
+}
+
 const char* kScenes[] = {"cornell_box.json",    "cornell_spheres.json", "depth_of_field.json",
                          "obj_scene.json",      "gltf_scene.gltf",      "cornell_closed.json",
                          "rough_materials.json", "subsurface.json",      "textured.gltf",
@@ -111,28 +139,7 @@ TEST(Gpu, MatchesCpuOnEveryAsset) {
     rs.width = 64;
     rs.height = 64;
     rs.seed = 5;
-    const PixelStats cpu = render_pixel_stats(s, rs, 1024);
-    for (KernelMode mode : {KernelMode::kWavefront, KernelMode::kMegakernel}) {
-      GpuOptions o;
-      o.kernel = mode;
-      const ImageRGB same_seed = render_gpu(*gpu, s, rs, 1024, o);
-      ImageRGB cpu_img = make_image(rs.width, rs.height);
-      for (size_t i = 0; i < cpu.mean.size(); ++i) cpu_img.set(int(i % rs.width), int(i / rs.width), cpu.mean[i]);
-      const double same = identical_fraction(same_seed, cpu_img);
-      // Independent seeds: 16 GPU batches against the CPU's mean and variance.
-      std::vector<ImageRGB> batches;
-      for (uint32_t b = 0; b < 16; ++b) {
-        RenderSettings other = rs;
-        other.seed = 100 + b;
-        batches.push_back(render_gpu(*gpu, s, other, 128, o));
-      }
-      const BlockZ z = block_z(batches, cpu);
-      std::printf("%-22s %-10s same-seed identical %.4f, independent chi2/dof %.3f (limit %.3f)\n",
-                  name, mode == KernelMode::kWavefront ? "wavefront" : "megakernel", same,
-                  z.chi2_per_dof, z.limit);
-      EXPECT_GT(same, 0.9) << name;
-      EXPECT_LT(z.chi2_per_dof, z.limit) << name;
-    }
+    expect_gpu_matches_cpu(*gpu, name, s, rs);
   }
 }
 
@@ -223,28 +230,7 @@ TEST(Gpu, EnvironmentAndSunsMatchCpu) {
     rs.height = 48;
     rs.max_depth = 6;
     rs.seed = 5;
-    const PixelStats cpu = render_pixel_stats(c.scene, rs, 1024);
-    for (KernelMode mode : {KernelMode::kWavefront, KernelMode::kMegakernel}) {
-      GpuOptions o;
-      o.kernel = mode;
-      const ImageRGB same_seed = render_gpu(*gpu, c.scene, rs, 1024, o);
-      ImageRGB cpu_img = make_image(rs.width, rs.height);
-      for (size_t i = 0; i < cpu.mean.size(); ++i)
-        cpu_img.set(int(i % rs.width), int(i / rs.width), cpu.mean[i]);
-      const double same = identical_fraction(same_seed, cpu_img);
-      std::vector<ImageRGB> batches;
-      for (uint32_t b = 0; b < 16; ++b) {
-        RenderSettings other = rs;
-        other.seed = 100 + b;
-        batches.push_back(render_gpu(*gpu, c.scene, other, 128, o));
-      }
-      const BlockZ z = block_z(batches, cpu);
-      std::printf("%-30s %-10s same-seed identical %.4f, independent chi2/dof %.3f (limit %.3f)\n",
-                  c.name.c_str(), mode == KernelMode::kWavefront ? "wavefront" : "megakernel", same,
-                  z.chi2_per_dof, z.limit);
-      EXPECT_GT(same, 0.9) << c.name;
-      EXPECT_LT(z.chi2_per_dof, z.limit) << c.name;
-    }
+    expect_gpu_matches_cpu(*gpu, c.name, c.scene, rs);
   }
 }
 
@@ -326,28 +312,7 @@ TEST(Gpu, PointAndSpotLightsMatchCpu) {
     rs.seed = 5;
     const CompiledScene cs(c.scene, rs.width, rs.height);
     EXPECT_TRUE(cs.features() & kFeaturePointLights) << c.name;
-    const PixelStats cpu = render_pixel_stats(c.scene, rs, 1024);
-    for (KernelMode mode : {KernelMode::kWavefront, KernelMode::kMegakernel}) {
-      GpuOptions o;
-      o.kernel = mode;
-      const ImageRGB same_seed = render_gpu(*gpu, c.scene, rs, 1024, o);
-      ImageRGB cpu_img = make_image(rs.width, rs.height);
-      for (size_t i = 0; i < cpu.mean.size(); ++i)
-        cpu_img.set(int(i % rs.width), int(i / rs.width), cpu.mean[i]);
-      const double same = identical_fraction(same_seed, cpu_img);
-      std::vector<ImageRGB> batches;
-      for (uint32_t b = 0; b < 16; ++b) {
-        RenderSettings other = rs;
-        other.seed = 100 + b;
-        batches.push_back(render_gpu(*gpu, c.scene, other, 128, o));
-      }
-      const BlockZ z = block_z(batches, cpu);
-      std::printf("%-42s %-10s same-seed identical %.4f, independent chi2/dof %.3f (limit %.3f)\n",
-                  c.name.c_str(), mode == KernelMode::kWavefront ? "wavefront" : "megakernel", same,
-                  z.chi2_per_dof, z.limit);
-      EXPECT_GT(same, 0.9) << c.name;
-      EXPECT_LT(z.chi2_per_dof, z.limit) << c.name;
-    }
+    expect_gpu_matches_cpu(*gpu, c.name, c.scene, rs);
   }
 }
 
