@@ -46,16 +46,16 @@ std::vector<GpuOptions> all_requests() {
 }
 
 // Every scene a rule distinguishes: the features the rules and the specialisation read
-// (textures, random walks, spheres, depth of field, specular materials), with and without a flat
-// list, a jittered camera and a lens.
+// (textures, random walks, spheres, depth of field, specular materials, lights beyond emitters),
+// with and without a flat list, a jittered camera and a lens.
 std::vector<GpuSceneTraits> all_scenes() {
   const uint32_t bits[] = {kFeatureTextures, kFeatureSubsurface, kFeatureSpheres,
-                           kFeatureDepthOfField, kFeatureMirror};
+                           kFeatureDepthOfField, kFeatureMirror, kFeaturePointLights};
   std::vector<GpuSceneTraits> out;
-  for (uint32_t mask = 0; mask < 32; ++mask)
+  for (uint32_t mask = 0; mask < 64; ++mask)
     for (int other = 0; other < 8; ++other) {
       GpuSceneTraits t;
-      for (int i = 0; i < 5; ++i)
+      for (int i = 0; i < 6; ++i)
         if (mask & (1u << i)) t.features |= bits[i];
       t.flat_available = other & 1;
       t.jitter = other & 2;
@@ -134,6 +134,9 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
   expect(e.spec == (e.specialize ? spec_for_features(t.features) : kGeneralSpec),
          "the kernels compiled for the scene's features, or the general ones");
   expect((spec_for_features(t.features) & ~e.spec) == 0, "the kernels cover the scene's features");
+  expect(!(e.spec & kSpecLights) || (e.spec & kSpecSpecular),
+         "the lights' kernels are among the specular ones (no diffuse-with-lights variant)");
+  expect(*spec_label(e.spec) != '\0', "the kernels have a name");
   // A variant build turns its path off everywhere.
   const std::string variants = "+" + gpu_build_variant() + "+";
   auto built = [&](const char* name) {
@@ -209,7 +212,7 @@ TEST(GpuOptions, EveryCombinationObeysTheRules) {
   const std::vector<GpuOptions> requests = all_requests();
   const std::vector<GpuSceneTraits> scenes = all_scenes();
   ASSERT_EQ(requests.size(), 192u);
-  ASSERT_EQ(scenes.size(), 256u);
+  ASSERT_EQ(scenes.size(), 512u);
   size_t failed = 0, overridden = 0;
   for (const GpuSceneTraits& t : scenes)
     for (const GpuOptions& r : requests) {

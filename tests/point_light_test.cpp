@@ -211,7 +211,7 @@ TEST(PointLight, ChosenByFluxAndListedAsLights) {
   ASSERT_EQ(cs.lights().size(), 4u);  // two triangles, the point and the spot light
   ASSERT_EQ(cs.point_lights().size(), 2u);
   EXPECT_TRUE(cs.features() & kFeaturePointLights);
-  EXPECT_EQ(spec_for_features(cs.features()) & kSpecSpecular, kSpecSpecular)
+  EXPECT_EQ(spec_for_features(cs.features()) & (kSpecSpecular | kSpecLights), kSpecSpecular | kSpecLights)
       << "point lights run the kernels that have their code";
   // power = flux / pi: the emitter L A, the point light 4 pi I / pi, the spot light
   // 2 pi I (1 - (cos 25 + cos 30) / 2) / pi.

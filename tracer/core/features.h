@@ -33,38 +33,41 @@ enum SceneFeature : uint32_t {
 constexpr uint32_t kAllFeatures = 0xffffffffu;
 // Materials other than Lambertian diffuse.
 // (Subsurface is grouped with them: its boundary is a dielectric. Textures too: a
-// metallic-roughness map turns diffuse into metal per texel, and grouping them keeps the CUDA
-// specialisations at three bits, so diffuse-only untextured kernels compile no texture code.
-// Infinite lights as well: a fourth bit would double the kernels compiled (the megakernels alone
-// from 32 to 64), for scenes that are rarely diffuse-only; grouped, the diffuse kernels of
-// closed rooms compile neither the environment's lookups nor its sampling, and a diffuse scene
-// under a sky runs the specular kernels, which test the material type it does not need. Point and
-// spot lights join them for the same reason, and the light tree: its descent doubles the diffuse
-// megakernels' spills, and a scene of one lamp, such as the Cornell box, has no tree.)
+// metallic-roughness map turns diffuse into metal per texel, and grouping them keeps the diffuse
+// kernels free of texture code.)
 constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFeatureAbsorption |
-                                      kFeatureSubsurface | kFeatureTextures |
-                                      kFeatureInfiniteLights | kFeaturePointLights |
-                                      kFeatureLightTree;
+                                      kFeatureSubsurface | kFeatureTextures;
+// Lights beyond emissive surfaces: lights at infinity, point and spot lights and the light
+// tree's descent. Their sampling code doubled the diffuse megakernels' spills and slowed the
+// specular scenes that have none of them by a third (PERFORMANCE.md, rows 90-91), so they have
+// their own specialisation bit. It implies the specular one: a scene with these lights compiles
+// the kernels of every material, so the bit adds 4 variants (12 in all), not 8.
+constexpr uint32_t kFeatureLights = kFeatureInfiniteLights | kFeaturePointLights |
+                                    kFeatureLightTree;
 
-// Specialisations: three bits (1 spheres, 2 depth of field, 4 specular materials, textures,
-// subsurface, infinite lights, point lights or a light tree) name the eight
-// compiled variants both backends run; kGeneralSpec is the one for all features.
-constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4;
-constexpr uint32_t kGeneralSpec = 7;
+// Specialisations: four bits (1 spheres, 2 depth of field, 4 specular materials, textures or
+// subsurface, 8 lights beyond emitters: always with 4) name the twelve compiled variants both
+// backends run; kGeneralSpec is the one for all features.
+constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4, kSpecLights = 8;
+constexpr uint32_t kGeneralSpec = 15;
+constexpr uint32_t kSpecCount = 16;  // indices 0..15; 8..11 are never used (8 implies 4)
 
 template <uint32_t Spec>
 constexpr uint32_t features_of() {
+  static_assert(!(Spec & kSpecLights) || (Spec & kSpecSpecular), "lights imply specular");
   return kFeatureEmissiveMeshes | kFeatureShadingNormals |
          ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
          ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
-         ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u);
+         ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u) |
+         ((Spec & kSpecLights) ? kFeatureLights : 0u);
 }
 
 // The smallest specialisation that covers a scene's features.
 constexpr uint32_t spec_for_features(uint32_t f) {
   return ((f & kFeatureSpheres) ? kSpecSpheres : 0u) |
          ((f & kFeatureDepthOfField) ? kSpecDepthOfField : 0u) |
-         ((f & kFeatureSpecular) ? kSpecSpecular : 0u);
+         ((f & (kFeatureSpecular | kFeatureLights)) ? kSpecSpecular : 0u) |
+         ((f & kFeatureLights) ? kSpecLights : 0u);
 }
 
 // The name of a specialisation, as `pathtracer info`, the bench and the sidecar print it.
@@ -73,8 +76,12 @@ inline const char* spec_label(uint32_t spec) {
       "triangles, pinhole, diffuse only",      "spheres+triangles, pinhole, diffuse only",
       "triangles, thin lens, diffuse only",    "spheres+triangles, thin lens, diffuse only",
       "triangles, pinhole, specular",          "spheres+triangles, pinhole, specular",
-      "triangles, thin lens, specular",        "general (all features)"};
-  return kNames[spec & 7];
+      "triangles, thin lens, specular",        "spheres+triangles, thin lens, specular"};
+  static const char* kWithLights[8] = {
+      "", "", "", "",
+      "triangles, pinhole, specular, lights",  "spheres+triangles, pinhole, specular, lights",
+      "triangles, thin lens, specular, lights", "general (all features)"};
+  return (spec & kSpecLights) ? kWithLights[spec & 7] : kNames[spec & 7];
 }
 inline const char* spec_name_for_features(uint32_t f) { return spec_label(spec_for_features(f)); }
 

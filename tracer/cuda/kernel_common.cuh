@@ -171,7 +171,11 @@ inline uint32_t blocks(uint32_t n) { return (n + kBlock - 1) / kBlock; }
     case 4: CALL(4); break;                                 \
     case 5: CALL(5); break;                                 \
     case 6: CALL(6); break;                                 \
-    default: CALL(7); break;                                \
+    case 7: CALL(7); break;                                 \
+    case 12: CALL(12); break;                               \
+    case 13: CALL(13); break;                               \
+    case 14: CALL(14); break;                               \
+    default: CALL(15); break;                               \
   }
 
 // Enough resident blocks to fill every multiprocessor once (persistent threads).

@@ -237,7 +237,7 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
                   uint32_t* shadow_queue, cudaStream_t stream) {
   // The block's 108 bytes of shared memory (compaction) must not take L1 from the shading's
   // scene reads: asked for the smallest carveout, once per variant.
-  static bool carveout_set[8] = {};
+  static bool carveout_set[kSpecCount] = {};
 #define CALL(S)                                                                           \
   if (!carveout_set[S]) {                                                                 \
     TRACER_CUDA_CHECK(cudaFuncSetAttribute(shade_kernel<S>,                               \
@@ -247,11 +247,13 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   }                                                                                       \
   shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
                                                       next_queue, shadow_queue)
-  switch (spec & (kSpecSpheres | kSpecSpecular)) {
+  switch (spec & (kSpecSpheres | kSpecSpecular | kSpecLights)) {
     case 0: CALL(0); break;
     case kSpecSpheres: CALL(kSpecSpheres); break;
     case kSpecSpecular: CALL(kSpecSpecular); break;
-    default: CALL(kSpecSpheres | kSpecSpecular); break;
+    case kSpecSpheres | kSpecSpecular: CALL(kSpecSpheres | kSpecSpecular); break;
+    case kSpecSpecular | kSpecLights: CALL(kSpecSpecular | kSpecLights); break;
+    default: CALL(kSpecSpheres | kSpecSpecular | kSpecLights); break;
   }
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("shade_kernel");
