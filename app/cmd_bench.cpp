@@ -49,6 +49,9 @@ struct Result {
   // ms_per_frame: the median of one-sample calls, each waited for (what one display update of
   // the workbench costs, the host's synchronisation included).
   double ms_per_spp = 0, ms_per_frame = 0, segments_per_s = 0, rays_per_s = 0;
+  // Wavefront rows: Mrays/s of the stages that trace one kind of ray alone (camera rays, bounce
+  // rays, shadow rays; those a stage did not trace alone are absent).
+  nlohmann::json ray_rates = nlohmann::json::object();
   tracer::RayCounts rays;  // per sample
   tracer::StageTimes stages;
   std::vector<uint32_t> alive;
@@ -170,6 +173,7 @@ nlohmann::json to_json(const Result& r) {
           {"fused_trace", r.stages.fused_trace},
           {"tail_ms", r.stages.tail},
           {"bounce_stage_ms", bounce_json(r.stages)},
+          {"ray_rates_M_per_s", r.ray_rates},
           {"note", r.note},
           {"gpu_options", r.gpu_options}};
 }
@@ -303,7 +307,7 @@ int run_bench(const BenchOptions& o) {
     // Stage breakdown and bandwidth of each wavefront configuration; per bounce for the
     // compacted ones.
     const double copy_gbs_measured = out["copy_bandwidth_GBps"].get<double>();
-    for (const auto& r : results) {
+    for (auto& r : results) {
       if (r.kernel != "wavefront" || r.alive.empty()) continue;
       const bool queued = r.compacted;
       const size_t compactions = cub_compactions(r.stages);
@@ -391,11 +395,23 @@ int run_bench(const BenchOptions& o) {
       row("all rays", r.stages.intersect + r.stages.shadow + r.stages.trace,
           sb.intersect() * traced_rays + dead + shadow_bytes);
       const double bounce_ms = r.stages.intersect - r.stages.intersect_first;
+      auto rate = [](double rays, double ms) { return rays / (ms * 1e-3) / 1e6; };
+      if (r.stages.intersect_first > 0)
+        r.ray_rates["camera"] = rate(n, r.stages.intersect_first);
       std::printf("  intersect: camera rays %.0f Mrays/s",
-                  n / (r.stages.intersect_first * 1e-3) / 1e6);
-      if (bounce_ms > 0)
-        std::printf(", bounce rays %.0f Mrays/s",
-                    (traced_rays - n - trace_rays) / (bounce_ms * 1e-3) / 1e6);
+                  rate(n, r.stages.intersect_first));
+      if (bounce_ms > 0) {
+        r.ray_rates["bounce"] = rate(traced_rays - n - trace_rays, bounce_ms);
+        std::printf(", bounce rays %.0f Mrays/s", rate(traced_rays - n - trace_rays, bounce_ms));
+      }
+      // The shadow stage's own rays: those the shade kernel queued less the fused ones, or,
+      // without a tail, all of the sample's.
+      const double stage_shadows = shadow_queue ? traced_shadows - trace_shadows
+                                   : r.stages.tail_from == 0 ? double(r.rays.shadow) : 0.0;
+      if (r.stages.shadow > 0 && stage_shadows > 0) {
+        r.ray_rates["shadow"] = rate(stage_shadows, r.stages.shadow);
+        std::printf(", shadow rays %.0f Mrays/s", rate(stage_shadows, r.stages.shadow));
+      }
       std::printf("\n");
       if (r.stages.trace > 0)
         std::printf("  trace (a bounce's shadow stage with the next one's intersect stage): %.0f M "

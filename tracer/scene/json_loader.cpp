@@ -684,12 +684,12 @@ class JsonSceneReader {
     require_object(o, ptr, "object " + std::to_string(index));
     if (!o.contains("type")) fail(ptr, "object " + std::to_string(index) + " has no \"type\"");
     const std::string type = get_string(o, ptr, "type", "", "object " + std::to_string(index));
-    const std::vector<std::string> types = {"sphere", "box", "quad", "disk", "mesh"};
+    const std::vector<std::string> types = {"sphere", "box", "quad", "disk", "mesh", "terrain"};
     if (std::find(types.begin(), types.end(), type) == types.end()) {
       const std::string guess = did_you_mean(type, types);
       fail(json_pointer_child(ptr, "type"),
            "unknown object type " + in_quotes(type) +
-               (guess.empty() ? " (expected sphere, box, quad, disk or mesh)"
+               (guess.empty() ? " (expected sphere, box, quad, disk, mesh or terrain)"
                               : " (did you mean " + in_quotes(guess) + "?)"));
     }
     ObjectInfo info;
@@ -776,6 +776,29 @@ class JsonSceneReader {
       place[3] = vec4(c, 1.0f);
       info.first = append_part(scene_, d, xform * place);
       info.count = uint32_t(d.indices.size());
+    } else if (type == "terrain") {
+      check_keys(o, ptr,
+                 {"type", "name", "size", "resolution", "height", "seed", "material", "transform"},
+                 where);
+      const uint32_t mat = object_material(o, ptr, where, true);
+      const vec3 size = get_vec3(o, ptr, "size", vec3(10.0f, 0.0f, 10.0f), where);
+      if (!(size.x > 0.0f) || !(size.z > 0.0f))
+        fail(json_pointer_child(ptr, "size"),
+             "\"size\" of " + where + " must be > 0 in x and z (its y is unused)");
+      const double res = get_float(o, ptr, "resolution", 64.0f, where);
+      // 8192^2 cells are 134 million triangles, about 10 GB as a flat mesh.
+      if (!(res >= 1.0 && res <= 8192.0) || res != std::floor(res))
+        fail(json_pointer_child(ptr, "resolution"),
+             "\"resolution\" of " + where + " must be a whole number of cells per side, 1..8192");
+      const float height = get_float(o, ptr, "height", 1.0f, where);
+      const double seed = get_float(o, ptr, "seed", 1.0f, where);
+      if (!(seed >= 0.0 && seed <= 65535.0) || seed != std::floor(seed))
+        fail(json_pointer_child(ptr, "seed"),
+             "\"seed\" of " + where + " must be a whole number, 0..65535");
+      MeshPart t = terrain_mesh(vec2(size.x, size.z), uint32_t(res), height, uint32_t(seed));
+      t.materials.assign(t.indices.size(), mat);
+      info.first = append_part(scene_, t, xform);
+      info.count = uint32_t(t.indices.size());
     } else {  // mesh
       check_keys(o, ptr, {"type", "name", "file", "material", "materials", "transform"}, where);
       if (!o.contains("file")) fail(ptr, where + " has no \"file\"");

@@ -297,3 +297,68 @@ void frame_mesh_scene(Scene& scene, bool keep_camera) {
 }
 
 }  // namespace tracer
+
+namespace tracer {
+namespace {
+
+// Value noise on the integer lattice: a hash of the corner, smoothly interpolated.
+float lattice(int32_t x, int32_t z, uint32_t seed) {
+  uint32_t h = uint32_t(x) * 0x8da6b343u ^ uint32_t(z) * 0xd8163841u ^ seed * 0xcb1ab31fu;
+  h ^= h >> 16;
+  h *= 0x7feb352du;
+  h ^= h >> 15;
+  h *= 0x846ca68bu;
+  h ^= h >> 16;
+  return float(h >> 8) * (1.0f / 16777216.0f) * 2.0f - 1.0f;
+}
+
+float value_noise(float x, float z, uint32_t seed) {
+  const float fx = std::floor(x), fz = std::floor(z);
+  const int32_t ix = int32_t(fx), iz = int32_t(fz);
+  const float tx = x - fx, tz = z - fz;
+  const float sx = tx * tx * (3.0f - 2.0f * tx), sz = tz * tz * (3.0f - 2.0f * tz);
+  const float a = lattice(ix, iz, seed), b = lattice(ix + 1, iz, seed);
+  const float c = lattice(ix, iz + 1, seed), d = lattice(ix + 1, iz + 1, seed);
+  return (a + (b - a) * sx) + ((c + (d - c) * sx) - (a + (b - a) * sx)) * sz;
+}
+
+}  // namespace
+
+MeshPart terrain_mesh(vec2 size, uint32_t resolution, float height, uint32_t seed) {
+  MeshPart m;
+  const uint32_t n = resolution + 1;  // vertices per side
+  m.positions.resize(size_t(n) * n);
+  for (uint32_t j = 0; j < n; ++j)
+    for (uint32_t i = 0; i < n; ++i) {
+      const float u = float(i) / float(resolution), v = float(j) / float(resolution);
+      // Six octaves from 4 to 128 features across, each half as high as the one before.
+      float y = 0.0f, amp = 0.5f, freq = 4.0f;
+      for (int o = 0; o < 6; ++o) {
+        y += amp * value_noise(u * freq, v * freq, seed + uint32_t(o));
+        amp *= 0.5f;
+        freq *= 2.0f;
+      }
+      m.positions[size_t(j) * n + i] = vec3(u * size.x, height * y, v * size.y);
+    }
+  m.indices.reserve(size_t(2) * resolution * resolution);
+  for (uint32_t j = 0; j < resolution; ++j)
+    for (uint32_t i = 0; i < resolution; ++i) {
+      const uint32_t a = j * n + i, b = a + 1, c = a + n, d = c + 1;
+      // Counter-clockwise seen from +y, so the geometric normal points up.
+      m.indices.push_back(uvec3(a, c, b));
+      m.indices.push_back(uvec3(b, c, d));
+    }
+  // Smooth normals from the grid's central differences.
+  m.normals.resize(m.positions.size());
+  for (uint32_t j = 0; j < n; ++j)
+    for (uint32_t i = 0; i < n; ++i) {
+      const vec3& l = m.positions[size_t(j) * n + (i > 0 ? i - 1 : i)];
+      const vec3& r = m.positions[size_t(j) * n + (i < resolution ? i + 1 : i)];
+      const vec3& dn = m.positions[size_t(j > 0 ? j - 1 : j) * n + i];
+      const vec3& up = m.positions[size_t(j < resolution ? j + 1 : j) * n + i];
+      m.normals[size_t(j) * n + i] = glm::normalize(glm::cross(up - dn, r - l));
+    }
+  return m;
+}
+
+}  // namespace tracer

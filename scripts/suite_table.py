@@ -1,0 +1,53 @@
+#!/usr/bin/env python3
+"""Turns scripts/bench-suite.sh's suite.jsonl into the Markdown table of docs/BENCHMARKS.md.
+
+usage: scripts/suite_table.py OUT/suite.jsonl
+"""
+import json
+import sys
+
+
+def fmt(v, spec="{:,.0f}", none="-"):
+    return none if v is None else spec.format(v)
+
+
+def row_named(rows, config):
+    return next((r for r in rows if r.get("config") == config), None)
+
+
+def main():
+    recs = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+    device = next((r.get("device") for r in recs if r.get("device")), "no GPU")
+    print(f"Device: {device}. 1920x1080, depth 8, {recs and 16} timed spp per row; relMSE against "
+          "a reference of the same renderer (independent seed).\n")
+    print("| scene | triangles | BVH build | BVH bytes / tri | scene on GPU | first image | "
+          "camera / bounce / shadow Mrays/s | M segments/s (auto) | time to relMSE 1e-2 |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in recs:
+        if r.get("skipped"):
+            print(f"| {r['name']} | skipped: {r['skipped']} |||||||")
+            continue
+        bvh = r.get("bvh") or {}
+        tris = r.get("triangles") or 0
+        ms = bvh.get("build_ms")
+        build = (f"{ms / 1000:.2f} s ({tris / (ms * 1e3):.1f} M tri/s)" if ms and tris else "-")
+        rows = r.get("rows") or []
+        wf = row_named(rows, "wavefront") or {}
+        rates = wf.get("ray_rates_M_per_s") or {}
+        rr = " / ".join(fmt(rates.get(k)) for k in ("camera", "bounce", "shadow"))
+        auto = row_named(rows, "auto") or {}
+        seg = fmt(auto.get("M_segments_per_s"))
+        if auto.get("note"):
+            seg += f" ({auto['kernel']})"
+        err = (r.get("error") or {}).get("configs") or [{}]
+        t = err[0].get("time_to_1e-2_s")
+        ext = err[0].get("extrapolated_1e-2")
+        tt = "-" if t is None or t < 0 else (("~" if ext else "") + f"{t:.3g} s")
+        mem = r.get("scene_device_bytes")
+        print(f"| {r['name']} | {tris:,} | {build} | {fmt(r.get('bvh_bytes_per_triangle'), '{:.1f}')} | "
+              f"{fmt(mem and mem / 2**20, '{:,.1f} MiB')} | {r['first_image_s']:.2f} s | {rr} | "
+              f"{seg} | {tt} |")
+
+
+if __name__ == "__main__":
+    main()
