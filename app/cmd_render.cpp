@@ -96,8 +96,13 @@ int run_render(const RenderOptions& o) {
 
   const tracer::CompiledScene compiled(scene, rs.width, rs.height);
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(rs);
-  renderer->set_gpu_options(scene.gpu);
-  renderer->set_scene(compiled, cfg);
+  try {
+    renderer->set_gpu_options(scene.gpu);
+    renderer->set_scene(compiled, cfg);  // e.g. more than the GPU's free memory: says so
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << o.scene << ": " << e.what() << "\n";
+    return kExitInputError;
+  }
   const double setup_s = std::chrono::duration<double>(clock::now() - t_start).count();
 
   // Passes sized so that progress updates about twice a second.

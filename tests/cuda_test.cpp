@@ -625,6 +625,31 @@ TEST(Gpu, ResetIsComplete) {
   EXPECT_EQ(identical_fraction(gpu->image(), a), 1.0);
 }
 
+TEST(Gpu, TooLargeForTheDeviceSaysWhatItNeedsAndHasFree) {
+  REQUIRE_GPU(gpu);
+  const Scene s = builtin_default_scene();
+  RenderSettings rs = s.settings;
+  rs.width = 48;
+  rs.height = 32;
+  const CompiledScene cs(s, rs.width, rs.height);
+  gpu->set_scene(cs, make_integrator_settings(rs));
+  RenderSettings huge = rs;
+  huge.width = 65536;  // 2^31 pixels: over 400 GiB of path state
+  huge.height = 32768;
+  try {
+    gpu->set_settings(make_integrator_settings(huge));
+    FAIL() << "a 65536x32768 image fitted in GPU memory";
+  } catch (const std::runtime_error& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("65536x32768 image needs"), std::string::npos) << m;
+    EXPECT_NE(m.find("free of"), std::string::npos) << m;
+  }
+  // Nothing was allocated: the renderer goes on at a size that fits.
+  gpu->set_settings(make_integrator_settings(rs));
+  gpu->render(2);
+  EXPECT_EQ(gpu->samples_done(), 2u);
+}
+
 TEST(Gpu, SubsurfaceSlabMatchesAnalyticAlbedo) {
   // The CPU test's semi-infinite slab seen from straight above through a 0.2 degree lens: every
   // camera ray arrives at normal incidence, so the image mean is R for light at normal incidence.

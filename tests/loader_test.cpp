@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <cstring>
 #include <fstream>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "materials/metals.h"
@@ -109,6 +111,11 @@ TEST(Loader, EveryAssetLoads) {
                     entry.path().filename().c_str(), test::kBlenderWorlds);
         continue;
       }
+      if (entry.path().filename() == "terrain_10m.json") {
+        std::printf("skipped %s here: 10 million triangles (Loader.TerrainObject loads it at a "
+                    "smaller resolution)\n", entry.path().filename().c_str());
+        continue;
+      }
       Scene s;
       ASSERT_NO_THROW(s = load_scene(entry.path().string()));
       EXPECT_GT(s.mesh.indices.size() + s.spheres.size(), 0u);
@@ -123,6 +130,56 @@ TEST(Loader, EveryAssetLoads) {
     }
   }
   EXPECT_GE(count, 7);
+}
+
+std::string read_file_text(const std::string& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+TEST(Loader, TerrainObject) {
+  // The benchmark asset, at 40x40 cells instead of 2237x2237.
+  std::string text = read_file_text(test::source_dir() + "/assets/scenes/terrain_10m.json");
+  const size_t at = text.find("\"resolution\": 2237");
+  ASSERT_NE(at, std::string::npos) << "terrain_10m.json no longer has 2237 cells per side";
+  text.replace(at, std::strlen("\"resolution\": 2237"), "\"resolution\": 40");
+  const Scene s = load_scene_from_json(text, test::source_dir() + "/assets/scenes/t.json");
+  ASSERT_EQ(s.mesh.indices.size(), 2u * 40 * 40);
+  ASSERT_EQ(s.mesh.normals.size(), s.mesh.positions.size());
+  float lo = 1e30f, hi = -1e30f;
+  for (size_t i = 0; i < s.mesh.positions.size(); ++i) {
+    const vec3 p = s.mesh.positions[i];
+    EXPECT_TRUE(p.x >= 0.0f && p.x <= 100.0f && p.z >= 0.0f && p.z <= 100.0f);
+    EXPECT_GT(s.mesh.normals[i].y, 0.0f) << "a heightfield's normals point up";
+    lo = std::min(lo, p.y);
+    hi = std::max(hi, p.y);
+  }
+  EXPECT_GT(hi - lo, 1.0f) << "the noise lifts the grid";
+  EXPECT_LT(hi - lo, 2.0f * 14.0f);
+  for (const uvec3& t : s.mesh.indices) {  // counter-clockwise from above: geometric normal up
+    const vec3 a = s.mesh.positions[t.x], b = s.mesh.positions[t.y], c = s.mesh.positions[t.z];
+    EXPECT_GT(glm::cross(b - a, c - a).y, 0.0f);
+  }
+  // The same seed gives the same land, another seed another.
+  const Scene again = load_scene_from_json(text, test::source_dir() + "/assets/scenes/t.json");
+  EXPECT_EQ(again.mesh.positions[777].y, s.mesh.positions[777].y);
+  std::string other = text;
+  other.replace(other.find("\"seed\": 7"), std::strlen("\"seed\": 7"), "\"seed\": 8");
+  EXPECT_NE(load_scene_from_json(other, "t.json").mesh.positions[777].y, s.mesh.positions[777].y);
+
+  for (const char* bad : {"\"resolution\": 0", "\"resolution\": 8193", "\"resolution\": 2.5"}) {
+    std::string t = text;
+    t.replace(t.find("\"resolution\": 40"), std::strlen("\"resolution\": 40"), bad);
+    try {
+      load_scene_from_json(t, "terrain.json");
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("terrain.json:12:"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("1..8192"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(Loader, GltfSceneHasCameraDielectricAndLight) {

@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
 
 #include "cuda/device_buffer.h"
 #include "cuda/kernels.h"
@@ -11,6 +14,34 @@
 namespace tracer {
 
 namespace {
+
+template <typename T>
+size_t bytes_of(const std::vector<T>& v) {
+  return v.size() * sizeof(T);
+}
+
+std::string gib(size_t bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2f GiB", double(bytes) / double(size_t(1) << 30));
+  return buf;
+}
+
+// Throws a message that says what `what` needs and what the device has free, before an
+// allocation that would fail (cudaMalloc's "out of memory" names neither). `held` is memory the
+// allocation will release first (the buffers it replaces).
+void require_device_memory(size_t need, size_t held, const std::string& what,
+                           const std::string& parts, const std::string& device) {
+  size_t free_bytes = 0, total_bytes = 0;
+  if (cudaMemGetInfo(&free_bytes, &total_bytes) != cudaSuccess) return;  // let cudaMalloc say
+  // Headroom for CUB's and the driver's own allocations.
+  const size_t headroom = size_t(64) << 20;
+  if (need + headroom <= free_bytes + held) return;
+  throw std::runtime_error(what + " needs " + gib(need) + " of GPU memory (" + parts + "); " +
+                           device + " has " + gib(free_bytes + held) + " free of " +
+                           gib(total_bytes) + ". Use the CPU backend (--backend cpu), a smaller "
+                           "image, or a scene with fewer triangles or smaller textures");
+}
+
 enum Stage {
   kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kIntersectFirst, kTail,
   kTrace, kStageCount
@@ -146,6 +177,14 @@ struct CudaRenderer::Impl {
 
   void allocate() {
     const uint32_t count_pixels = n();
+    // The two accumulators, ten float4 ray and path arrays, the alive flags and five queues.
+    const size_t per_pixel = 12 * sizeof(float4) + 1 + 5 * sizeof(uint32_t);
+    require_device_memory(size_t(count_pixels) * per_pixel, film[0].size() * per_pixel,
+                          "a " + std::to_string(cfg.width) + "x" + std::to_string(cfg.height) +
+                              " image",
+                          "the accumulators and the wavefront's path state, " +
+                              std::to_string(per_pixel) + " bytes per pixel",
+                          prop.name);
     film[0].resize(count_pixels);
     film[1].resize(count_pixels);
     for (auto* b : {&ray_o, &ray_d, &ray_o_odd, &ray_d_odd, &throughput, &radiance, &hit,
@@ -361,6 +400,24 @@ std::string CudaRenderer::device_name() const {
 
 void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) {
   Impl& m = *impl_;
+  {
+    const size_t bvh = bytes_of(scene.nodes()) + bytes_of(scene.prim_indices());
+    const size_t tris = bytes_of(scene.tri_verts()) + bytes_of(scene.tri_shading()) +
+                        bytes_of(scene.tri_uvs());
+    const InfiniteLightsData& inf = scene.infinite();
+    const size_t tex = bytes_of(scene.texels()) +
+                       (inf.image ? bytes_of(inf.image->rgba) : 0) + bytes_of(inf.func) +
+                       bytes_of(inf.cond_cdf) + bytes_of(inf.marg_cdf);
+    const size_t flat = bytes_of(scene.flat_list().prims) + bytes_of(scene.flat_list().info) +
+                        bytes_of(scene.flat_list().tri_to_flat);
+    const size_t rest = bytes_of(scene.materials()) + bytes_of(scene.lights()) +
+                        bytes_of(scene.light_cdf()) + bytes_of(scene.light_tree().nodes) +
+                        bytes_of(scene.light_tree().leaves) + bytes_of(scene.light_tree().trails);
+    require_device_memory(bvh + tris + tex + flat + rest, scene_bytes(), "the scene",
+                          "BVH " + gib(bvh) + ", triangles " + gib(tris) + ", textures and "
+                          "environment " + gib(tex) + ", the rest " + gib(flat + rest),
+                          device_name());
+  }
   m.nodes.upload(scene.nodes());
   m.prim_indices.upload(scene.prim_indices());
   m.tri_verts.upload(scene.tri_verts());
