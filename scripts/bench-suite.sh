@@ -19,6 +19,8 @@ SPP=${SUITE_SPP:-16}              # timed samples of `bench`
 REF_SPP=${SUITE_REF_SPP:-4096}    # samples of each scene's reference for the error sweep
 TIME_LIMIT=${SUITE_TIME_LIMIT:-8} # seconds of the error sweep
 ERR_SIZE=${SUITE_ERROR_SIZE:-640x360}
+CPU_SPP=${SUITE_CPU_SPP:-1}       # samples of the CPU row (0: none)
+ERR_CONFIG=${SUITE_ERROR_CONFIG:-auto}  # `bench --error` configuration (cpu on a machine without GPU)
 WORK=${SUITE_WORK:-/tmp/bench-suite}
 mkdir -p "$WORK"
 
@@ -51,12 +53,12 @@ for name in ${SUITE:-cornell-box veach-mis coffee water-caustic classroom bunnie
   t0=$(date +%s.%N)
   "$PT" render "$f" --spp 1 --width 1920 --height 1080 --out "$W/first.exr" > "$W/first.log" 2>&1
   t1=$(date +%s.%N)
-  "$PT" bench "$f" --width 1920 --height 1080 --max-depth 8 --spp "$SPP" --cpu-spp 0 \
+  "$PT" bench "$f" --width 1920 --height 1080 --max-depth 8 --spp "$SPP" --cpu-spp "$CPU_SPP" \
     --json "$W/bench.json" > "$W/bench.log" 2>&1 || tail -5 "$W/bench.log"
   grep -E "^(megakernel|wavefront|auto|cpu) |intersect: camera" "$W/bench.log" | head -20
   # Error against time of the default design (auto) at a smaller size, against a reference
   # rendered first with an independent seed.
-  "$PT" bench --error "$f" --configs auto --set render.width=${ERR_SIZE%x*} \
+  "$PT" bench --error "$f" --configs "$ERR_CONFIG" --set render.width=${ERR_SIZE%x*} \
     --set render.height=${ERR_SIZE#*x} --set render.max_depth=8 --reference-spp "$REF_SPP" \
     --max-spp 65536 --time-limit "$TIME_LIMIT" --flip off --out "$W/error" > "$W/error.log" 2>&1 \
     || tail -5 "$W/error.log"

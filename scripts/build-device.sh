@@ -39,3 +39,12 @@ W=/usr/share/blender/datafiles/studiolights/world
 if [ -d "$W" ]; then mkdir -p "$DIST/world" && cp "$W"/*.exr "$DIST/world/"; fi
 du -sh "$DIST"
 ls "$DIST/lib"
+# The suite's carry (gpu-check.sh suite; the 64 MiB limit leaves room for .devbuild/bitterli
+# beside it, not beside all of $DIST): pathtracer, its libraries, the bunny and Debian's engine.
+if [ -n "${SUITE_DIST:-}" ]; then
+  S=.devbuild/dist-suite
+  rm -rf "$S" && mkdir -p "$S"
+  cp -r "$DIST/pathtracer" "$DIST/lib" "$DIST/bunny.obj" "$S/"
+  cp /usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb "$S/"
+  du -sh "$S"
+fi

@@ -41,7 +41,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli (the last two not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite (the last three not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -146,6 +146,15 @@ if [ "$MODE" = bitterli ]; then
     cp /tmp/$name.1.exr "$OUT/$name.exr"
   done
   (cd /tmp && tar czf "$OUT/bitterli-compare.tgz" *.compare.json)  # $OUT holds at most 8 files
+fi
+if [ "$MODE" = suite ]; then
+  # The benchmark suite of real scenes (scripts/bench-suite.sh; docs/BENCHMARKS.md). Carry
+  # .devbuild/dist-suite (scripts/build-device.sh's pathtracer and lib, the bunny and Debian's
+  # 2CylinderEngine.glb: `SUITE_DIST=1 scripts/build-device.sh` makes it) and .devbuild/bitterli.
+  # scripts/suite_table.py OUT/suite.jsonl makes the table here.
+  PATHTRACER=$DIST/pathtracer BUNNY=$PWD/$DIST/bunny.obj ENGINE=$PWD/$DIST/2CylinderEngine.glb \
+    BITTERLI=${BITTERLI:-.devbuild/bitterli} OUT=$OUT scripts/bench-suite.sh
+  python3 scripts/suite_table.py "$OUT/suite.jsonl"
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction

@@ -20,12 +20,12 @@ def main():
     device = next((r.get("device") for r in recs if r.get("device")), "no GPU")
     print(f"Device: {device}. 1920x1080, depth 8, {recs and 16} timed spp per row; relMSE against "
           "a reference of the same renderer (independent seed).\n")
-    print("| scene | triangles | BVH build | BVH bytes / tri | scene on GPU | first image | "
-          "camera / bounce / shadow Mrays/s | M segments/s (auto) | time to relMSE 1e-2 |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| scene | triangles | BVH build | bytes / tri: BVH, all on the GPU | first image | "
+          "camera / bounce / shadow Mrays/s | M segments/s: auto, CPU | time to relMSE 1e-2 |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for r in recs:
         if r.get("skipped"):
-            print(f"| {r['name']} | skipped: {r['skipped']} |||||||")
+            print(f"| {r['name']} | skipped: {r['skipped']} ||||||")
             continue
         bvh = r.get("bvh") or {}
         tris = r.get("triangles") or 0
@@ -39,14 +39,17 @@ def main():
         seg = fmt(auto.get("M_segments_per_s"))
         if auto.get("note"):
             seg += f" ({auto['kernel']})"
+        cpu = next((x for x in rows if x.get("kernel") == "cpu"), {})
+        seg += ", " + fmt(cpu.get("M_segments_per_s"), "{:,.1f}")
         err = (r.get("error") or {}).get("configs") or [{}]
         t = err[0].get("time_to_1e-2_s")
         ext = err[0].get("extrapolated_1e-2")
         tt = "-" if t is None or t < 0 else (("~" if ext else "") + f"{t:.3g} s")
         mem = r.get("scene_device_bytes")
-        print(f"| {r['name']} | {tris:,} | {build} | {fmt(r.get('bvh_bytes_per_triangle'), '{:.1f}')} | "
-              f"{fmt(mem and mem / 2**20, '{:,.1f} MiB')} | {r['first_image_s']:.2f} s | {rr} | "
-              f"{seg} | {tt} |")
+        per_tri = (f"{bvh['bytes'] / tris:.1f}" if tris and bvh.get("bytes") else "-") + ", " + \
+            (f"{mem / tris:.1f} ({mem / 2**20:,.1f} MiB)" if tris and mem else "-")
+        print(f"| {r['name']} | {tris:,} | {build} | {per_tri} | {r['first_image_s']:.2f} s | "
+              f"{rr} | {seg} | {tt} |")
 
 
 if __name__ == "__main__":

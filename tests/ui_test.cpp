@@ -217,6 +217,67 @@ TEST(Workbench, LoadsPbrtScenesAndKeepsTheOldOneOnAnError) {
   EXPECT_EQ(wb->scene().source, dir + "/scene.pbrt") << "the loaded scene stays";
 }
 
+TEST(Workbench, LoadsInTheBackgroundWhileTheOldSceneRenders) {
+  auto wb = small_cornell(0);  // renders on until stopped
+  const std::string dir = tmpdir() + "/bg_load";
+  std::filesystem::create_directories(dir);
+  {
+    // 720,000 triangles: long enough to load that the old scene renders meanwhile.
+    std::ofstream f(dir + "/land.json");
+    f << R"({"camera": {"position": [-5, 20, -5], "look_at": [50, 0, 50]},
+      "render": {"width": 40, "height": 30},
+      "environment": {"color": [0.5, 0.6, 0.8]},
+      "materials": {"rock": {"albedo": [0.5, 0.5, 0.5]}},
+      "objects": [{"type": "terrain", "size": [100, 0, 100], "resolution": 600,
+                   "height": 10, "material": "rock"}]})";
+    std::ofstream bad(dir + "/bad.json");
+    bad << "{\"objects\": [{\"type\": \"spere\"}]}";
+  }
+  const std::string old_source = wb->scene().source;
+  wb->update();
+  std::string err;
+  ASSERT_TRUE(wb->start_loading(dir + "/land.json", &err)) << err;
+  EXPECT_FALSE(wb->start_loading(dir + "/land.json", &err));
+  EXPECT_NE(err.find("still loading"), std::string::npos) << err;
+  EXPECT_NE(wb->loading_status().find("land.json: "), std::string::npos) << wb->loading_status();
+  uint32_t frames_while_loading = 0, spp_while_loading = 0;
+  const auto start = std::chrono::steady_clock::now();
+  while (wb->loading() && std::chrono::steady_clock::now() - start < std::chrono::seconds(120)) {
+    wb->update();
+    if (wb->loading()) {
+      ++frames_while_loading;
+      spp_while_loading = std::max(spp_while_loading, wb->stats().spp);
+      EXPECT_EQ(wb->scene().source, old_source) << "the old scene stays until the new is ready";
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_FALSE(wb->loading()) << "the load did not finish within two minutes";
+  EXPECT_EQ(wb->scene().source, dir + "/land.json");
+  EXPECT_EQ(wb->scene().mesh.indices.size(), 720000u);
+  EXPECT_EQ(wb->width(), 40);
+  EXPECT_NE(wb->loading_status().find("loaded land.json: 720000 triangles"), std::string::npos)
+      << wb->loading_status();
+  EXPECT_GT(frames_while_loading, 0u) << "the UI kept running frames while it loaded";
+  EXPECT_GT(spp_while_loading, 0u) << "the old scene rendered while the new one loaded";
+  // The new scene renders (its compiled form came with the load).
+  EXPECT_TRUE(wb->apply("render.spp=2", &err)) << err;
+  converge(*wb);
+  EXPECT_EQ(wb->stats().spp, 2u);
+
+  // A broken file: the error is posted and the scene shown stays.
+  const size_t errors = wb->messages.count(ui::Severity::kError);
+  ASSERT_TRUE(wb->start_loading(dir + "/bad.json", &err)) << err;
+  while (wb->loading()) {
+    wb->update();
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_EQ(wb->scene().source, dir + "/land.json");
+  EXPECT_EQ(wb->messages.count(ui::Severity::kError), errors + 1);
+  EXPECT_NE(wb->messages.all().back().text.find("bad.json:1"), std::string::npos)
+      << wb->messages.all().back().text;
+  EXPECT_EQ(wb->loading_status().rfind("error: ", 0), 0u) << wb->loading_status();
+}
+
 TEST(Workbench, ErrorCurveAgainstAReferenceFallsAsOneOverTime) {
   // A 48x48 reference of the built-in box (independent seed, 1024 spp) with its variance.
   tracer::Scene scene = tracer::builtin_default_scene();

@@ -77,6 +77,10 @@ void viewport(Workbench& wb, PanelState& ps, ImVec2 pos, ImVec2 size) {
                 counts.empty() ? "" : "  ", counts.c_str());
   ImGui::GetWindowDrawList()->AddText(ImVec2(origin.x + 8, origin.y + 8), IM_COL32(255, 255, 0, 255),
                                       line);
+  if (wb.loading())  // the scene shown stays until the new one is ready
+    ImGui::GetWindowDrawList()->AddText(
+        ImVec2(origin.x + 8, origin.y + 8 + ImGui::GetTextLineHeightWithSpacing()),
+        IM_COL32(255, 255, 0, 255), ("loading " + wb.loading_status()).c_str());
   ImGui::End();
 }
 
@@ -86,15 +90,25 @@ void scene_panel(Workbench& wb, PanelState& ps) {
   ImGui::SetNextItemWidth(-width_beside("Load"));
   ImGui::InputText("##scenepath", ps.scene_path, sizeof ps.scene_path);
   ImGui::SameLine();
+  // The file loads on a thread: the scene shown renders on until the new one is ready.
+  const bool busy = wb.loading();
+  if (busy) ImGui::BeginDisabled();
   if (ImGui::Button("Load")) {
     std::string err;
-    ps.status = wb.load_scene(ps.scene_path, &err) ? std::string("loaded ") + ps.scene_path
-                                                    : "error: " + err;
-    if (!err.empty()) wb.messages.error(err);
+    if (!wb.start_loading(ps.scene_path, &err)) wb.messages.error(err);
   }
-  if (ImGui::IsItemHovered())
-    ImGui::SetTooltip(".json scene, .obj, .gltf/.glb, .ply or pbrt-v4 .pbrt (docs/SCENE_FORMAT.md)");
+  if (busy) ImGui::EndDisabled();
+  if (ImGui::IsItemHovered(ImGuiHoveredFlags_AllowWhenDisabled))
+    ImGui::SetTooltip(".json scene, .obj, .gltf/.glb, .ply or pbrt-v4 .pbrt (docs/SCENE_FORMAT.md); "
+                      "it loads in the background while the scene shown renders on");
   check_fit(ps, "Load");
+  const std::string load_status = wb.loading_status();
+  if (!load_status.empty()) {
+    const bool failed = load_status.rfind("error", 0) == 0;
+    if (failed) ImGui::PushStyleColor(ImGuiCol_Text, IM_COL32(255, 90, 90, 255));
+    ImGui::TextWrapped("%s%s", busy ? "loading " : "", load_status.c_str());
+    if (failed) ImGui::PopStyleColor();
+  }
   const auto& objects = wb.scene().objects;
   // As tall as the list up to 8 lines, then it scrolls.
   const float list_h =

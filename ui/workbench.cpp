@@ -46,7 +46,84 @@ Workbench::Workbench(tracer::Scene scene, tracer::BackendChoice backend, int cpu
   }
 }
 
-Workbench::~Workbench() { stop_worker(); }
+struct Workbench::Load {
+  std::string path;
+  Clock::time_point start = Clock::now();
+  std::atomic<int> stage{0};  // 0: reading the file; 1: building the BVH and the GPU's arrays
+  std::atomic<bool> done{false};
+  tracer::Scene scene;
+  std::shared_ptr<tracer::CompiledScene> compiled;
+  std::string error;
+  std::thread thread;
+};
+
+Workbench::~Workbench() {
+  if (load_) load_->thread.join();
+  stop_worker();
+}
+
+bool Workbench::start_loading(const std::string& path, std::string* error) {
+  if (load_) {
+    if (error) *error = "still loading " + load_->path + "; wait for it before loading another";
+    return false;
+  }
+  load_ = std::make_unique<Load>();
+  load_->path = path;
+  const tracer::BackendChoice backend = scene_.settings.backend;
+  const int threads = scene_.settings.threads;
+  Load* l = load_.get();
+  l->thread = std::thread([l, backend, threads] {
+    try {
+      tracer::Scene s = tracer::load_scene(l->path);
+      // The renderer running now stays: its settings are the window's, not the file's.
+      s.settings.backend = backend;
+      s.settings.threads = threads;
+      l->stage = 1;
+      l->compiled =
+          std::make_shared<tracer::CompiledScene>(s, s.settings.width, s.settings.height);
+      l->scene = std::move(s);
+    } catch (const std::exception& e) {
+      l->error = e.what();
+    }
+    l->done = true;
+  });
+  last_load_.clear();
+  return true;
+}
+
+std::string Workbench::loading_status() const {
+  if (!load_) return last_load_;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, " (%.1f s)", seconds_since(load_->start));
+  return std::filesystem::path(load_->path).filename().string() +
+         (load_->stage == 0 ? ": reading the file" : ": building the BVH") + buf;
+}
+
+bool Workbench::finish_loading(bool wait, std::string* error) {
+  if (!load_ || (!wait && !load_->done)) return false;
+  load_->thread.join();
+  const std::unique_ptr<Load> l = std::move(load_);
+  const std::string name = std::filesystem::path(l->path).filename().string();
+  if (!l->error.empty()) {
+    last_load_ = "error: " + l->error;
+    if (error) *error = l->error;
+    else messages.error(l->error + " (the scene shown stays)");
+    return false;
+  }
+  char buf[128];
+  std::snprintf(buf, sizeof buf, ": %zu triangles, %zu spheres in %.1f s",
+                l->scene.mesh.indices.size(), l->scene.spheres.size(), seconds_since(l->start));
+  last_load_ = "loaded " + name + buf;
+  scene_ = std::move(l->scene);
+  initial_camera_ = scene_.camera;
+  scene_warnings_taken_ = scene_notes_taken_ = 0;
+  take_scene_warnings();
+  selected_material = 0;
+  select_object(scene_.objects.empty() ? -1 : 0);
+  changed(Edit::kScene);
+  ready_compiled_ = l->compiled;  // after changed(), which drops any
+  return true;
+}
 
 std::string Workbench::backend_name() const { return renderer_ ? renderer_->backend_name() : ""; }
 std::string Workbench::device_name() const { return renderer_ ? renderer_->device_name() : ""; }
@@ -96,6 +173,7 @@ void Workbench::changed(Edit e) {
     return;
   }
   dirty_ = true;
+  ready_compiled_.reset();  // a loaded scene's compiled form no longer matches the edited scene
   if (e == Edit::kScene || e == Edit::kResize) geometry_dirty_ = true;
   if (async_) cancel_ = true;  // the CPU pass in flight is stale: abandon it now
 }
@@ -110,8 +188,10 @@ void Workbench::reset_stats() {
 }
 
 void Workbench::rebuild(bool /*geometry*/) {
-  compiled_ = std::make_shared<tracer::CompiledScene>(scene_, scene_.settings.width,
-                                                      scene_.settings.height);
+  compiled_ = ready_compiled_ ? std::move(ready_compiled_)
+                              : std::make_shared<tracer::CompiledScene>(
+                                    scene_, scene_.settings.width, scene_.settings.height);
+  ready_compiled_.reset();
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(scene_.settings);
   if (async_) {
     std::lock_guard<std::mutex> lk(mutex_);
@@ -167,6 +247,7 @@ int Workbench::material_of(int object) const {
 }
 
 void Workbench::update() {
+  finish_loading(false, nullptr);  // a background load that is ready replaces the scene
   take_scene_warnings();  // e.g. validation's, after an edit
   if (dirty_) {
     rebuild(geometry_dirty_);
@@ -454,22 +535,11 @@ bool Workbench::apply(const std::string& assignment, std::string* error) {
 // ---------------------------------------------------------------------------------------------
 
 bool Workbench::load_scene(const std::string& path, std::string* error) {
-  try {
-    tracer::Scene s = tracer::load_scene(path);
-    // The renderer running now stays: its settings are the window's, not the file's.
-    s.settings.backend = scene_.settings.backend;
-    s.settings.threads = scene_.settings.threads;
-    scene_ = std::move(s);
-  } catch (const std::exception& e) {
-    if (error) *error = e.what();
+  std::string err;
+  if (!start_loading(path, &err) || !finish_loading(true, &err)) {
+    if (error) *error = err;
     return false;
   }
-  initial_camera_ = scene_.camera;
-  scene_warnings_taken_ = scene_notes_taken_ = 0;
-  take_scene_warnings();
-  selected_material = 0;
-  select_object(scene_.objects.empty() ? -1 : 0);
-  changed(Edit::kScene);
   return true;
 }
 
