@@ -199,6 +199,32 @@ TEST(Render, CpuBackendMatchesSharedPathCodeAndIsDeterministic) {
 namespace {
 using namespace test;
 
+TEST(Render, EditsThatKeepTheGeometryShareTheBvh) {
+  Scene s = builtin_default_scene();
+  const RenderSettings rs = small(s);
+  const CompiledScene before(s, rs.width, rs.height);
+  EXPECT_FALSE(before.shares_bvh());
+  s.materials[0].material.albedo = vec3(0.2f, 0.6f, 0.3f);  // a material edit
+  s.camera.vfov_deg += 5.0f;                                  // and a camera edit
+  const CompiledScene shared(s, rs.width, rs.height, &before), fresh(s, rs.width, rs.height);
+  EXPECT_TRUE(shared.shares_bvh());
+  EXPECT_EQ(&shared.nodes(), &before.nodes()) << "the same BVH, not a copy";
+  EXPECT_EQ(&shared.cpu_bvh(), &before.cpu_bvh());
+  ImageRGB img[2];
+  int k = 0;
+  for (const CompiledScene* cs : {&shared, &fresh}) {
+    CpuRenderer r(2);
+    r.set_scene(*cs, make_integrator_settings(rs));
+    r.render(4);
+    img[k++] = r.image();
+  }
+  EXPECT_EQ(img[0].pixels, img[1].pixels) << "the shared BVH renders as a rebuilt one";
+  // Other primitives: built anew.
+  Scene more = s;
+  more.spheres.push_back({vec3(0.0f), 1.0f, 0});
+  EXPECT_FALSE(CompiledScene(more, rs.width, rs.height, &before).shares_bvh());
+}
+
 TEST(Render, RadianceClampReportsTheBiasItIntroduces) {
   // Same seed, same paths: the clamped image differs from the plain one by exactly the luminance
   // the clamp says it removed, and no pixel exceeds the clamp.

@@ -187,10 +187,12 @@ void Workbench::reset_stats() {
   display_dirty_ = true;
 }
 
-void Workbench::rebuild(bool /*geometry*/) {
+void Workbench::rebuild(bool geometry) {
+  // An edit that keeps the triangles and spheres shares the BVHs of the scene before it.
   compiled_ = ready_compiled_ ? std::move(ready_compiled_)
                               : std::make_shared<tracer::CompiledScene>(
-                                    scene_, scene_.settings.width, scene_.settings.height);
+                                    scene_, scene_.settings.width, scene_.settings.height,
+                                    geometry ? nullptr : compiled_.get());
   ready_compiled_.reset();
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(scene_.settings);
   if (async_) {

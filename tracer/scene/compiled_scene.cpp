@@ -34,7 +34,8 @@ std::string describe_features(uint32_t f) {
   return out.empty() ? "none (diffuse only)" : out;
 }
 
-CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
+CompiledScene::CompiledScene(const Scene& scene, int width, int height,
+                             const CompiledScene* same_geometry) {
   materials_.reserve(scene.materials.size());
   for (const auto& nm : scene.materials) materials_.push_back(nm.material);
 
@@ -227,14 +228,22 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
     }
   }
 
-  bvh_ = build_bvh(bounds);
-  cpu_bvh_ = build_cpu_bvh(bvh_, tri_verts_, tri_count);
+  if (same_geometry && same_geometry->view().tri_count == tri_count &&
+      same_geometry->view().sphere_count == spheres_.size() && same_geometry->bvh_) {
+    bvh_ = same_geometry->bvh_;
+    cpu_bvh_ = same_geometry->cpu_bvh_;
+    shared_bvh_ = true;
+  } else {
+    auto bvh = std::make_shared<Bvh>(build_bvh(bounds));
+    cpu_bvh_ = std::make_shared<const CpuBvh>(build_cpu_bvh(*bvh, tri_verts_, tri_count));
+    bvh_ = std::move(bvh);
+  }
   // With lights at infinity shadow rays leave the scene, so no entry may be skipped as hull.
   // Point lights are ends of shadow rays too: a wall with one behind it is no hull.
   flat_ = build_flat_list(tri_verts_, spheres_, infinite_->any(), light_points);
 
-  view_.nodes = bvh_.nodes.data();
-  view_.prim_indices = bvh_.prim_indices.data();
+  view_.nodes = bvh_->nodes.data();
+  view_.prim_indices = bvh_->prim_indices.data();
   view_.tri_verts = tri_verts_.data();
   view_.tri_shading = tri_shading_.data();
   view_.spheres = spheres_.data();
@@ -248,7 +257,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   view_.point_lights = point_lights_.empty() ? nullptr : point_lights_.data();
   view_.point_light_count = uint32_t(point_lights_.size());
   view_.texture_count = uint32_t(textures_.size());
-  view_.node_count = uint32_t(bvh_.nodes.size());
+  view_.node_count = uint32_t(bvh_->nodes.size());
   view_.tri_count = tri_count;
   view_.sphere_count = uint32_t(spheres_.size());
   view_.material_count = uint32_t(materials_.size());
@@ -273,7 +282,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height) {
   if (view_.light_tree.nodes) features |= kFeatureLightTree;
   view_.features = features;
   view_.camera = make_camera(scene.camera, width, height);
-  view_.cpu_bvh = cpu_bvh_.view();
+  view_.cpu_bvh = cpu_bvh_->view();
   if (flat_.enabled) {
     view_.flat = view_.flat_loop = flat_.prims.data();
     view_.flat_info = flat_.info.data();

@@ -15,18 +15,25 @@ namespace tracer {
 class CompiledScene {
  public:
   // Builds everything for an image of width x height. The scene must be validated.
-  CompiledScene(const Scene& scene, int width, int height);
+  // `same_geometry`: a compiled scene of the same triangles and spheres (an edit of materials,
+  // lights, camera or settings): its BVHs are shared instead of rebuilt, which keeps the
+  // workbench's edits of a scene of millions of triangles interactive. Ignored when its
+  // primitive counts differ.
+  CompiledScene(const Scene& scene, int width, int height,
+                const CompiledScene* same_geometry = nullptr);
 
   const SceneView& view() const { return view_; }
-  const BvhBuildStats& bvh_stats() const { return bvh_.stats; }
+  const BvhBuildStats& bvh_stats() const { return bvh_->stats; }
+  // True when the BVHs came from `same_geometry` (not rebuilt).
+  bool shares_bvh() const { return shared_bvh_; }
   uint32_t features() const { return view_.features; }
 
-  const std::vector<BvhNode>& nodes() const { return bvh_.nodes; }
-  const CpuBvh& cpu_bvh() const { return cpu_bvh_; }
+  const std::vector<BvhNode>& nodes() const { return bvh_->nodes; }
+  const CpuBvh& cpu_bvh() const { return *cpu_bvh_; }
   // The flat primitive list (bvh/flat_list.h); enabled only for small scenes. view() points at
   // it but leaves use_flat off: the backends choose.
   const FlatList& flat_list() const { return flat_; }
-  const std::vector<uint32_t>& prim_indices() const { return bvh_.prim_indices; }
+  const std::vector<uint32_t>& prim_indices() const { return bvh_->prim_indices; }
   const std::vector<TriangleVerts>& tri_verts() const { return tri_verts_; }
   const std::vector<TriangleShading>& tri_shading() const { return tri_shading_; }
   const std::vector<Sphere>& spheres() const { return spheres_; }
@@ -45,8 +52,10 @@ class CompiledScene {
   const std::vector<PointLight>& point_lights() const { return point_lights_; }
 
  private:
-  Bvh bvh_;
-  CpuBvh cpu_bvh_;  // the CPU backend's SSE layout of bvh_ (bvh/cpu_bvh.h)
+  // Shared with the compiled scenes of later edits that keep the geometry.
+  std::shared_ptr<const Bvh> bvh_;
+  std::shared_ptr<const CpuBvh> cpu_bvh_;  // the CPU backend's SSE layout of bvh_ (bvh/cpu_bvh.h)
+  bool shared_bvh_ = false;
   FlatList flat_;
   std::vector<TriangleVerts> tri_verts_;
   std::vector<TriangleShading> tri_shading_;
