@@ -20,6 +20,19 @@ struct InfoOptions {
 };
 
 // describe()'s switches and design paths, without the overrides (printed a line each).
+// "6012 8-wide compressed nodes (5100 leaves, 470.00 KiB), depth 6, stack 21, built in ...".
+std::string bvh8_text(const tracer::Bvh8& b) {
+  if (b.nodes.empty()) return "none (the 4-wide tree serves: a leaf too large to address)";
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "%u %d-wide compressed nodes (%u leaves, %.2f KiB), depth %u, stack %u, built "
+                "in %.2f ms from the 4-wide tree",
+                b.stats.node_count, tracer::kBvh8Width, b.stats.leaf_count,
+                b.nodes.size() * sizeof(tracer::Bvh8Node) / 1024.0, b.stats.max_depth,
+                b.stats.max_stack, b.stats.build_ms);
+  return buf;
+}
+
 std::string gpu_design_head(const tracer::EffectiveGpuOptions& e) {
   const std::string d = e.describe();
   const size_t build = d.find("; build ");
@@ -84,6 +97,13 @@ int run_info(const InfoOptions& o) {
                  {"up", vec(cam.up)}, {"vfov", cam.vfov_deg}};
   j["warnings"] = scene.diagnostics.warnings;
   j["notes"] = scene.diagnostics.notes;  // e.g. why a mesh file got this camera and light
+  const tracer::Bvh8& b8 = cs.bvh8();
+  j["bvh8"] = {{"nodes", b8.stats.node_count},
+               {"leaves", b8.stats.leaf_count},
+               {"max_stack", b8.stats.max_stack},
+               {"depth", b8.stats.max_depth},
+               {"build_ms", b8.stats.build_ms},
+               {"bytes", b8.nodes.size() * sizeof(tracer::Bvh8Node)}};
   j["bvh"] = {{"nodes", st.node_count},
               {"width", tracer::kBvhWidth},
               {"binary_nodes", st.binary_node_count},
@@ -150,6 +170,7 @@ int run_info(const InfoOptions& o) {
             << " KiB), depth " << st.max_depth << ", SAH cost " << std::fixed
             << std::setprecision(2) << st.sah_cost << ", built in " << std::setprecision(2)
             << st.build_ms << " ms\n"
+            << "bvh8        " << bvh8_text(cs.bvh8()) << "\n"
             << "light tree  " << lt.nodes.size() << " nodes over " << lt.leaves.size()
             << " lights (" << lt.leaf_count << " leaves), depth " << lt.depth << ", built in "
             << std::setprecision(2) << lt.build_ms << " ms\n"

@@ -86,6 +86,17 @@ void check_against_brute_force(const Scene& scene, int rays, const std::string& 
   SceneView shared = cs.view();
   shared.cpu_bvh = CpuBvhView();
   check_view(shared, box.lo, box.hi, rays, what + " (shared traversal)");
+  // The 8-wide compressed tree the GPU walks, through the same shared traversal.
+  ASSERT_FALSE(cs.bvh8().nodes.empty() && !scene.mesh.indices.empty()) << what << ": no 8-wide tree";
+  if (!cs.bvh8().nodes.empty()) {
+    SceneView wide8 = shared;
+    wide8.nodes8 = cs.bvh8().nodes.data();
+    wide8.prim_indices8 = cs.bvh8().prim_indices.data();
+    wide8.node_count = uint32_t(cs.bvh8().nodes.size());
+    check_view(wide8, box.lo, box.hi, rays, what + " (8-wide traversal)");
+    EXPECT_LE(cs.bvh8().stats.max_stack, uint32_t(kBvhStackSize)) << what;
+    EXPECT_EQ(cs.bvh8().prim_indices.size(), cs.prim_indices().size()) << what;
+  }
   if (!cpu_bvh_supported()) {
     std::cout << "[   NOTE   ] no SSE traversal in this build; only the shared one was checked\n";
     return;

@@ -53,13 +53,14 @@ std::vector<GpuSceneTraits> all_scenes() {
                            kFeatureDepthOfField, kFeatureMirror, kFeaturePointLights};
   std::vector<GpuSceneTraits> out;
   for (uint32_t mask = 0; mask < 64; ++mask)
-    for (int other = 0; other < 8; ++other) {
+    for (int other = 0; other < 16; ++other) {
       GpuSceneTraits t;
       for (int i = 0; i < 6; ++i)
         if (mask & (1u << i)) t.features |= bits[i];
       t.flat_available = other & 1;
       t.jitter = other & 2;
       t.depth_of_field = other & 4;
+      t.bvh8_available = other & 8;
       out.push_back(t);
     }
   return out;
@@ -71,7 +72,7 @@ std::string describe_case(const GpuOptions& o, const GpuSceneTraits& t) {
          on_off(o.first_bounce_cache) + ", flat " + on_off(o.flat_list) + ", tail " +
          fraction_text(o.tail_fraction) + "; scene features 0x" + std::to_string(t.features) +
          ", flat list " + on_off(t.flat_available) + ", jitter " + on_off(t.jitter) + ", lens " +
-         on_off(t.depth_of_field);
+         on_off(t.depth_of_field) + ", 8-wide tree " + on_off(t.bvh8_available);
 }
 
 // The user's switches, by the names the overrides use, as text.
@@ -90,7 +91,8 @@ std::map<std::string, bool> path_values(const EffectiveGpuOptions& e) {
           {"fused_trace", e.fused_trace},
           {"fused_tail", e.fused_tail},
           {"dynamic_fetch", e.dynamic_fetch},
-          {"specialize", e.specialize}};
+          {"specialize", e.specialize},
+          {"bvh8", e.bvh8}};
 }
 
 // Checks one resolution; returns false after the first failed expectation (so that a broken
@@ -142,6 +144,8 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
   auto built = [&](const char* name) {
     return variants.find(std::string("+") + name + "+") != std::string::npos;
   };
+  expect(e.bvh8 == (!built("bvh4") && !o.flat_list && t.bvh8_available),
+         "the 8-wide BVH wherever the BVH is walked and the scene has one, but in a bvh4 build");
   if (built("no-fetch")) expect(!e.dynamic_fetch, "no-fetch build: no dynamic fetch");
   if (built("general-spec")) expect(!e.specialize, "general-spec build: the general kernels");
   if (built("rays-at-ids")) expect(!e.rays_at_slots, "rays-at-ids build: no rays at slots");
@@ -212,7 +216,7 @@ TEST(GpuOptions, EveryCombinationObeysTheRules) {
   const std::vector<GpuOptions> requests = all_requests();
   const std::vector<GpuSceneTraits> scenes = all_scenes();
   ASSERT_EQ(requests.size(), 192u);
-  ASSERT_EQ(scenes.size(), 512u);
+  ASSERT_EQ(scenes.size(), 1024u);
   size_t failed = 0, overridden = 0;
   for (const GpuSceneTraits& t : scenes)
     for (const GpuOptions& r : requests) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "bvh/bvh.h"
+#include "bvh/bvh8.h"
 #include "bvh/cpu_bvh.h"
 #include "bvh/flat_list.h"
 #include "bvh/geometry.h"
@@ -15,6 +16,10 @@ namespace tracer {
 struct TraceView {
   const BvhNode* nodes = nullptr;
   const uint32_t* prim_indices = nullptr;
+  // The 8-wide compressed tree (bvh/bvh8.h) and its primitive order: when set, the BVH walk
+  // uses it instead of `nodes` and `prim_indices`; node_count is then its node count.
+  const Bvh8Node* nodes8 = nullptr;
+  const uint32_t* prim_indices8 = nullptr;
   const TriangleVerts* tri_verts = nullptr;
   const Sphere* spheres = nullptr;
   uint32_t node_count = 0, tri_count = 0, sphere_count = 0;
@@ -66,11 +71,12 @@ TRACER_HD TRACER_INLINE bool warp_all(bool pred) {
 // Tests the primitives of the leaf `ref` (a leaf reference, see bvh.h); returns true when an
 // any-hit query may stop.
 template <uint32_t F, bool kAnyHit>
-TRACER_HD TRACER_INLINE bool intersect_leaf(const TraceView& s, const Ray& ray,
-                                            const RayTriSetup& setup, uint32_t ref, uint32_t skip,
-                                            uint32_t skip2, float& tmax, Hit& hit) {
+TRACER_HD TRACER_INLINE bool intersect_leaf(const TraceView& s, const uint32_t* prim_indices,
+                                            const Ray& ray, const RayTriSetup& setup,
+                                            uint32_t ref, uint32_t skip, uint32_t skip2,
+                                            float& tmax, Hit& hit) {
   for (uint32_t i = ref & ~kBvhLeafBit;; ++i) {
-    const uint32_t entry = s.prim_indices[i];
+    const uint32_t entry = prim_indices[i];
     const uint32_t prim = entry & ~kBvhLastPrimBit;
     if (prim != skip && prim != skip2) {
       float t, b1 = 0.0f, b2 = 0.0f;
@@ -118,6 +124,56 @@ struct TraversalCursor {
   bool have_leaf;
 };
 
+// One step of the walk in the 8-wide tree: tests the eight child boxes of inner node `node`
+// (decoded from their 8-bit planes, then the slab test of bvh.h), goes on with the first child
+// hit in the ray's octant order and pushes the others hit, so that they pop in that order (the
+// builder put the child nearest to where rays of octant o come from in slot o, and the order
+// i ^ o for i = 0..7 visits near children first without sorting). With none hit it pops.
+TRACER_HD TRACER_INLINE void expand_node8(const Bvh8Node* nodes, uint32_t node, const Ray& ray,
+                                          vec3 inv_d, float tmax, uint32_t* stack,
+                                          TraversalCursor& c) {
+  const Bvh8Node n = load_node8(nodes, node);
+  const float sx = bvh8_scale(n.exps, 0), sy = bvh8_scale(n.exps, 1),
+              sz = bvh8_scale(n.exps, 2);
+  uint32_t hits = 0;
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (uint32_t slot = 0; slot < kBvh8Width; ++slot) {
+    const vec3 lo(bvh8_plane(n.origin.x, bvh8_byte(n.q[0], slot), sx),
+                  bvh8_plane(n.origin.y, bvh8_byte(n.q[1], slot), sy),
+                  bvh8_plane(n.origin.z, bvh8_byte(n.q[2], slot), sz));
+    const vec3 hi(bvh8_plane(n.origin.x, bvh8_byte(n.q[3], slot), sx),
+                  bvh8_plane(n.origin.y, bvh8_byte(n.q[4], slot), sy),
+                  bvh8_plane(n.origin.z, bvh8_byte(n.q[5], slot), sz));
+    const bool hit = intersect_aabb(lo, hi, ray.o, inv_d, tmax) != kInfinity;
+    hits |= (hit && bvh8_byte(n.meta, slot) != 0) ? (1u << slot) : 0u;
+  }
+  const uint32_t oct = (inv_d.x < 0.0f ? 1u : 0u) | (inv_d.y < 0.0f ? 2u : 0u) |
+                       (inv_d.z < 0.0f ? 4u : 0u);
+  bool have = false;
+  uint32_t first = 0;
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (int i = kBvh8Width - 1; i >= 0; --i) {
+    const uint32_t slot = uint32_t(i) ^ oct;
+    if (!((hits >> slot) & 1u)) continue;
+    const uint32_t meta = bvh8_byte(n.meta, slot);
+    const uint32_t ref = (meta & 0x80u) ? n.child_base + (meta & 0x7fu)
+                                        : kBvhLeafBit | (n.prim_base + meta - 1u);
+    if (have) stack[c.sp++] = first;
+    first = ref;
+    have = true;
+  }
+  if (have) {
+    c.next = first;
+  } else {
+    c.have_next = c.sp > 0;
+    if (c.have_next) c.next = stack[--c.sp];
+  }
+}
+
 // One round of the traversal below: descend inner nodes, parking the first leaf found, until
 // the whole warp holds a leaf; then test the parked leaf and any leaf next in line. True when
 // the ray is done (the result in `hit`). traverse() runs rounds to the end for one ray; the
@@ -130,6 +186,17 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
                                             uint32_t* stack, TraversalCursor& c) {
   if (!(c.have_next || c.have_leaf)) return true;
   while (c.have_next && !is_leaf_ref(c.next)) {
+    if (s.nodes8) {
+      expand_node8(s.nodes8, c.next, ray, inv_d, tmax, stack, c);
+      if (c.have_next && is_leaf_ref(c.next) && !c.have_leaf) {
+        c.leaf = c.next;
+        c.have_leaf = true;
+        c.have_next = c.sp > 0;
+        if (c.have_next) c.next = stack[--c.sp];
+      }
+      if (warp_all(c.have_leaf)) break;
+      continue;
+    }
     float d[kBvhWidth];
     uint32_t r[kBvhWidth];
 #if defined(__CUDACC__)
@@ -174,8 +241,10 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
     if (c.have_next) c.next = stack[--c.sp];
   }
   // Test the parked leaf, then any leaf that is next in line.
+  const uint32_t* prims = s.nodes8 ? s.prim_indices8 : s.prim_indices;
   while (c.have_leaf) {
-    if (intersect_leaf<F, kAnyHit>(s, ray, setup, c.leaf, skip, skip2, tmax, hit)) return true;
+    if (intersect_leaf<F, kAnyHit>(s, prims, ray, setup, c.leaf, skip, skip2, tmax, hit))
+      return true;
     c.have_leaf = c.have_next && is_leaf_ref(c.next);
     if (c.have_leaf) {
       c.leaf = c.next;

@@ -56,6 +56,9 @@ struct CudaRenderer::Impl {
   // Scene.
   DeviceBuffer<BvhNode> nodes;
   DeviceBuffer<uint32_t> prim_indices;
+  DeviceBuffer<Bvh8Node> nodes8;  // the 8-wide compressed tree (empty where the scene has none)
+  DeviceBuffer<uint32_t> prim_indices8;
+  uint32_t node_count4 = 0;
   DeviceBuffer<TriangleVerts> tri_verts;
   DeviceBuffer<TriangleShading> tri_shading;
   DeviceBuffer<Sphere> spheres;
@@ -134,11 +137,17 @@ struct CudaRenderer::Impl {
   // the settings: after each change of any of them.
   void resolve() {
     if (!has_scene) return;
-    eff = resolve_gpu_options(opts, gpu_scene_traits(view, flat_available, cfg));
+    GpuSceneTraits traits = gpu_scene_traits(view, flat_available, cfg);
+    traits.bvh8_available = nodes8.size() > 0;
+    eff = resolve_gpu_options(opts, traits);
     view.use_flat = eff.options.flat_list ? 1u : 0u;
+    view.nodes8 = eff.bvh8 ? nodes8.get() : nullptr;
+    view.prim_indices8 = eff.bvh8 ? prim_indices8.get() : nullptr;
+    view.node_count = eff.bvh8 ? uint32_t(nodes8.size()) : node_count4;
   }
   std::string accel_name() const {
-    return view.use_flat ? "flat list of " + flat_text : "4-wide BVH";
+    return view.use_flat ? "flat list of " + flat_text
+                         : view.nodes8 ? "8-wide compressed BVH" : "4-wide BVH";
   }
   DeviceBuffer<double> clamp_sum;
   FilmView film_view(uint32_t sample) {
@@ -401,7 +410,8 @@ std::string CudaRenderer::device_name() const {
 void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) {
   Impl& m = *impl_;
   {
-    const size_t bvh = bytes_of(scene.nodes()) + bytes_of(scene.prim_indices());
+    const size_t bvh = bytes_of(scene.nodes()) + bytes_of(scene.prim_indices()) +
+                       bytes_of(scene.bvh8().nodes) + bytes_of(scene.bvh8().prim_indices);
     const size_t tris = bytes_of(scene.tri_verts()) + bytes_of(scene.tri_shading()) +
                         bytes_of(scene.tri_uvs());
     const InfiniteLightsData& inf = scene.infinite();
@@ -420,6 +430,8 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   }
   m.nodes.upload(scene.nodes());
   m.prim_indices.upload(scene.prim_indices());
+  m.nodes8.upload(scene.bvh8().nodes);
+  m.prim_indices8.upload(scene.bvh8().prim_indices);
   m.tri_verts.upload(scene.tri_verts());
   m.tri_shading.upload(scene.tri_shading());
   m.spheres.upload(scene.spheres());
@@ -448,6 +460,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.tri_to_flat = fl.enabled ? m.tri_to_flat.get() : nullptr;
   m.view.nodes = m.nodes.get();
   m.view.prim_indices = m.prim_indices.get();
+  m.node_count4 = scene.view().node_count;  // resolve() picks the 4- or the 8-wide tree
   m.view.tri_verts = m.tri_verts.get();
   m.view.tri_shading = m.tri_shading.get();
   m.view.spheres = m.spheres.get();
@@ -544,7 +557,8 @@ size_t CudaRenderer::path_state_bytes_per_pixel() const {
 
 size_t CudaRenderer::scene_bytes() const {
   const Impl& m = *impl_;
-  return m.nodes.bytes() + m.prim_indices.bytes() + m.tri_verts.bytes() + m.tri_shading.bytes() +
+  return m.nodes.bytes() + m.prim_indices.bytes() + m.nodes8.bytes() + m.prim_indices8.bytes() +
+         m.tri_verts.bytes() + m.tri_shading.bytes() +
          m.spheres.bytes() + m.materials.bytes() + m.lights.bytes() + m.light_cdf.bytes() +
          m.light_nodes.bytes() + m.light_leaves.bytes() + m.light_trails.bytes() +
          m.env_texels.bytes() + m.env_func.bytes() + m.env_cond_cdf.bytes() +

@@ -39,6 +39,11 @@ constexpr bool kUnfusedTailOn = true;
 #else
 constexpr bool kUnfusedTailOn = false;
 #endif
+#ifdef TRACER_VARIANT_BVH4
+constexpr bool kBvh4On = true;
+#else
+constexpr bool kBvh4On = false;
+#endif
 
 struct BuildVariant {
   bool on;
@@ -52,8 +57,9 @@ constexpr BuildVariant kRaysAtIds = {kRaysAtIdsOn, "rays-at-ids", "TRACER_VARIAN
 constexpr BuildVariant kUnfused = {kUnfusedOn, "unfused", "TRACER_VARIANT_UNFUSED"};
 constexpr BuildVariant kUnfusedTail = {kUnfusedTailOn, "unfused-tail",
                                        "TRACER_VARIANT_UNFUSED_TAIL"};
-constexpr const BuildVariant* kVariants[] = {&kNoFetch, &kGeneralSpecVariant, &kRaysAtIds,
-                                             &kUnfused, &kUnfusedTail};
+constexpr BuildVariant kBvh4 = {kBvh4On, "bvh4", "TRACER_VARIANT_BVH4"};
+constexpr const BuildVariant* kVariants[] = {&kNoFetch,  &kGeneralSpecVariant, &kRaysAtIds,
+                                             &kUnfused,  &kUnfusedTail,        &kBvh4};
 
 std::string variant_reason(const BuildVariant& v) {
   return std::string("build variant ") + v.name + " (" + v.macro + ")";
@@ -102,7 +108,9 @@ GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,
 }
 
 GpuSceneTraits gpu_scene_traits(const CompiledScene& scene, const IntegratorSettings& cfg) {
-  return gpu_scene_traits(scene.view(), scene.flat_list().enabled, cfg);
+  GpuSceneTraits t = gpu_scene_traits(scene.view(), scene.flat_list().enabled, cfg);
+  t.bvh8_available = !scene.bvh8().nodes.empty();
+  return t;
 }
 
 const GpuOverride* EffectiveGpuOptions::find(const std::string& name) const {
@@ -119,7 +127,8 @@ std::string EffectiveGpuOptions::describe() const {
                   on_off(o.flat_list) + ", tail " + fraction_text(o.tail_fraction) +
                   "; wavefront paths: rays at slots " + on_off(rays_at_slots) + ", fused trace " +
                   on_off(fused_trace) + ", fused tail " + on_off(fused_tail) + ", dynamic fetch " +
-                  on_off(dynamic_fetch) + ", specialised " + on_off(specialize) + "; build " +
+                  on_off(dynamic_fetch) + ", specialised " + on_off(specialize) +
+                  ", 8-wide BVH " + on_off(bvh8) + "; build " +
                   build_variant;
   if (o.kernel == KernelMode::kMegakernel) s += " (the megakernel runs no wavefront stages)";
   for (const GpuOverride& v : overrides)
@@ -211,6 +220,15 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
   else if (o.flat_list)
     why = "the flat list's loop ends for a whole warp at once: no lane waits for a new ray";
   e.dynamic_fetch = path("dynamic_fetch", why);
+
+  why.clear();
+  if (kBvh4.on)
+    why = variant_reason(kBvh4);
+  else if (o.flat_list)
+    why = "the flat list replaces the BVH";
+  else if (!scene.bvh8_available)
+    why = "a leaf of the scene's tree is too large for the 8-wide nodes to address";
+  e.bvh8 = path("bvh8", why);
 
   e.specialize =
       path("specialize", kGeneralSpecVariant.on ? variant_reason(kGeneralSpecVariant) : "");

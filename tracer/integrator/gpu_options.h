@@ -33,8 +33,10 @@ std::string compaction_name(Compaction c);   // auto, shade, cub, off
 //   TRACER_VARIANT_UNFUSED       each bounce's shadow stage and the next bounce's intersect stage
 //                                run as two launches (fused_trace off);
 //   TRACER_VARIANT_UNFUSED_TAIL  the tail's first bounce is traced by the tail itself, after a
-//                                shadow stage of its own (fused_tail off).
-// Their names: no-fetch, general-spec, rays-at-ids, unfused, unfused-tail. The code of each
+//                                shadow stage of its own (fused_tail off);
+//   TRACER_VARIANT_BVH4          the BVH walks use the 4-wide 128-byte nodes of bvh/bvh.h, not
+//                                the 8-wide compressed ones of bvh/bvh8.h (bvh8 off).
+// Their names: no-fetch, general-spec, rays-at-ids, unfused, unfused-tail, bvh4. The code of each
 // baseline stays: rays at ids and the unfused stages also serve sorting, random walks, CUB's
 // queues and the BVH. Returns "default", or the names of the build's variants joined by '+'
 // (e.g. "no-fetch+unfused"), as the bench labels its rows.
@@ -46,6 +48,7 @@ struct GpuSceneTraits {
   bool flat_available = false;  // the scene is small enough for the flat list (FlatList::enabled)
   bool jitter = true;           // the camera jitters samples within pixels
   bool depth_of_field = false;  // the camera's lens radius is above zero
+  bool bvh8_available = false;  // the compiled scene has an 8-wide tree (CompiledScene::bvh8)
 };
 // From a scene's view (its features and camera) and whether it has a flat list, or from the
 // compiled scene itself.
@@ -82,6 +85,8 @@ struct EffectiveGpuOptions {
   bool fused_tail = false;
   // The BVH's intersect stage: persistent warps whose lanes take new rays between rounds.
   bool dynamic_fetch = false;
+  // BVH walks (megakernel and wavefront) in the 8-wide compressed tree, not the 4-wide one.
+  bool bvh8 = false;
   // Kernels compiled for the scene's features only (spec), or the general ones (kGeneralSpec).
   bool specialize = false;
   uint32_t spec = 7;

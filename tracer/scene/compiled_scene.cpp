@@ -232,10 +232,12 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
       same_geometry->view().sphere_count == spheres_.size() && same_geometry->bvh_) {
     bvh_ = same_geometry->bvh_;
     cpu_bvh_ = same_geometry->cpu_bvh_;
+    bvh8_ = same_geometry->bvh8_;
     shared_bvh_ = true;
   } else {
     auto bvh = std::make_shared<Bvh>(build_bvh(bounds));
     cpu_bvh_ = std::make_shared<const CpuBvh>(build_cpu_bvh(*bvh, tri_verts_, tri_count));
+    bvh8_ = std::make_shared<const Bvh8>(build_bvh8(*bvh));
     bvh_ = std::move(bvh);
   }
   // With lights at infinity shadow rays leave the scene, so no entry may be skipped as hull.

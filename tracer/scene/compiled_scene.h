@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "bvh/bvh8.h"
 #include "scene/light_tree.h"
 #include "scene/scene.h"
 #include "scene/scene_view.h"
@@ -30,6 +31,10 @@ class CompiledScene {
 
   const std::vector<BvhNode>& nodes() const { return bvh_->nodes; }
   const CpuBvh& cpu_bvh() const { return *cpu_bvh_; }
+  // The 8-wide compressed tree the GPU walks (gpu.bvh wide8); no nodes where it cannot hold the
+  // scene's leaves (bvh8.h). view() leaves it out (the CPU walks its SSE tree); the GPU and the
+  // tests set TraceView::nodes8 and prim_indices8 from it.
+  const Bvh8& bvh8() const { return *bvh8_; }
   // The flat primitive list (bvh/flat_list.h); enabled only for small scenes. view() points at
   // it but leaves use_flat off: the backends choose.
   const FlatList& flat_list() const { return flat_; }
@@ -55,6 +60,7 @@ class CompiledScene {
   // Shared with the compiled scenes of later edits that keep the geometry.
   std::shared_ptr<const Bvh> bvh_;
   std::shared_ptr<const CpuBvh> cpu_bvh_;  // the CPU backend's SSE layout of bvh_ (bvh/cpu_bvh.h)
+  std::shared_ptr<const Bvh8> bvh8_;
   bool shared_bvh_ = false;
   FlatList flat_;
   std::vector<TriangleVerts> tri_verts_;
