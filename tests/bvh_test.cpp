@@ -2,8 +2,10 @@
 // any hit for occlusion, on random soups of triangles and spheres and on real meshes.
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <fstream>
 #include <iostream>
+#include <numeric>
 #include <random>
 
 #include "scene/loader.h"
@@ -208,6 +210,220 @@ TEST(Bvh, StanfordBunnyMatchesBruteForce) {
 
 TEST(Bvh, CornellBoxObjMatchesBruteForce) {
   check_mesh_file("/usr/share/doc/python3-tinyobjloader/examples/cornell_box.obj", 3000);
+}
+
+// ---- The parallel build: the same tree on every machine ----
+
+// Boxes of n random triangles, most in dense clusters of different spreads and the rest spread
+// out, so that the builder's top levels (nodes of 64K primitives or more, split one tree level
+// at a time over fixed chunks) and its sequential subtrees both meet uneven splits.
+std::vector<Aabb> random_triangle_boxes(uint32_t n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-100.0f, 100.0f), size(0.01f, 1.0f);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  vec3 centre[8];
+  float spread[8];
+  for (int c = 0; c < 8; ++c) {
+    centre[c] = vec3(u(rng), u(rng), u(rng));
+    spread[c] = 0.5f + 3.0f * float(c);
+  }
+  std::vector<Aabb> boxes(n);
+  for (Aabb& b : boxes) {
+    const int c = int(rng() % 10);  // 8 and 9: anywhere
+    const vec3 at =
+        c < 8 ? centre[c] + spread[c] * vec3(g(rng), g(rng), g(rng)) : vec3(u(rng), u(rng), u(rng));
+    const float s = size(rng);
+    for (int v = 0; v < 3; ++v) b.grow(at + s * vec3(g(rng), g(rng), g(rng)));
+  }
+  return boxes;
+}
+
+void expect_same_tree(const Bvh& a, const Bvh& b, const std::string& what) {
+  ASSERT_EQ(a.nodes.size(), b.nodes.size()) << what;
+  EXPECT_EQ(std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(BvhNode)), 0)
+      << what << ": the nodes differ";
+  EXPECT_TRUE(a.prim_indices == b.prim_indices) << what << ": the primitive order differs";
+  EXPECT_EQ(a.stats.node_count, b.stats.node_count) << what;
+  EXPECT_EQ(a.stats.binary_node_count, b.stats.binary_node_count) << what;
+  EXPECT_EQ(a.stats.leaf_count, b.stats.leaf_count) << what;
+  EXPECT_EQ(a.stats.max_depth, b.stats.max_depth) << what;
+  EXPECT_EQ(a.stats.max_stack, b.stats.max_stack) << what;
+  EXPECT_EQ(std::memcmp(&a.stats.sah_cost, &b.stats.sah_cost, sizeof(float)), 0)
+      << what << ": SAH cost " << a.stats.sah_cost << " vs " << b.stats.sah_cost;
+}
+
+void expect_each_primitive_once(const Bvh& bvh, size_t n) {
+  std::vector<int> seen(n, 0);
+  for (uint32_t e : bvh.prim_indices) seen[e & ~kBvhLastPrimBit]++;
+  int wrong = 0;
+  for (size_t i = 0; i < n; ++i)
+    if (seen[i] != 1 && wrong++ < 5) ADD_FAILURE() << "primitive " << i << " seen " << seen[i];
+}
+
+// The CPU and the GPU render from trees built on different machines, with different core
+// counts; images of one seed agree pixel for pixel only if the tree does not depend on them.
+TEST(Bvh, TreeIsTheSameForAnyThreadCount) {
+  const std::vector<Aabb> boxes = random_triangle_boxes(300000, 11);
+  const Bvh one = build_bvh(boxes, 4, 1);
+  expect_each_primitive_once(one, boxes.size());
+  EXPECT_LE(one.stats.max_stack, uint32_t(kBvhStackSize));
+  for (int threads : {2, 3, 8})
+    expect_same_tree(one, build_bvh(boxes, 4, threads), std::to_string(threads) + " threads");
+}
+
+// Empty, NaN, infinite, denormal and coincident boxes, enough of them that the top levels'
+// chunked passes see them too: one tree for any thread count, every primitive in one leaf.
+TEST(Bvh, DegenerateBoundsMakeTheSameTreeForAnyThreadCount) {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::nanf("");
+  const float big = std::numeric_limits<float>::max();
+  const float tiny = std::numeric_limits<float>::denorm_min();
+  std::vector<Aabb> boxes;
+  auto box = [&](vec3 lo, vec3 hi) {
+    Aabb b;
+    b.lo = lo;
+    b.hi = hi;
+    boxes.push_back(b);
+  };
+  for (int i = 0; i < 12000; ++i) {
+    const float x = float(i % 500);
+    box(vec3(x), vec3(x + 1));
+    box(vec3(-big), vec3(big));
+    box(vec3(x * tiny), vec3((x + 1) * tiny));
+    boxes.push_back(Aabb());  // empty
+    box(vec3(nan), vec3(nan));
+    box(vec3(-inf, x, x), vec3(inf, x + 1, x + 1));
+    box(vec3(3.0f), vec3(3.0f));  // coincident points
+  }
+  const Bvh one = build_bvh(boxes, 4, 1);
+  EXPECT_TRUE(std::isfinite(one.stats.sah_cost)) << one.stats.sah_cost;
+  EXPECT_LE(one.stats.max_stack, uint32_t(kBvhStackSize));
+  expect_each_primitive_once(one, boxes.size());
+  for (int threads : {2, 5})
+    expect_same_tree(one, build_bvh(boxes, 4, threads), std::to_string(threads) + " threads");
+}
+
+// A landscape of 160K triangles (the top levels split it before the subtrees do), with
+// triangles floating above it, built on every core: the nearest hits of brute force.
+TEST(Bvh, LargeSceneMatchesBruteForce) {
+  Scene s;
+  s.materials.push_back({"m", diffuse(vec3(0.5f))});
+  const int cells = 280;
+  auto height = [](float x, float z) {
+    return 2.0f * std::sin(0.11f * x) * std::cos(0.07f * z) + 0.3f * std::sin(1.3f * x + z);
+  };
+  for (int i = 0; i < cells; ++i) {
+    for (int j = 0; j < cells; ++j) {
+      const float x = float(i), z = float(j);
+      const vec3 a(x, height(x, z), z), b(x + 1, height(x + 1, z), z);
+      const vec3 c(x + 1, height(x + 1, z + 1), z + 1), d(x, height(x, z + 1), z + 1);
+      add_triangle(s.mesh, a, b, c, 0);
+      add_triangle(s.mesh, a, c, d, 0);
+    }
+  }
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, float(cells)), up(3.0f, 30.0f), small(-2, 2);
+  for (int i = 0; i < 3000; ++i) {
+    const vec3 c(u(rng), up(rng), u(rng));
+    add_triangle(s.mesh, c + vec3(small(rng), small(rng), small(rng)),
+                 c + vec3(small(rng), small(rng), small(rng)),
+                 c + vec3(small(rng), small(rng), small(rng)), 0);
+  }
+  check_against_brute_force(s, 300, "landscape");
+}
+
+// The SAH cost of the tree that the sequential builder made before the build ran in parallel
+// (bvh_build.cpp's history): 16 bins per axis over the centroid bounds, traversal and
+// intersection cost 1, leaves of up to 4 primitives unless splitting pays, nodes of more than
+// 16 always split, nothing split at depth kBvhStackSize - 4. For finite bounds.
+double sequential_sah_cost(const std::vector<Aabb>& bounds) {
+  constexpr int kBins = 16;
+  constexpr uint32_t kMaxLeaf = 4, kMaxDepth = kBvhStackSize - 4;
+  auto area = [](const Aabb& b) {
+    const glm::dvec3 e = glm::dvec3(b.hi) - glm::dvec3(b.lo);
+    return 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
+  };
+  auto bin_of = [](float c, float lo, float scale) {
+    const float f = (c - lo) * scale;
+    return f >= 0.0f ? int(std::min(f, float(kBins - 1))) : 0;
+  };
+  std::vector<uint32_t> prims(bounds.size());
+  std::iota(prims.begin(), prims.end(), 0u);
+  struct Range {
+    uint32_t first, count, depth;
+  };
+  std::vector<Range> stack{{0, uint32_t(prims.size()), 0}};
+  double sah = 0.0, root_area = 0.0;
+  while (!stack.empty()) {
+    const Range r = stack.back();
+    stack.pop_back();
+    Aabb box, cbox;
+    for (uint32_t i = r.first; i < r.first + r.count; ++i) {
+      box.grow(bounds[prims[i]]);
+      cbox.grow(bounds[prims[i]].centroid());
+    }
+    if (r.count == prims.size()) root_area = area(box);
+    const float leaf_cost = float(r.count);
+    int best_axis = -1, best_split = 0;
+    float best_cost = leaf_cost;
+    for (int axis = 0; axis < 3 && r.count > 1 && r.depth < kMaxDepth; ++axis) {
+      const float lo = cbox.lo[axis], hi = cbox.hi[axis];
+      if (!(hi > lo)) continue;
+      Aabb bin_box[kBins];
+      uint32_t bin_count[kBins] = {};
+      const float scale = float(kBins) / (hi - lo);
+      for (uint32_t i = r.first; i < r.first + r.count; ++i) {
+        const int b = bin_of(bounds[prims[i]].centroid()[axis], lo, scale);
+        bin_count[b]++;
+        bin_box[b].grow(bounds[prims[i]]);
+      }
+      const float inv_area = 1.0f / std::max(box.area(), 1e-30f);
+      for (int split = 1; split < kBins; ++split) {
+        Aabb left, right;
+        uint32_t nl = 0, nr = 0;
+        for (int b = 0; b < kBins; ++b) {
+          (b < split ? left : right).grow(bin_box[b]);
+          (b < split ? nl : nr) += bin_count[b];
+        }
+        if (nl == 0 || nr == 0) continue;
+        const float cost = 1.0f + inv_area * (left.area() * float(nl) + right.area() * float(nr));
+        if (cost < best_cost) {
+          best_cost = cost;
+          best_axis = axis;
+          best_split = split;
+        }
+      }
+    }
+    if (best_axis < 0 && r.count > 4 * kMaxLeaf && r.depth < kMaxDepth) best_axis = 3;
+    if (best_axis < 0 || (r.count <= kMaxLeaf && best_cost >= leaf_cost)) {
+      sah += area(box) * r.count;
+      continue;
+    }
+    uint32_t* first = prims.data() + r.first;
+    uint32_t* mid = first + r.count / 2;
+    if (best_axis < 3) {
+      const float lo = cbox.lo[best_axis];
+      const float scale = float(kBins) / (cbox.hi[best_axis] - lo);
+      mid = std::partition(first, first + r.count, [&](uint32_t p) {
+        return bin_of(bounds[p].centroid()[best_axis], lo, scale) < best_split;
+      });
+    }
+    const uint32_t left = uint32_t(mid - first);
+    sah += area(box);
+    stack.push_back({r.first, left, r.depth + 1});
+    stack.push_back({r.first + left, r.count - left, r.depth + 1});
+  }
+  return sah / root_area;
+}
+
+// Building in parallel must not cost tree quality: the SAH cost of the binary tree (before the
+// collapse) within 1% of the sequential builder's on the same boxes.
+TEST(Bvh, ParallelBuildKeepsTheSequentialSahCost) {
+  const std::vector<Aabb> boxes = random_triangle_boxes(300000, 11);
+  const double reference = sequential_sah_cost(boxes);
+  const Bvh bvh = build_bvh(boxes, 4, 2);
+  std::cout << "[   NOTE   ] SAH cost " << bvh.stats.sah_cost << ", sequential builder "
+            << reference << "\n";
+  EXPECT_NEAR(bvh.stats.sah_cost, reference, 0.01 * reference);
 }
 
 }  // namespace

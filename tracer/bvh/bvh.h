@@ -128,7 +128,9 @@ struct Bvh {
 
 // Binned SAH build (Wald, "On fast Construction of SAH-based Bounding Volume Hierarchies", 2007)
 // of a binary tree over primitives given by their bounds and centroids, collapsed into a 4-wide
-// tree whose traversal stack cannot overflow kBvhStackSize.
-Bvh build_bvh(const std::vector<Aabb>& prim_bounds, int max_leaf_size = 4);
+// tree whose traversal stack cannot overflow kBvhStackSize. It runs on `threads` threads (0: one
+// per core), and the tree (nodes, prim_indices and stats but build_ms) is the same for any
+// number of them, so that every machine renders the same image.
+Bvh build_bvh(const std::vector<Aabb>& prim_bounds, int max_leaf_size = 4, int threads = 0);
 
 }  // namespace tracer
