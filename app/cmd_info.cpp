@@ -98,7 +98,8 @@ int run_info(const InfoOptions& o) {
   j["warnings"] = scene.diagnostics.warnings;
   j["notes"] = scene.diagnostics.notes;  // e.g. why a mesh file got this camera and light
   const tracer::Bvh8& b8 = cs.bvh8();
-  j["bvh8"] = {{"nodes", b8.stats.node_count},
+  if (tracer::kBvh8Build)
+    j["bvh8"] = {{"nodes", b8.stats.node_count},
                {"leaves", b8.stats.leaf_count},
                {"max_stack", b8.stats.max_stack},
                {"depth", b8.stats.max_depth},
@@ -170,7 +171,7 @@ int run_info(const InfoOptions& o) {
             << " KiB), depth " << st.max_depth << ", SAH cost " << std::fixed
             << std::setprecision(2) << st.sah_cost << ", built in " << std::setprecision(2)
             << st.build_ms << " ms\n"
-            << "bvh8        " << bvh8_text(cs.bvh8()) << "\n"
+            << (tracer::kBvh8Build ? "bvh8        " + bvh8_text(cs.bvh8()) + "\n" : "")
             << "light tree  " << lt.nodes.size() << " nodes over " << lt.leaves.size()
             << " lights (" << lt.leaf_count << " leaves), depth " << lt.depth << ", built in "
             << std::setprecision(2) << lt.build_ms << " ms\n"

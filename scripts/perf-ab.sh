@@ -27,6 +27,7 @@ scene_file() {
   case "$1" in
     cornell_bunnies) echo /tmp/cornell_bunnies.json ;;
     textured) echo assets/scenes/textured.gltf ;;
+    engine) echo "$D/2CylinderEngine.glb" ;;  # Debian's assimp-testmodels, carried in $D
     *) echo "assets/scenes/$1.json" ;;
   esac
 }

@@ -44,7 +44,14 @@ def main():
         err = (r.get("error") or {}).get("configs") or [{}]
         t = err[0].get("time_to_1e-2_s")
         ext = err[0].get("extrapolated_1e-2")
-        tt = "-" if t is None or t < 0 else (("~" if ext else "") + f"{t:.3g} s")
+        last = (err[0].get("checkpoints") or [{}])[-1]
+        if t is None or t < 0:
+            tt = "-"
+        elif ext and last.get("seconds") and t > 10 * last["seconds"]:
+            # Far past the sweep: say where it stopped instead of an extrapolation.
+            tt = f"not reached: {last['relmse']:.2g} at {last['seconds']:.3g} s"
+        else:
+            tt = ("~" if ext else "") + f"{t:.3g} s"
         mem = r.get("scene_device_bytes")
         per_tri = (f"{bvh['bytes'] / tris:.1f}" if tris and bvh.get("bytes") else "-") + ", " + \
             (f"{mem / tris:.1f} ({mem / 2**20:,.1f} MiB)" if tris and mem else "-")

@@ -4,6 +4,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <numeric>
 #include <random>
@@ -79,6 +80,75 @@ void check_view(const SceneView& v, vec3 lo, vec3 hi, int rays, const std::strin
   EXPECT_GT(hits, rays / 10) << what << ": the rays should hit something often";
 }
 
+// The 8-wide tree holds every primitive once, within the stack bound, and each decoded child box
+// contains the boxes of all primitives below it.
+void check_bvh8_boxes(const CompiledScene& cs, const Bvh8& b8, const std::string& what) {
+  if (b8.nodes.empty()) return;
+  EXPECT_LE(b8.stats.max_stack, uint32_t(kBvhStackSize)) << what;
+  ASSERT_EQ(b8.prim_indices.size(), cs.prim_indices().size()) << what;
+  const SceneView& v = cs.view();
+  std::vector<int> seen(v.tri_count + v.sphere_count, 0);
+  auto prim_box = [&](uint32_t p) {
+    Aabb b;
+    if (p < v.tri_count) {
+      b.grow(v.tri_verts[p].v0);
+      b.grow(v.tri_verts[p].v1);
+      b.grow(v.tri_verts[p].v2);
+    } else {
+      const Sphere& s = v.spheres[p - v.tri_count];
+      b.grow(s.center - vec3(s.radius));
+      b.grow(s.center + vec3(s.radius));
+    }
+    return b;
+  };
+  // Every primitive below node n, gathered by walking down.
+  std::function<void(uint32_t, std::vector<uint32_t>&)> below = [&](uint32_t n,
+                                                                    std::vector<uint32_t>& out) {
+    const Bvh8Node& node = b8.nodes[n];
+    for (uint32_t s = 0; s < 8; ++s) {
+      const uint32_t meta = bvh8_byte(node.meta, s);
+      if (meta == 0) continue;
+      if (meta & 0x80u) {
+        below(node.child_base + (meta & 0x7fu), out);
+        continue;
+      }
+      for (uint32_t i = node.prim_base + meta - 1;; ++i) {
+        out.push_back(b8.prim_indices[i] & ~kBvhLastPrimBit);
+        if (b8.prim_indices[i] & kBvhLastPrimBit) break;
+      }
+    }
+  };
+  int bad = 0;
+  for (uint32_t n = 0; n < b8.nodes.size(); ++n) {
+    const Bvh8Node& node = b8.nodes[n];
+    for (uint32_t s = 0; s < 8; ++s) {
+      const uint32_t meta = bvh8_byte(node.meta, s);
+      if (meta == 0) continue;
+      std::vector<uint32_t> prims;
+      if (meta & 0x80u) {
+        below(node.child_base + (meta & 0x7fu), prims);
+      } else {
+        for (uint32_t i = node.prim_base + meta - 1;; ++i) {
+          prims.push_back(b8.prim_indices[i] & ~kBvhLastPrimBit);
+          ++seen[prims.back()];
+          if (b8.prim_indices[i] & kBvhLastPrimBit) break;
+        }
+      }
+      const Aabb box = bvh8_child_box(node, s);
+      for (uint32_t p : prims) {
+        const Aabb pb = prim_box(p);
+        const bool inside = glm::all(glm::lessThanEqual(box.lo, pb.lo)) &&
+                            glm::all(glm::lessThanEqual(pb.hi, box.hi));
+        if (!inside && bad++ < 3)
+          ADD_FAILURE() << what << ": node " << n << " slot " << s << " does not hold prim " << p;
+      }
+    }
+  }
+  for (size_t p = 0; p < seen.size(); ++p)
+    if (seen[p] != 1 && bad++ < 6)
+      ADD_FAILURE() << what << ": prim " << p << " in " << seen[p] << " leaves of the 8-wide tree";
+}
+
 // Both traversals against brute force, and the CPU's SSE traversal (bvh/cpu_bvh.h) against the
 // shared one it must reproduce bit for bit: the same primitive, t and barycentrics, also when
 // the nearest primitive is skipped (as the integrator skips a shadow ray's light).
@@ -88,16 +158,17 @@ void check_against_brute_force(const Scene& scene, int rays, const std::string& 
   SceneView shared = cs.view();
   shared.cpu_bvh = CpuBvhView();
   check_view(shared, box.lo, box.hi, rays, what + " (shared traversal)");
-  // The 8-wide compressed tree the GPU walks, through the same shared traversal.
-  ASSERT_FALSE(cs.bvh8().nodes.empty() && !scene.mesh.indices.empty()) << what << ": no 8-wide tree";
-  if (!cs.bvh8().nodes.empty()) {
+  // The 8-wide compressed tree of bvh8 builds, through the same shared traversal (compiled
+  // there only; other builds check its boxes and primitives).
+  const Bvh8 b8 = build_bvh8(cs.bvh());
+  ASSERT_FALSE(b8.nodes.empty() && !scene.mesh.indices.empty()) << what << ": no 8-wide tree";
+  check_bvh8_boxes(cs, b8, what);
+  if (kBvh8Build && !b8.nodes.empty()) {
     SceneView wide8 = shared;
-    wide8.nodes8 = cs.bvh8().nodes.data();
-    wide8.prim_indices8 = cs.bvh8().prim_indices.data();
-    wide8.node_count = uint32_t(cs.bvh8().nodes.size());
+    wide8.nodes8 = b8.nodes.data();
+    wide8.prim_indices8 = b8.prim_indices.data();
+    wide8.node_count = uint32_t(b8.nodes.size());
     check_view(wide8, box.lo, box.hi, rays, what + " (8-wide traversal)");
-    EXPECT_LE(cs.bvh8().stats.max_stack, uint32_t(kBvhStackSize)) << what;
-    EXPECT_EQ(cs.bvh8().prim_indices.size(), cs.prim_indices().size()) << what;
   }
   if (!cpu_bvh_supported()) {
     std::cout << "[   NOTE   ] no SSE traversal in this build; only the shared one was checked\n";

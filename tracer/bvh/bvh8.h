@@ -1,4 +1,6 @@
-// The 8-wide compressed BVH the GPU traverses by default (gpu.bvh wide8): 80-byte nodes whose
+// An 8-wide compressed BVH, a build variant for now (TRACER_VARIANT_BVH8 in both the C++ and the
+// CUDA flags: the walk in bvh/traverse.h is compiled only there, since beside the 4-wide walk it
+// costs the megakernels registers; PERFORMANCE.md, row 93): 80-byte nodes whose
 // eight child boxes are quantised to 8 bits per plane against the node's origin and a
 // power-of-two scale per axis, children stored in slots ordered by ray octant, in the spirit of
 // Ylitie, Karras & Laine, "Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide
@@ -17,6 +19,13 @@
 namespace tracer {
 
 constexpr int kBvh8Width = 8;
+
+// Whether this build walks the 8-wide tree (and CompiledScene builds it).
+#if defined(TRACER_VARIANT_BVH8)
+constexpr bool kBvh8Build = true;
+#else
+constexpr bool kBvh8Build = false;
+#endif
 
 // One node: 80 bytes, five 16-byte loads on the GPU.
 //  origin: the node box's lower corner; exps: bits 0-23 the biased exponents (IEEE single:

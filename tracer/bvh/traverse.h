@@ -16,8 +16,9 @@ namespace tracer {
 struct TraceView {
   const BvhNode* nodes = nullptr;
   const uint32_t* prim_indices = nullptr;
-  // The 8-wide compressed tree (bvh/bvh8.h) and its primitive order: when set, the BVH walk
-  // uses it instead of `nodes` and `prim_indices`; node_count is then its node count.
+  // The 8-wide compressed tree (bvh/bvh8.h) and its primitive order: when set, the BVH walk of a
+  // bvh8 build (TRACER_VARIANT_BVH8) uses it instead of `nodes` and `prim_indices`; node_count
+  // is then its node count. Other builds compile no 8-wide walk and ignore them.
   const Bvh8Node* nodes8 = nullptr;
   const uint32_t* prim_indices8 = nullptr;
   const TriangleVerts* tri_verts = nullptr;
@@ -153,13 +154,17 @@ TRACER_HD TRACER_INLINE void expand_node8(const Bvh8Node* nodes, uint32_t node, 
                        (inv_d.z < 0.0f ? 4u : 0u);
   bool have = false;
   uint32_t first = 0;
+  // The slots' meta bytes as one 64-bit value: the order below picks slots by a run-time index,
+  // which a shift of a register can follow where an array index would send the node to local
+  // memory.
+  const uint64_t metas = uint64_t(n.meta[0]) | uint64_t(n.meta[1]) << 32;
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
   for (int i = kBvh8Width - 1; i >= 0; --i) {
     const uint32_t slot = uint32_t(i) ^ oct;
     if (!((hits >> slot) & 1u)) continue;
-    const uint32_t meta = bvh8_byte(n.meta, slot);
+    const uint32_t meta = uint32_t(metas >> (8u * slot)) & 0xffu;
     const uint32_t ref = (meta & 0x80u) ? n.child_base + (meta & 0x7fu)
                                         : kBvhLeafBit | (n.prim_base + meta - 1u);
     if (have) stack[c.sp++] = first;
@@ -186,6 +191,7 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
                                             uint32_t* stack, TraversalCursor& c) {
   if (!(c.have_next || c.have_leaf)) return true;
   while (c.have_next && !is_leaf_ref(c.next)) {
+#if defined(TRACER_VARIANT_BVH8)
     if (s.nodes8) {
       expand_node8(s.nodes8, c.next, ray, inv_d, tmax, stack, c);
       if (c.have_next && is_leaf_ref(c.next) && !c.have_leaf) {
@@ -197,6 +203,7 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
       if (warp_all(c.have_leaf)) break;
       continue;
     }
+#endif
     float d[kBvhWidth];
     uint32_t r[kBvhWidth];
 #if defined(__CUDACC__)
@@ -241,7 +248,11 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
     if (c.have_next) c.next = stack[--c.sp];
   }
   // Test the parked leaf, then any leaf that is next in line.
+#if defined(TRACER_VARIANT_BVH8)
   const uint32_t* prims = s.nodes8 ? s.prim_indices8 : s.prim_indices;
+#else
+  const uint32_t* prims = s.prim_indices;
+#endif
   while (c.have_leaf) {
     if (intersect_leaf<F, kAnyHit>(s, prims, ray, setup, c.leaf, skip, skip2, tmax, hit))
       return true;

@@ -4,6 +4,7 @@
 
 #include <cstdio>
 
+#include "bvh/bvh8.h"
 #include "bvh/flat_list.h"
 #include "core/features.h"
 #include "integrator/path.h"
@@ -39,11 +40,6 @@ constexpr bool kUnfusedTailOn = true;
 #else
 constexpr bool kUnfusedTailOn = false;
 #endif
-#ifdef TRACER_VARIANT_BVH4
-constexpr bool kBvh4On = true;
-#else
-constexpr bool kBvh4On = false;
-#endif
 
 struct BuildVariant {
   bool on;
@@ -57,9 +53,9 @@ constexpr BuildVariant kRaysAtIds = {kRaysAtIdsOn, "rays-at-ids", "TRACER_VARIAN
 constexpr BuildVariant kUnfused = {kUnfusedOn, "unfused", "TRACER_VARIANT_UNFUSED"};
 constexpr BuildVariant kUnfusedTail = {kUnfusedTailOn, "unfused-tail",
                                        "TRACER_VARIANT_UNFUSED_TAIL"};
-constexpr BuildVariant kBvh4 = {kBvh4On, "bvh4", "TRACER_VARIANT_BVH4"};
+constexpr BuildVariant kBvh8 = {kBvh8Build, "bvh8", "TRACER_VARIANT_BVH8"};
 constexpr const BuildVariant* kVariants[] = {&kNoFetch,  &kGeneralSpecVariant, &kRaysAtIds,
-                                             &kUnfused,  &kUnfusedTail,        &kBvh4};
+                                             &kUnfused,  &kUnfusedTail,        &kBvh8};
 
 std::string variant_reason(const BuildVariant& v) {
   return std::string("build variant ") + v.name + " (" + v.macro + ")";
@@ -221,14 +217,14 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
     why = "the flat list's loop ends for a whole warp at once: no lane waits for a new ray";
   e.dynamic_fetch = path("dynamic_fetch", why);
 
+  // The 8-wide tree: only a bvh8 build walks it (no override is listed elsewhere), there where
+  // the BVH is walked and the scene has one.
   why.clear();
-  if (kBvh4.on)
-    why = variant_reason(kBvh4);
-  else if (o.flat_list)
+  if (kBvh8.on && o.flat_list)
     why = "the flat list replaces the BVH";
-  else if (!scene.bvh8_available)
+  else if (kBvh8.on && !scene.bvh8_available)
     why = "a leaf of the scene's tree is too large for the 8-wide nodes to address";
-  e.bvh8 = path("bvh8", why);
+  e.bvh8 = kBvh8.on && path("bvh8", why);
 
   e.specialize =
       path("specialize", kGeneralSpecVariant.on ? variant_reason(kGeneralSpecVariant) : "");

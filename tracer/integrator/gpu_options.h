@@ -33,10 +33,12 @@ std::string compaction_name(Compaction c);   // auto, shade, cub, off
 //   TRACER_VARIANT_UNFUSED       each bounce's shadow stage and the next bounce's intersect stage
 //                                run as two launches (fused_trace off);
 //   TRACER_VARIANT_UNFUSED_TAIL  the tail's first bounce is traced by the tail itself, after a
-//                                shadow stage of its own (fused_tail off);
-//   TRACER_VARIANT_BVH4          the BVH walks use the 4-wide 128-byte nodes of bvh/bvh.h, not
-//                                the 8-wide compressed ones of bvh/bvh8.h (bvh8 off).
-// Their names: no-fetch, general-spec, rays-at-ids, unfused, unfused-tail, bvh4. The code of each
+//                                shadow stage of its own (fused_tail off).
+// And one experiment that turns a path on rather than off, so far slower (PERFORMANCE.md, row
+// 93); it also needs the macro in the CUDA flags, which compile its walk:
+//   TRACER_VARIANT_BVH8          the BVH walks use the 8-wide compressed nodes of bvh/bvh8.h
+//                                instead of the 4-wide ones of bvh/bvh.h (bvh8 on).
+// Their names: no-fetch, general-spec, rays-at-ids, unfused, unfused-tail, bvh8. The code of each
 // baseline stays: rays at ids and the unfused stages also serve sorting, random walks, CUB's
 // queues and the BVH. Returns "default", or the names of the build's variants joined by '+'
 // (e.g. "no-fetch+unfused"), as the bench labels its rows.
@@ -85,7 +87,8 @@ struct EffectiveGpuOptions {
   bool fused_tail = false;
   // The BVH's intersect stage: persistent warps whose lanes take new rays between rounds.
   bool dynamic_fetch = false;
-  // BVH walks (megakernel and wavefront) in the 8-wide compressed tree, not the 4-wide one.
+  // BVH walks (megakernel and wavefront) in the 8-wide compressed tree, not the 4-wide one
+  // (bvh8 builds only).
   bool bvh8 = false;
   // Kernels compiled for the scene's features only (spec), or the general ones (kGeneralSpec).
   bool specialize = false;

@@ -237,7 +237,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
   } else {
     auto bvh = std::make_shared<Bvh>(build_bvh(bounds));
     cpu_bvh_ = std::make_shared<const CpuBvh>(build_cpu_bvh(*bvh, tri_verts_, tri_count));
-    bvh8_ = std::make_shared<const Bvh8>(build_bvh8(*bvh));
+    bvh8_ = std::make_shared<const Bvh8>(kBvh8Build ? build_bvh8(*bvh) : Bvh8());
     bvh_ = std::move(bvh);
   }
   // With lights at infinity shadow rays leave the scene, so no entry may be skipped as hull.

@@ -31,10 +31,11 @@ class CompiledScene {
 
   const std::vector<BvhNode>& nodes() const { return bvh_->nodes; }
   const CpuBvh& cpu_bvh() const { return *cpu_bvh_; }
-  // The 8-wide compressed tree the GPU walks (gpu.bvh wide8); no nodes where it cannot hold the
+  // The 8-wide compressed tree a bvh8 build's GPU walks; no nodes where it cannot hold the
   // scene's leaves (bvh8.h). view() leaves it out (the CPU walks its SSE tree); the GPU and the
   // tests set TraceView::nodes8 and prim_indices8 from it.
-  const Bvh8& bvh8() const { return *bvh8_; }
+  const Bvh8& bvh8() const { return *bvh8_; }  // empty unless kBvh8Build
+  const Bvh& bvh() const { return *bvh_; }
   // The flat primitive list (bvh/flat_list.h); enabled only for small scenes. view() points at
   // it but leaves use_flat off: the backends choose.
   const FlatList& flat_list() const { return flat_; }
