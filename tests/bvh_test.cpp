@@ -345,26 +345,7 @@ TEST(Bvh, TreeIsTheSameForAnyThreadCount) {
 // Empty, NaN, infinite, denormal and coincident boxes, enough of them that the top levels'
 // chunked passes see them too: one tree for any thread count, every primitive in one leaf.
 TEST(Bvh, DegenerateBoundsMakeTheSameTreeForAnyThreadCount) {
-  const float inf = std::numeric_limits<float>::infinity(), nan = std::nanf("");
-  const float big = std::numeric_limits<float>::max();
-  const float tiny = std::numeric_limits<float>::denorm_min();
-  std::vector<Aabb> boxes;
-  auto box = [&](vec3 lo, vec3 hi) {
-    Aabb b;
-    b.lo = lo;
-    b.hi = hi;
-    boxes.push_back(b);
-  };
-  for (int i = 0; i < 12000; ++i) {
-    const float x = float(i % 500);
-    box(vec3(x), vec3(x + 1));
-    box(vec3(-big), vec3(big));
-    box(vec3(x * tiny), vec3((x + 1) * tiny));
-    boxes.push_back(Aabb());  // empty
-    box(vec3(nan), vec3(nan));
-    box(vec3(-inf, x, x), vec3(inf, x + 1, x + 1));
-    box(vec3(3.0f), vec3(3.0f));  // coincident points
-  }
+  const std::vector<Aabb> boxes = degenerate_boxes(12000, 500);
   const Bvh one = build_bvh(boxes, 4, 1);
   EXPECT_TRUE(std::isfinite(one.stats.sah_cost)) << one.stats.sah_cost;
   EXPECT_LE(one.stats.max_stack, uint32_t(kBvhStackSize));

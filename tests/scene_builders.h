@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <thread>
 #include <vector>
@@ -243,6 +244,34 @@ inline void expect_same_means(const PixelStats& a, const PixelStats& b, const st
     if (std::abs(zs[i]) > zmax && failures++ < 5)
       ADD_FAILURE() << what << ": block " << i / 3 << " channel " << i % 3 << " z = " << zs[i];
   EXPECT_NEAR(a.image_mean().y, b.image_mean().y, 0.02 * b.image_mean().y) << what;
+}
+
+// Bounds a caller may hand the BVH builder, `rounds` times eight: a unit box, the whole float
+// range, denormal, empty, NaN, infinite in x, at the top of the float range and a point (x runs
+// over 0..period-1).
+inline std::vector<Aabb> degenerate_boxes(int rounds, int period) {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::nanf("");
+  const float big = std::numeric_limits<float>::max();
+  const float tiny = std::numeric_limits<float>::denorm_min();
+  std::vector<Aabb> boxes;
+  auto box = [&](vec3 lo, vec3 hi) {
+    Aabb b;
+    b.lo = lo;
+    b.hi = hi;
+    boxes.push_back(b);
+  };
+  for (int i = 0; i < rounds; ++i) {
+    const float x = float(i % period);
+    box(vec3(x), vec3(x + 1));
+    box(vec3(-big), vec3(big));
+    box(vec3(x * tiny), vec3((x + 1) * tiny));
+    boxes.push_back(Aabb());  // empty
+    box(vec3(nan), vec3(nan));
+    box(vec3(-inf, x, x), vec3(inf, x + 1, x + 1));
+    box(vec3(big - x, 0, 0), vec3(big, 1, 1));
+    box(vec3(3.0f), vec3(3.0f));  // coincident points
+  }
+  return boxes;
 }
 
 }  // namespace test

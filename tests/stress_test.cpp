@@ -340,26 +340,7 @@ TEST(Stress, ScaledDownSceneRendersTheSame) {
 // in extent, denormal, all in one place. Every primitive ends in exactly one leaf and the SAH
 // cost is finite (the bins of a NaN centroid were int(NaN), an out-of-range index).
 TEST(Stress, BvhBuilderTakesAnyBounds) {
-  const float inf = std::numeric_limits<float>::infinity(), nan = std::nanf("");
-  const float big = std::numeric_limits<float>::max(),
-              tiny = std::numeric_limits<float>::denorm_min();
-  std::vector<Aabb> boxes;
-  auto box = [&](vec3 lo, vec3 hi) {
-    Aabb b;
-    b.lo = lo;
-    b.hi = hi;
-    boxes.push_back(b);
-  };
-  for (int i = 0; i < 40; ++i) {
-    const float x = float(i);
-    box(vec3(x), vec3(x + 1));
-    box(vec3(-big), vec3(big));
-    box(vec3(x * tiny), vec3((x + 1) * tiny));
-    boxes.push_back(Aabb());  // empty
-    box(vec3(nan), vec3(nan));
-    box(vec3(-inf, x, x), vec3(inf, x + 1, x + 1));
-    box(vec3(big - x, 0, 0), vec3(big, 1, 1));
-  }
+  const std::vector<Aabb> boxes = degenerate_boxes(40, 40);
   const Bvh bvh = build_bvh(boxes);
   EXPECT_TRUE(std::isfinite(bvh.stats.sah_cost)) << bvh.stats.sah_cost;
   std::vector<int> seen(boxes.size(), 0);
