@@ -111,8 +111,10 @@ bool Workbench::finish_loading(bool wait, std::string* error) {
     return false;
   }
   char buf[128];
-  std::snprintf(buf, sizeof buf, ": %zu triangles, %zu spheres in %.1f s",
-                l->scene.mesh.indices.size(), l->scene.spheres.size(), seconds_since(l->start));
+  const size_t spheres = l->scene.spheres.size();
+  std::snprintf(buf, sizeof buf, ": %zu triangles%s in %.1f s", l->scene.mesh.indices.size(),
+                spheres ? (", " + std::to_string(spheres) + " spheres").c_str() : "",
+                seconds_since(l->start));
   last_load_ = "loaded " + name + buf;
   scene_ = std::move(l->scene);
   initial_camera_ = scene_.camera;

@@ -107,7 +107,7 @@ class Workbench {
   bool start_loading(const std::string& path, std::string* error);
   bool loading() const { return load_ != nullptr; }
   // While loading: "terrain_10m.json: building the BVH (3.2 s)"; afterwards what the last load
-  // did: "loaded terrain_10m.json: 10008338 triangles, 0 spheres in 4.1 s" or its error.
+  // did: "loaded terrain_10m.json: 10008338 triangles in 4.1 s" or its error.
   std::string loading_status() const;
   // Writes the current image (PNG tone-mapped with the display settings, or EXR linear) and its
   // JSON sidecar, atomically. Returns "" or the error.
