@@ -197,7 +197,21 @@ void Workbench::rebuild(bool geometry) {
                                     geometry ? nullptr : compiled_.get());
   ready_compiled_.reset();
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(scene_.settings);
-  if (async_) {
+  if (!async_) {
+    try {
+      renderer_->set_gpu_options(scene_.gpu);
+      renderer_->set_scene(*compiled_, cfg);
+      reset_stats();
+      return;
+    } catch (const std::exception& e) {
+      // E.g. more than the GPU's free memory (the message says what is needed and free): the
+      // CPU backend renders the scene instead of the window ending.
+      std::string err;
+      if (!set_backend(tracer::BackendChoice::kCpu, &err)) throw;
+      messages.error(std::string(e.what()) + "; switched to the CPU backend");
+    }
+  }
+  {
     std::lock_guard<std::mutex> lk(mutex_);
     worker_scene_ = compiled_;
     worker_cfg_ = cfg;
@@ -210,9 +224,6 @@ void Workbench::rebuild(bool geometry) {
     worker_relmse_ = -1.0;
     worker_nonfinite_ = 0;
     wake_.notify_all();
-  } else {
-    renderer_->set_gpu_options(scene_.gpu);
-    renderer_->set_scene(*compiled_, cfg);
   }
   reset_stats();
 }
