@@ -125,6 +125,14 @@ struct TraversalCursor {
   bool have_leaf;
 };
 
+// Takes the reference next in line (a leaf) as the leaf to test and pops the one after it (the
+// caller sets have_leaf).
+TRACER_HD TRACER_INLINE void take_next_leaf(TraversalCursor& c, const uint32_t* stack) {
+  c.leaf = c.next;
+  c.have_next = c.sp > 0;
+  if (c.have_next) c.next = stack[--c.sp];
+}
+
 // One step of the walk in the 8-wide tree: tests the eight child boxes of inner node `node`
 // (decoded from their 8-bit planes, then the slab test of bvh.h), goes on with the first child
 // hit in the ray's octant order and pushes the others hit, so that they pop in that order (the
@@ -192,60 +200,50 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
   if (!(c.have_next || c.have_leaf)) return true;
   while (c.have_next && !is_leaf_ref(c.next)) {
 #if defined(TRACER_VARIANT_BVH8)
-    if (s.nodes8) {
+    if (s.nodes8)
       expand_node8(s.nodes8, c.next, ray, inv_d, tmax, stack, c);
-      if (c.have_next && is_leaf_ref(c.next) && !c.have_leaf) {
-        c.leaf = c.next;
-        c.have_leaf = true;
+    else
+#endif
+    {
+      float d[kBvhWidth];
+      uint32_t r[kBvhWidth];
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+      for (int i = 0; i < kBvhWidth; ++i) {
+        const BvhSlot slot = load_slot(s.nodes, c.next, i);
+        d[i] = intersect_aabb(slot.lo, slot.hi, ray.o, inv_d, tmax);
+        r[i] = slot.ref;
+      }
+      if (!kAnyHit) {
+        order_pair(d[0], r[0], d[1], r[1]);
+        order_pair(d[2], r[2], d[3], r[3]);
+        order_pair(d[0], r[0], d[2], r[2]);
+        order_pair(d[1], r[1], d[3], r[3]);
+        order_pair(d[1], r[1], d[2], r[2]);
+      }
+      // Push the farther children that were hit, farthest first; go on with the nearest.
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+      for (int i = kBvhWidth - 1; i > 0; --i)
+        if (d[i] != kInfinity) stack[c.sp++] = r[i];
+      if (d[0] != kInfinity) {
+        c.next = r[0];
+      } else {
         c.have_next = c.sp > 0;
         if (c.have_next) c.next = stack[--c.sp];
       }
-      if (warp_all(c.have_leaf)) break;
-      continue;
-    }
-#endif
-    float d[kBvhWidth];
-    uint32_t r[kBvhWidth];
-#if defined(__CUDACC__)
-#pragma unroll
-#endif
-    for (int i = 0; i < kBvhWidth; ++i) {
-      const BvhSlot slot = load_slot(s.nodes, c.next, i);
-      d[i] = intersect_aabb(slot.lo, slot.hi, ray.o, inv_d, tmax);
-      r[i] = slot.ref;
-    }
-    if (!kAnyHit) {
-      order_pair(d[0], r[0], d[1], r[1]);
-      order_pair(d[2], r[2], d[3], r[3]);
-      order_pair(d[0], r[0], d[2], r[2]);
-      order_pair(d[1], r[1], d[3], r[3]);
-      order_pair(d[1], r[1], d[2], r[2]);
-    }
-    // Push the farther children that were hit, farthest first; go on with the nearest.
-#if defined(__CUDACC__)
-#pragma unroll
-#endif
-    for (int i = kBvhWidth - 1; i > 0; --i)
-      if (d[i] != kInfinity) stack[c.sp++] = r[i];
-    if (d[0] != kInfinity) {
-      c.next = r[0];
-    } else {
-      c.have_next = c.sp > 0;
-      if (c.have_next) c.next = stack[--c.sp];
     }
     if (c.have_next && is_leaf_ref(c.next) && !c.have_leaf) {
-      c.leaf = c.next;
       c.have_leaf = true;
-      c.have_next = c.sp > 0;
-      if (c.have_next) c.next = stack[--c.sp];
+      take_next_leaf(c, stack);
     }
     if (warp_all(c.have_leaf)) break;
   }
   if (!c.have_leaf && c.have_next && is_leaf_ref(c.next)) {
-    c.leaf = c.next;
     c.have_leaf = true;
-    c.have_next = c.sp > 0;
-    if (c.have_next) c.next = stack[--c.sp];
+    take_next_leaf(c, stack);
   }
   // Test the parked leaf, then any leaf that is next in line.
 #if defined(TRACER_VARIANT_BVH8)
@@ -257,11 +255,7 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
     if (intersect_leaf<F, kAnyHit>(s, prims, ray, setup, c.leaf, skip, skip2, tmax, hit))
       return true;
     c.have_leaf = c.have_next && is_leaf_ref(c.next);
-    if (c.have_leaf) {
-      c.leaf = c.next;
-      c.have_next = c.sp > 0;
-      if (c.have_next) c.next = stack[--c.sp];
-    }
+    if (c.have_leaf) take_next_leaf(c, stack);
   }
   return !(c.have_next || c.have_leaf);
 }
