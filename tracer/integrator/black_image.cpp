@@ -21,7 +21,7 @@ vec3 sphere_point(int i, int n) {
 // The object that owns triangle t (objects list their triangles in order), or "".
 std::string object_of(const Scene& scene, uint32_t prim, uint32_t tri_count) {
   for (const ObjectInfo& o : scene.objects) {
-    if (prim < tri_count && !o.is_sphere && prim >= o.first && prim - o.first < o.count)
+    if (prim < tri_count && o.is_triangles() && prim >= o.first && prim - o.first < o.count)
       return o.name;
     if (prim >= tri_count && o.is_sphere && prim - tri_count == o.first) return o.name;
   }

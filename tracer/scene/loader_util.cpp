@@ -60,6 +60,37 @@ uint32_t append_part(Scene& scene, const MeshPart& part, const mat4& xform) {
   return first_tri;
 }
 
+void flatten_instances(Scene& scene) {
+  if (scene.instances.empty()) return;
+  std::vector<MeshPart> parts(scene.instanced_meshes.size());
+  for (size_t m = 0; m < parts.size(); ++m) {
+    const TriangleMesh& src = scene.instanced_meshes[m].mesh;
+    parts[m].positions = src.positions;
+    if (src.normals.size() == src.positions.size()) parts[m].normals = src.normals;
+    if (src.uvs.size() == src.positions.size()) parts[m].uvs = src.uvs;
+    parts[m].indices = src.indices;
+    parts[m].materials = src.materials;
+  }
+  std::vector<uint32_t> first_tri(scene.instances.size());
+  for (size_t i = 0; i < scene.instances.size(); ++i) {
+    const MeshInstance& inst = scene.instances[i];
+    first_tri[i] = append_part(scene, parts[inst.mesh], inst.world_from_object);
+  }
+  const uint32_t total = uint32_t(scene.mesh.indices.size());
+  for (ObjectInfo& o : scene.objects) {
+    if (!o.is_instances) continue;
+    const size_t end = size_t(o.first) + o.count;
+    const uint32_t begin_tri = o.first < first_tri.size() ? first_tri[o.first] : total;
+    const uint32_t end_tri = end < first_tri.size() ? first_tri[end] : total;
+    o.is_instances = false;
+    o.kind = "mesh";
+    o.first = begin_tri;
+    o.count = end_tri - begin_tri;
+  }
+  scene.instances.clear();
+  scene.instanced_meshes.clear();
+}
+
 void set_flat_normals(TriangleMesh& mesh, uint32_t first, uint32_t count) {
   if (mesh.normals.size() < mesh.positions.size()) mesh.normals.resize(mesh.positions.size());
   std::vector<uint8_t> assigned(mesh.positions.size(), 0);

@@ -18,4 +18,11 @@ uint32_t Scene::find_material(const std::string& name) const {
   return kInvalid;
 }
 
+uint64_t Scene::instanced_triangle_count() const {
+  uint64_t n = 0;
+  for (const MeshInstance& inst : instances)
+    if (inst.mesh < instanced_meshes.size()) n += instanced_meshes[inst.mesh].mesh.indices.size();
+  return n;
+}
+
 }  // namespace tracer

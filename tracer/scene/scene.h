@@ -103,14 +103,32 @@ struct TextureImage {
   std::string source;  // file it came from, for messages
 };
 
-// What the user sees in the object list; a sphere or a range of the mesh's triangles.
+// A mesh drawn by instances (pbrt's ObjectBegin/ObjectInstance, a glTF mesh that several nodes
+// use, a JSON object with "instances"): its triangles in its own space, stored once however many
+// instances place it. Materials per triangle, as in the scene's mesh. Never emissive: emitters are
+// lights, which are world-space triangles, so loaders flatten an emissive mesh's instances.
+struct InstancedMesh {
+  std::string name;
+  TriangleMesh mesh;
+};
+
+// One placement of an instanced mesh: an affine map from the mesh's space to the world.
+struct MeshInstance {
+  uint32_t mesh = 0;  // index into Scene::instanced_meshes
+  glm::mat4 world_from_object = glm::mat4(1.0f);
+};
+
+// What the user sees in the object list: a sphere, a range of the mesh's triangles or a range of
+// instances.
 struct ObjectInfo {
   std::string name;
-  std::string kind;  // "sphere", "box", "quad", "mesh"
+  std::string kind;  // "sphere", "box", "quad", "mesh", "instances"
   bool is_sphere = false;
-  uint32_t first = 0;  // sphere index, or first triangle
-  uint32_t count = 0;  // number of triangles (1 for a sphere)
+  bool is_instances = false;
+  uint32_t first = 0;  // sphere index, first triangle, or first instance
+  uint32_t count = 0;  // number of triangles (1 for a sphere), or of instances
   SourceLoc loc;
+  bool is_triangles() const { return !is_sphere && !is_instances; }
 };
 
 struct Scene {
@@ -123,6 +141,9 @@ struct Scene {
   std::vector<SphereDesc> spheres;
   std::vector<TextureImage> textures;  // Material::*_tex index into this
   TriangleMesh mesh;                   // every triangle of every object, in world space
+  // Meshes drawn by instances, and the instances (their triangles are not in `mesh`).
+  std::vector<InstancedMesh> instanced_meshes;
+  std::vector<MeshInstance> instances;
   std::vector<ObjectInfo> objects;
   // The lights at infinity: the environment's settings (the table's "environment" section),
   // the map read from environment.file (shared by copies of the scene; set by the setting's
@@ -136,9 +157,16 @@ struct Scene {
   Diagnostics diagnostics;
 
   uint32_t add_material(const std::string& name, const Material& m);
+  // Triangles the instances place (each instance's mesh counted once per instance).
+  uint64_t instanced_triangle_count() const;
   // Index of the named material, or kInvalid.
   uint32_t find_material(const std::string& name) const;
 };
+
+// Copies every instance's triangles into the scene's mesh in world space and drops the
+// instances (their objects become mesh objects): the flattened scene renders the same image. For
+// comparisons and for emissive meshes.
+void flatten_instances(Scene& scene);
 
 // Brings environment_image up to date with environment.file (reads the file when it names
 // another one; drops the image when it is ""; warns once about clamped negative texels) and

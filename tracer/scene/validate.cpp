@@ -26,7 +26,7 @@ void warn_once(Scene& scene, const SourceLoc& loc, const std::string& problem,
 // The object that owns triangle t, for messages; objects are appended in triangle order.
 const ObjectInfo* owner_of(const Scene& scene, uint32_t t) {
   for (const ObjectInfo& o : scene.objects)
-    if (!o.is_sphere && t >= o.first && t - o.first < o.count) return &o;
+    if (o.is_triangles() && t >= o.first && t - o.first < o.count) return &o;
   return nullptr;
 }
 
@@ -265,7 +265,7 @@ size_t validate_geometry(Scene& scene) {
   removed = mesh.indices.size() - out;
   if (out != mesh.indices.size()) {
     for (ObjectInfo& o : scene.objects) {
-      if (o.is_sphere) continue;
+      if (!o.is_triangles()) continue;
       const uint32_t first = kept_before[o.first], last = kept_before[o.first + o.count];
       if (last == first && o.count > 0) {
         warn_once(scene, o.loc,
@@ -356,7 +356,7 @@ void validate_scene(Scene& scene) {
       std::string names;
       size_t n = 0;
       for (const ObjectInfo& o : scene.objects) {
-        if (o.is_sphere || o.count > 0) continue;
+        if (!o.is_triangles() || o.count > 0) continue;
         if (n++ < 3) names += std::string(names.empty() ? "" : ", ") + "\"" + o.name + "\"";
       }
       if (n > 3) names += " and " + std::to_string(n - 3) + " more";
