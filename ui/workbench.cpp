@@ -257,6 +257,13 @@ int Workbench::material_of(int object) const {
   // A mesh object's material is its first triangle's (an OBJ or glTF file may use several).
   if (o.is_sphere)
     return o.first < scene_.spheres.size() ? int(scene_.spheres[o.first].material) : -1;
+  if (o.is_instances) {
+    if (o.first >= scene_.instances.size()) return -1;
+    const uint32_t mesh = scene_.instances[o.first].mesh;
+    if (mesh >= scene_.instanced_meshes.size()) return -1;
+    const auto& mats = scene_.instanced_meshes[mesh].mesh.materials;
+    return mats.empty() ? -1 : int(mats[0]);
+  }
   if (o.count == 0 || o.first >= scene_.mesh.materials.size()) return -1;
   return int(scene_.mesh.materials[o.first]);
 }
@@ -750,11 +757,27 @@ int Workbench::pick_object(float u, float v) const {
   if (!compiled_ || u < 0 || v < 0 || u > 1 || v > 1) return -1;
   const tracer::Hit h = tracer::intersect_closest(compiled_->view(), camera_ray(u, v));
   if (!h.valid()) return -1;
-  const uint32_t tris = compiled_->view().tri_count;
+  const tracer::SceneView& view = compiled_->view();
+  const uint32_t tris = view.tri_count;
+  // An instanced triangle: the instance it belongs to (hit ids run over the instances in order,
+  // each its mesh's triangle count, after the triangles and spheres).
+  uint32_t instance = tracer::kInvalid;
+  if (h.prim >= tris && h.prim - tris >= view.sphere_count) {
+    uint64_t base = uint64_t(tris) + view.sphere_count;
+    for (size_t i = 0; i < scene_.instances.size(); ++i) {
+      base += scene_.instanced_meshes[scene_.instances[i].mesh].mesh.indices.size();
+      if (h.prim < base) {
+        instance = uint32_t(i);
+        break;
+      }
+    }
+  }
   for (size_t i = 0; i < scene_.objects.size(); ++i) {
     const tracer::ObjectInfo& o = scene_.objects[i];
-    if (o.is_sphere ? (h.prim >= tris && h.prim - tris == o.first)
-                    : (h.prim < tris && h.prim >= o.first && h.prim < o.first + o.count))
+    if (o.is_instances ? (instance != tracer::kInvalid && instance >= o.first &&
+                          instance - o.first < o.count)
+        : o.is_sphere  ? (h.prim >= tris && h.prim - tris == o.first)
+                       : (h.prim < tris && h.prim >= o.first && h.prim < o.first + o.count))
       return int(i);
   }
   return -1;

@@ -8,6 +8,7 @@
 #include "bvh/cpu_bvh.h"
 #include "bvh/flat_list.h"
 #include "bvh/geometry.h"
+#include "bvh/instance.h"
 #include "core/features.h"
 
 namespace tracer {
@@ -53,7 +54,23 @@ struct TraceView {
   const FlatPrim* flat_solids = nullptr;
   uint32_t flat_solid_count = 0;
   uint32_t use_flat = 0;
+  // Instances of meshes (bvh/instance.h; F with kFeatureInstances). Entries from
+  // tri_count + sphere_count on of the tree's leaves are instances; each walks its mesh's tree,
+  // which starts at its root in inst_nodes (the meshes' trees, one after another; leaves index
+  // inst_prim_indices, whose entries index inst_tri_verts). A hit on an instanced triangle has
+  // the id Instance::prim_base + its index in its mesh: ids from tri_count + sphere_count on,
+  // unique over all instances.
+  const Instance* instances = nullptr;
+  const BvhNode* inst_nodes = nullptr;
+  const uint32_t* inst_prim_indices = nullptr;
+  const TriangleVerts* inst_tri_verts = nullptr;
+  uint32_t instance_count = 0;
 };
+
+// Whether hit id `prim` is a triangle (of the scene's mesh or of an instance), not a sphere.
+TRACER_HD TRACER_INLINE bool prim_is_triangle(const TraceView& s, uint32_t prim) {
+  return prim < s.tri_count || prim - s.tri_count >= s.sphere_count;
+}
 
 // The first quad that the loops over the flat list test (the solids' faces come before it).
 TRACER_HD TRACER_INLINE uint32_t flat_quads_begin(const TraceView& s) {
@@ -69,6 +86,88 @@ TRACER_HD TRACER_INLINE bool warp_all(bool pred) {
 #endif
 }
 
+// Orders two (distance, reference) pairs nearest first.
+TRACER_HD TRACER_INLINE void order_pair(float& da, uint32_t& ra, float& db, uint32_t& rb) {
+  const bool swap = db < da;
+  const float d = swap ? db : da;
+  const uint32_t r = swap ? rb : ra;
+  db = swap ? da : db;
+  rb = swap ? ra : rb;
+  da = d;
+  ra = r;
+}
+
+// The ray against instance `i`'s mesh: the ray mapped into the mesh's space walks the mesh's
+// tree (a plain depth-first walk with its own stack, near child first for closest hits). Hits
+// update tmax and hit as intersect_leaf does; returns true when an any-hit query may stop. Not
+// inlined on the GPU, so that the walk of the first level keeps its registers.
+template <bool kAnyHit>
+#if defined(__CUDA_ARCH__)
+__device__ __noinline__
+#else
+inline
+#endif
+bool intersect_instance(const TraceView& s, uint32_t i, const Ray& world_ray, uint32_t skip,
+                        uint32_t skip2, float& tmax, Hit& hit) {
+  const Instance in = load_instance(s.instances, i);
+  Ray ray;
+  ray.o = affine_point(in.object_from_world, world_ray.o);
+  ray.d = affine_vector(in.object_from_world, world_ray.d);
+  ray.tmax = tmax;
+  ray.pad = 0.0f;
+  if (!(is_finite(ray.o) && is_finite(ray.d))) return false;
+  const vec3 inv_d = 1.0f / ray.d;
+  const RayTriSetup setup(ray, inv_d);
+  uint32_t stack[kBvhStackSize];
+  int sp = 0;
+  uint32_t next = in.root;
+  for (;;) {
+    if (!is_leaf_ref(next)) {
+      float d[kBvhWidth];
+      uint32_t r[kBvhWidth];
+      for (int k = 0; k < kBvhWidth; ++k) {
+        const BvhSlot slot = load_slot(s.inst_nodes, next, k);
+        d[k] = intersect_aabb(slot.lo, slot.hi, ray.o, inv_d, tmax);
+        r[k] = slot.ref;
+      }
+      if (!kAnyHit) {
+        order_pair(d[0], r[0], d[1], r[1]);
+        order_pair(d[2], r[2], d[3], r[3]);
+        order_pair(d[0], r[0], d[2], r[2]);
+        order_pair(d[1], r[1], d[3], r[3]);
+        order_pair(d[1], r[1], d[2], r[2]);
+      }
+      for (int k = kBvhWidth - 1; k > 0; --k)
+        if (d[k] != kInfinity) stack[sp++] = r[k];
+      if (d[0] != kInfinity) {
+        next = r[0];
+        continue;
+      }
+    } else {
+      for (uint32_t e = next & ~kBvhLeafBit;; ++e) {
+        const uint32_t entry = s.inst_prim_indices[e];
+        const uint32_t tri = entry & ~kBvhLastPrimBit;
+        const uint32_t prim = in.prim_base + (tri - in.tri_base);
+        float t, b1, b2;
+        if (prim != skip && prim != skip2) {
+          const TriangleVerts tv = load_triangle(s.inst_tri_verts, tri);
+          if (intersect_triangle(setup, tv.v0, tv.v1, tv.v2, tmax, t, b1, b2)) {
+            tmax = t;
+            hit.t = t;
+            hit.prim = prim;
+            hit.u = b1;
+            hit.v = b2;
+            if (kAnyHit) return true;
+          }
+        }
+        if (entry & kBvhLastPrimBit) break;
+      }
+    }
+    if (sp == 0) return false;
+    next = stack[--sp];
+  }
+}
+
 // Tests the primitives of the leaf `ref` (a leaf reference, see bvh.h); returns true when an
 // any-hit query may stop.
 template <uint32_t F, bool kAnyHit>
@@ -79,7 +178,12 @@ TRACER_HD TRACER_INLINE bool intersect_leaf(const TraceView& s, const uint32_t* 
   for (uint32_t i = ref & ~kBvhLeafBit;; ++i) {
     const uint32_t entry = prim_indices[i];
     const uint32_t prim = entry & ~kBvhLastPrimBit;
-    if (prim != skip && prim != skip2) {
+    if ((F & kFeatureInstances) && prim - s.tri_count >= s.sphere_count &&
+        prim >= s.tri_count) {
+      if (intersect_instance<kAnyHit>(s, prim - s.tri_count - s.sphere_count, ray, skip, skip2,
+                                      tmax, hit))
+        return true;
+    } else if (prim != skip && prim != skip2) {
       float t, b1 = 0.0f, b2 = 0.0f;
       bool h;
       if (!(F & kFeatureSpheres) || prim < s.tri_count) {
@@ -100,17 +204,6 @@ TRACER_HD TRACER_INLINE bool intersect_leaf(const TraceView& s, const uint32_t* 
     }
     if (entry & kBvhLastPrimBit) return false;
   }
-}
-
-// Orders two (distance, reference) pairs nearest first.
-TRACER_HD TRACER_INLINE void order_pair(float& da, uint32_t& ra, float& db, uint32_t& rb) {
-  const bool swap = db < da;
-  const float d = swap ? db : da;
-  const uint32_t r = swap ? rb : ra;
-  db = swap ? da : db;
-  rb = swap ? ra : rb;
-  da = d;
-  ra = r;
 }
 
 // The traversal's state besides the ray: the stack of child references and where the walk is.

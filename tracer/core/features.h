@@ -28,6 +28,8 @@ enum SceneFeature : uint32_t {
   // The light tree (SceneView::light_tree has nodes: more than one leaf of lights), which
   // render.light_sampler bvh descends.
   kFeatureLightTree = 1u << 12,
+  // Instances of meshes (the BVH's second level, bvh/instance.h).
+  kFeatureInstances = 1u << 13,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
@@ -45,7 +47,7 @@ constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFea
 constexpr uint32_t kFeatureLights = kFeatureInfiniteLights | kFeaturePointLights |
                                     kFeatureLightTree;
 
-// Specialisations: four bits (1 spheres, 2 depth of field, 4 specular materials, textures or
+// Specialisations: four bits (1 primitives beside the mesh's triangles: spheres and instances, 2 depth of field, 4 specular materials, textures or
 // subsurface, 8 lights beyond emitters: always with 4) name the twelve compiled variants both
 // backends run; kGeneralSpec is the one for all features.
 constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4, kSpecLights = 8;
@@ -56,7 +58,7 @@ template <uint32_t Spec>
 constexpr uint32_t features_of() {
   static_assert(!(Spec & kSpecLights) || (Spec & kSpecSpecular), "lights imply specular");
   return kFeatureEmissiveMeshes | kFeatureShadingNormals |
-         ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
+         ((Spec & kSpecSpheres) ? kFeatureSpheres | kFeatureInstances : 0u) |
          ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
          ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u) |
          ((Spec & kSpecLights) ? kFeatureLights : 0u);
@@ -64,7 +66,7 @@ constexpr uint32_t features_of() {
 
 // The smallest specialisation that covers a scene's features.
 constexpr uint32_t spec_for_features(uint32_t f) {
-  return ((f & kFeatureSpheres) ? kSpecSpheres : 0u) |
+  return ((f & (kFeatureSpheres | kFeatureInstances)) ? kSpecSpheres : 0u) |
          ((f & kFeatureDepthOfField) ? kSpecDepthOfField : 0u) |
          ((f & (kFeatureSpecular | kFeatureLights)) ? kSpecSpecular : 0u) |
          ((f & kFeatureLights) ? kSpecLights : 0u);
@@ -73,13 +75,13 @@ constexpr uint32_t spec_for_features(uint32_t f) {
 // The name of a specialisation, as `pathtracer info`, the bench and the sidecar print it.
 inline const char* spec_label(uint32_t spec) {
   static const char* kNames[8] = {
-      "triangles, pinhole, diffuse only",      "spheres+triangles, pinhole, diffuse only",
-      "triangles, thin lens, diffuse only",    "spheres+triangles, thin lens, diffuse only",
-      "triangles, pinhole, specular",          "spheres+triangles, pinhole, specular",
-      "triangles, thin lens, specular",        "spheres+triangles, thin lens, specular"};
+      "triangles, pinhole, diffuse only",      "spheres/instances+triangles, pinhole, diffuse only",
+      "triangles, thin lens, diffuse only",    "spheres/instances+triangles, thin lens, diffuse only",
+      "triangles, pinhole, specular",          "spheres/instances+triangles, pinhole, specular",
+      "triangles, thin lens, specular",        "spheres/instances+triangles, thin lens, specular"};
   static const char* kWithLights[8] = {
       "", "", "", "",
-      "triangles, pinhole, specular, lights",  "spheres+triangles, pinhole, specular, lights",
+      "triangles, pinhole, specular, lights",  "spheres/instances+triangles, pinhole, specular, lights",
       "triangles, thin lens, specular, lights", "general (all features)"};
   return (spec & kSpecLights) ? kWithLights[spec & 7] : kNames[spec & 7];
 }

@@ -57,7 +57,7 @@ __device__ __forceinline__ void start_path(const SceneView& s, const IntegratorS
   // rays skip no triangle either. The specular kernels compile the walks' code for such scenes.)
   if ((F & kFeatureSubsurface) && !src.w.rays_at_slots) {
     const uint32_t prim = __float_as_uint(src.w.hit[id].y);
-    st.origin_prim = prim < s.tri_count ? prim : kInvalid;
+    st.origin_prim = prim_is_triangle(s, prim) ? prim : kInvalid;
   }
 }
 

@@ -171,8 +171,9 @@ __global__ void sort_keys_kernel(SceneView s, WavefrontState w, const uint32_t* 
     if (prim == kInvalid) {
       key = 6;  // escaped
     } else {
-      const uint32_t mat = prim < s.tri_count ? s.tri_shading[prim].material
-                                              : s.spheres[prim - s.tri_count].material;
+      const uint32_t mat = prim_is_triangle(s, prim)
+                               ? triangle_shading(s, triangle_ref(s, prim)).material
+                               : s.spheres[prim - s.tri_count].material;
       // Keys 6 and 7 are taken: the types past 5 share key 5.
       key = min(uint32_t(s.materials[mat].type), 5u);
     }

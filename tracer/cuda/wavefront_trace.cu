@@ -21,7 +21,7 @@ __device__ __forceinline__ Ray extension_ray(const SceneView& s, const Wavefront
   ray.tmax = kInfinity;
   ray.pad = 0.0f;
   const uint32_t origin = walks ? __float_as_uint(w.hit[id].y) : kInvalid;
-  *skip = origin < s.tri_count ? origin : kInvalid;
+  *skip = prim_is_triangle(s, origin) ? origin : kInvalid;
   return ray;
 }
 
@@ -183,7 +183,7 @@ __device__ __forceinline__ bool shadow_reaches(const SceneView& s, const Wavefro
   uint32_t origin = kInvalid;
   if (walks) origin = __float_as_uint(w.hit[id].y);
   return !shadow_blocked<features_of<Spec>() | kFeatureFlatList>(
-      s, ray, __float_as_uint(d.w), origin < s.tri_count ? origin : kInvalid);
+      s, ray, __float_as_uint(d.w), prim_is_triangle(s, origin) ? origin : kInvalid);
 }
 
 template <uint32_t Spec>

@@ -47,13 +47,8 @@ std::string explain_black_image(const Scene& scene, const CompiledScene& cs) {
     Ray ray{eye, kInfinity, sphere_point(i, kRays), 0.0f};
     const Hit hit = intersect_closest(v, ray);
     if (!hit.valid()) continue;
-    bool back = false;
-    if (hit.prim < v.tri_count) {
-      back = glm::dot(geometric_normal(cs.tri_verts()[hit.prim]), ray.d) > 0.0f;
-    } else {
-      const Sphere& s = cs.spheres()[hit.prim - v.tri_count];
-      back = glm::length(eye - s.center) < s.radius;
-    }
+    // The back of a triangle, or a sphere from inside.
+    const bool back = !make_surface_hit(v, ray, hit).front;
     if (back) {
       ++inside;
       ++owners[object_of(scene, hit.prim, v.tri_count)];

@@ -334,7 +334,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
                                    : spawn_ray_to(sh.p, geo > 0.0f ? sh.ng : -sh.ng, ls.p, ls.n);
           shadow.target_prim = ls.prim;
           shadow.origin_prim =
-              (F & kFeatureSubsurface) && hit.prim < s.tri_count ? hit.prim : kInvalid;
+              (F & kFeatureSubsurface) && prim_is_triangle(s, hit.prim) ? hit.prim : kInvalid;
           shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);
         }
       }
@@ -368,7 +368,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   st.ray = spawn_ray(sh.p, sh.ng, wi_world);
   // Only random walks need the origin triangle skipped (see traverse); elsewhere the offset
   // suffices and the skip would cost a compare per primitive test.
-  st.origin_prim = (F & kFeatureSubsurface) && hit.prim < s.tri_count ? hit.prim : kInvalid;
+  st.origin_prim = (F & kFeatureSubsurface) && prim_is_triangle(s, hit.prim) ? hit.prim : kInvalid;
 
   // Russian roulette survives with probability sqrt(max throughput), as Cycles does
   // (path_state_continuation_probability): paths end later than with the throughput itself,

@@ -13,9 +13,9 @@ TRACER_HD TRACER_INLINE vec4 lookup_texture(const SceneView& s, uint32_t tex, ve
 
 // Texture coordinates at barycentrics (b1, b2) of triangle `prim` (zero without uvs).
 TRACER_HD TRACER_INLINE vec2 triangle_uv(const SceneView& s, uint32_t prim, float b1, float b2) {
-  if (!s.tri_uvs) return vec2(0.0f);
-  const TriangleUv tu = s.tri_uvs[prim];
-  return (1.0f - b1 - b2) * tu.uv0 + b1 * tu.uv1 + b2 * tu.uv2;
+  const TriangleUv* tu = triangle_uvs(s, triangle_ref(s, prim));
+  if (!tu) return vec2(0.0f);
+  return (1.0f - b1 - b2) * tu->uv0 + b1 * tu->uv1 + b2 * tu->uv2;
 }
 
 // Tangent-space normal mapping (glTF 2.0 spec sec. 3.9.3; pbrt-v4 sec. 10.5.3): the tangent is
@@ -26,8 +26,9 @@ TRACER_HD TRACER_INLINE vec2 triangle_uv(const SceneView& s, uint32_t prim, floa
 // with it. The result is kept on the geometric normal's side.
 TRACER_HD inline vec3 normal_mapped(const SceneView& s, uint32_t prim, const SurfaceHit& sh,
                                     uint32_t tex, vec3 texel, float scale) {
-  const TriangleVerts tv = load_triangle(s.tri_verts, prim);
-  const TriangleUv tu = s.tri_uvs[prim];
+  const TriangleRef r = triangle_ref(s, prim);
+  const TriangleVerts tv = world_triangle(s, r);
+  const TriangleUv tu = *triangle_uvs(s, r);
   const vec3 dp1 = tv.v1 - tv.v0, dp2 = tv.v2 - tv.v0;
   const glm::mat2 linear(s.textures[tex].uv_transform);  // the offset drops out of derivatives
   const vec2 duv1 = linear * (tu.uv1 - tu.uv0), duv2 = linear * (tu.uv2 - tu.uv0);
@@ -57,7 +58,7 @@ TRACER_HD inline vec3 normal_mapped(const SceneView& s, uint32_t prim, const Sur
 template <uint32_t F>
 TRACER_HD inline void apply_textures(const SceneView& s, uint32_t prim, SurfaceHit& sh,
                                      Material& m) {
-  if (prim >= s.tri_count) return;
+  if (!prim_is_triangle(s, prim)) return;
   if (m.base_color_tex != kInvalid) m.albedo *= vec3(lookup_texture(s, m.base_color_tex, sh.uv));
   if (m.metal_rough_tex != kInvalid) {
     const vec4 mr = lookup_texture(s, m.metal_rough_tex, sh.uv);
@@ -67,7 +68,7 @@ TRACER_HD inline void apply_textures(const SceneView& s, uint32_t prim, SurfaceH
       m.type = m.metallic * mr.z >= 0.5f ? MaterialType::kConductor : MaterialType::kDiffuse;
   }
   if (m.emissive_tex != kInvalid) m.emission *= vec3(lookup_texture(s, m.emissive_tex, sh.uv));
-  if (m.normal_tex != kInvalid && s.tri_uvs) {
+  if (m.normal_tex != kInvalid && triangle_uvs(s, triangle_ref(s, prim))) {
     sh.ns = normal_mapped(s, prim, sh, m.normal_tex, vec3(lookup_texture(s, m.normal_tex, sh.uv)),
                           m.normal_scale);
   }

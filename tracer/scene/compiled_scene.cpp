@@ -24,7 +24,7 @@ std::string describe_features(uint32_t f) {
       {kFeatureEmissiveMeshes, "emissive meshes"}, {kFeatureSpheres, "spheres"},
       {kFeatureShadingNormals, "shading normals"}, {kFeatureInfiniteLights, "lights at infinity"},
       {kFeaturePointLights, "point lights"},
-      {kFeatureLightTree, "light tree"}};
+      {kFeatureLightTree, "light tree"},          {kFeatureInstances, "instances"}};
   std::string out;
   for (const auto& n : kNames) {
     if (!(f & n.bit)) continue;
@@ -84,6 +84,75 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
     b.grow(sd.center + vec3(sd.radius));
     bounds.push_back(b);
     features |= kFeatureSpheres;
+  }
+
+  // Instances: each instanced mesh's triangles once (inst_tri_*), its tree over them, and one
+  // entry per instance in the first level's tree, bounded by its mesh's box mapped to the world.
+  std::vector<Aabb> mesh_boxes;
+  std::vector<uint32_t> mesh_tri_base;
+  if (!scene.instances.empty()) {
+    for (const InstancedMesh& im : scene.instanced_meshes) {
+      const TriangleMesh& m = im.mesh;
+      const bool normals = m.normals.size() == m.positions.size() && !m.normals.empty();
+      mesh_tri_base.push_back(uint32_t(inst_tri_verts_.size()));
+      Aabb box;
+      for (size_t t = 0; t < m.indices.size(); ++t) {
+        const uvec3 idx = m.indices[t];
+        TriangleVerts tv{};
+        tv.v0 = m.positions[idx.x];
+        tv.v1 = m.positions[idx.y];
+        tv.v2 = m.positions[idx.z];
+        TriangleShading ts{};
+        ts.material = m.materials[t];
+        ts.light = kInvalid;
+        ts.has_normals = normals ? 1u : 0u;
+        if (normals) {
+          ts.n0 = m.normals[idx.x];
+          ts.n1 = m.normals[idx.y];
+          ts.n2 = m.normals[idx.z];
+          features |= kFeatureShadingNormals;
+        }
+        if (materials_[ts.material].is_emissive())
+          throw std::invalid_argument("instanced mesh \"" + im.name +
+                                      "\" has an emissive material; emitters must be flattened "
+                                      "(flatten_instances)");
+        box.grow(tv.v0);
+        box.grow(tv.v1);
+        box.grow(tv.v2);
+        inst_tri_verts_.push_back(tv);
+        inst_tri_shading_.push_back(ts);
+      }
+      mesh_boxes.push_back(box);
+    }
+    uint64_t prim_base = uint64_t(tri_count) + scene.spheres.size();
+    for (const MeshInstance& mi : scene.instances) {
+      const uint32_t count = uint32_t(scene.instanced_meshes[mi.mesh].mesh.indices.size());
+      if (count == 0) continue;
+      const glm::mat4 to_object = glm::inverse(mi.world_from_object);
+      Instance in{};
+      for (int r = 0; r < 3; ++r) {
+        const glm::mat4& a = mi.world_from_object;
+        in.world_from_object[r] = vec4(a[0][r], a[1][r], a[2][r], a[3][r]);
+        in.object_from_world[r] = vec4(to_object[0][r], to_object[1][r], to_object[2][r],
+                                       to_object[3][r]);
+      }
+      in.tri_base = mesh_tri_base[mi.mesh];
+      in.prim_base = uint32_t(prim_base);
+      in.root = mi.mesh;  // the mesh until its tree is placed below
+      prim_base += count;
+      if (prim_base >= kBvhLeafBit)
+        throw std::invalid_argument("the scene's instances place more than 2^31 triangles");
+      const Aabb& mb = mesh_boxes[mi.mesh];
+      Aabb b;
+      for (int c = 0; c < 8; ++c) {
+        const vec3 corner((c & 1) ? mb.hi.x : mb.lo.x, (c & 2) ? mb.hi.y : mb.lo.y,
+                          (c & 4) ? mb.hi.z : mb.lo.z);
+        b.grow(affine_point(in.world_from_object, corner));
+      }
+      bounds.push_back(b);
+      instances_.push_back(in);
+      features |= kFeatureInstances;
+    }
   }
 
   // Lights: every primitive whose material emits, chosen in proportion to luminance x area.
@@ -225,24 +294,79 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
         const uvec3 idx = mesh.indices[i];
         tri_uvs_[i] = {mesh.uvs[idx.x], mesh.uvs[idx.y], mesh.uvs[idx.z]};
       }
+    }    // Instanced meshes: uvs for all their triangles when any has some ((0, 0) for the others).
+    bool inst_uvs = false;
+    for (const InstancedMesh& im : scene.instanced_meshes)
+      inst_uvs |= !im.mesh.uvs.empty() && im.mesh.uvs.size() == im.mesh.positions.size();
+    if (inst_uvs && !instances_.empty()) {
+      inst_tri_uvs_.reserve(inst_tri_verts_.size());
+      for (const InstancedMesh& im : scene.instanced_meshes) {
+        const TriangleMesh& m = im.mesh;
+        const bool has = !m.uvs.empty() && m.uvs.size() == m.positions.size();
+        for (const uvec3& idx : m.indices)
+          inst_tri_uvs_.push_back(has ? TriangleUv{m.uvs[idx.x], m.uvs[idx.y], m.uvs[idx.z]}
+                                      : TriangleUv{vec2(0.0f), vec2(0.0f), vec2(0.0f)});
+      }
     }
   }
 
   if (same_geometry && same_geometry->view().tri_count == tri_count &&
-      same_geometry->view().sphere_count == spheres_.size() && same_geometry->bvh_) {
+      same_geometry->view().sphere_count == spheres_.size() &&
+      same_geometry->instances_.size() == instances_.size() &&
+      same_geometry->inst_tri_verts_.size() == inst_tri_verts_.size() && same_geometry->bvh_) {
     bvh_ = same_geometry->bvh_;
     cpu_bvh_ = same_geometry->cpu_bvh_;
     bvh8_ = same_geometry->bvh8_;
+    inst_bvh_ = same_geometry->inst_bvh_;
+    mesh_roots_ = same_geometry->mesh_roots_;
     shared_bvh_ = true;
   } else {
     auto bvh = std::make_shared<Bvh>(build_bvh(bounds));
-    cpu_bvh_ = std::make_shared<const CpuBvh>(build_cpu_bvh(*bvh, tri_verts_, tri_count));
+    // The CPU's SSE walk knows triangles and spheres only: with instances it walks the shared
+    // tree (an empty CpuBvh).
+    cpu_bvh_ = std::make_shared<const CpuBvh>(
+        instances_.empty() ? build_cpu_bvh(*bvh, tri_verts_, tri_count) : CpuBvh());
     bvh8_ = std::make_shared<const Bvh8>(kBvh8Build ? build_bvh8(*bvh) : Bvh8());
     bvh_ = std::move(bvh);
+    // Each instanced mesh's tree, appended to one node and index array: child references and
+    // leaf entries are moved by where the mesh's tree starts.
+    auto inst = std::make_shared<Bvh>();
+    mesh_roots_.assign(scene.instanced_meshes.size(), kInvalid);
+    if (!instances_.empty()) {
+      for (size_t m = 0; m < scene.instanced_meshes.size(); ++m) {
+        const uint32_t n = uint32_t(scene.instanced_meshes[m].mesh.indices.size());
+        if (n == 0) continue;
+        std::vector<Aabb> tb(n);
+        for (uint32_t t = 0; t < n; ++t) {
+          const TriangleVerts& tv = inst_tri_verts_[mesh_tri_base[m] + t];
+          tb[t].grow(tv.v0);
+          tb[t].grow(tv.v1);
+          tb[t].grow(tv.v2);
+        }
+        const Bvh mb = build_bvh(tb);
+        const uint32_t node_base = uint32_t(inst->nodes.size());
+        const uint32_t entry_base = uint32_t(inst->prim_indices.size());
+        mesh_roots_[m] = node_base;
+        for (BvhNode node : mb.nodes) {
+          for (BvhSlot& slot : node.child)
+            slot.ref = is_leaf_ref(slot.ref) ? slot.ref + entry_base : slot.ref + node_base;
+          inst->nodes.push_back(node);
+        }
+        for (uint32_t e : mb.prim_indices)
+          inst->prim_indices.push_back(e + mesh_tri_base[m]);  // keeps kBvhLastPrimBit
+        inst->stats.node_count += mb.stats.node_count;
+        inst->stats.leaf_count += mb.stats.leaf_count;
+        inst->stats.build_ms += mb.stats.build_ms;
+      }
+    }
+    inst_bvh_ = std::move(inst);
   }
+  for (Instance& in : instances_) in.root = mesh_roots_[in.root];
   // With lights at infinity shadow rays leave the scene, so no entry may be skipped as hull.
-  // Point lights are ends of shadow rays too: a wall with one behind it is no hull.
-  flat_ = build_flat_list(tri_verts_, spheres_, infinite_->any(), light_points);
+  // Point lights are ends of shadow rays too: a wall with one behind it is no hull. Scenes with
+  // instances have no list (its loops know triangles and spheres only).
+  if (instances_.empty())
+    flat_ = build_flat_list(tri_verts_, spheres_, infinite_->any(), light_points);
 
   view_.nodes = bvh_->nodes.data();
   view_.prim_indices = bvh_->prim_indices.data();
@@ -253,6 +377,13 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
   view_.lights = lights_.data();
   view_.light_cdf = light_cdf_.data();
   view_.tri_uvs = tri_uvs_.empty() ? nullptr : tri_uvs_.data();
+  view_.instances = instances_.empty() ? nullptr : instances_.data();
+  view_.instance_count = uint32_t(instances_.size());
+  view_.inst_nodes = inst_bvh_->nodes.data();
+  view_.inst_prim_indices = inst_bvh_->prim_indices.data();
+  view_.inst_tri_verts = inst_tri_verts_.data();
+  view_.inst_tri_shading = inst_tri_shading_.data();
+  view_.inst_tri_uvs = inst_tri_uvs_.empty() ? nullptr : inst_tri_uvs_.data();
   view_.textures = textures_.data();
   view_.texels = texels_.data();
   view_.infinite = infinite_->any() ? &infinite_->view : nullptr;

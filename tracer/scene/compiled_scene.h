@@ -49,6 +49,13 @@ class CompiledScene {
   // The light tree (render.light_sampler bvh): nodes and each light's trail.
   const LightTree& light_tree() const { return light_tree_; }
   const std::vector<TriangleUv>& tri_uvs() const { return tri_uvs_; }
+  // Instances (bvh/instance.h): the instances, their meshes' trees one after another, and the
+  // meshes' triangles (TraceView::inst_*).
+  const std::vector<Instance>& instances() const { return instances_; }
+  const Bvh& instance_bvh() const { return *inst_bvh_; }
+  const std::vector<TriangleVerts>& inst_tri_verts() const { return inst_tri_verts_; }
+  const std::vector<TriangleShading>& inst_tri_shading() const { return inst_tri_shading_; }
+  const std::vector<TriangleUv>& inst_tri_uvs() const { return inst_tri_uvs_; }
   const std::vector<TextureDesc>& textures() const { return textures_; }
   const std::vector<uint32_t>& texels() const { return texels_; }
   // The environment's and the distant lights' arrays (view().infinite points at its view when
@@ -62,6 +69,12 @@ class CompiledScene {
   std::shared_ptr<const Bvh> bvh_;
   std::shared_ptr<const CpuBvh> cpu_bvh_;  // the CPU backend's SSE layout of bvh_ (bvh/cpu_bvh.h)
   std::shared_ptr<const Bvh8> bvh8_;
+  std::shared_ptr<const Bvh> inst_bvh_;  // the instanced meshes' trees, one after another
+  std::vector<uint32_t> mesh_roots_;     // each instanced mesh's root in inst_bvh_
+  std::vector<Instance> instances_;
+  std::vector<TriangleVerts> inst_tri_verts_;
+  std::vector<TriangleShading> inst_tri_shading_;
+  std::vector<TriangleUv> inst_tri_uvs_;
   bool shared_bvh_ = false;
   FlatList flat_;
   std::vector<TriangleVerts> tri_verts_;

@@ -66,6 +66,10 @@ struct SceneView : TraceView {
   // [finite_light_count, light_count).
   LightTreeView light_tree = {nullptr, nullptr, nullptr};
   const TriangleUv* tri_uvs = nullptr;    // tri_count entries, or null when the mesh has none
+  // The instanced meshes' triangles' shading data and uvs (or null), indexed like
+  // TraceView::inst_tri_verts.
+  const TriangleShading* inst_tri_shading = nullptr;
+  const TriangleUv* inst_tri_uvs = nullptr;
   const TextureDesc* textures = nullptr;  // texture_count entries
   const uint32_t* texels = nullptr;       // RGBA8 texels of all textures, one after another
   // The environment and the distant lights; null when the scene has neither (its rays that
@@ -79,6 +83,37 @@ struct SceneView : TraceView {
   uint32_t features = 0;
   Camera camera;
 };
+
+// Where the data of triangle hit id `prim` lives: the scene mesh's triangle `index` (instance
+// kInvalid), or instance `instance`'s mesh triangle `index` of the inst_tri_* arrays.
+struct TriangleRef {
+  uint32_t index;
+  uint32_t instance;
+};
+TRACER_HD TRACER_INLINE TriangleRef triangle_ref(const SceneView& s, uint32_t prim) {
+  if (prim < s.tri_count) return {prim, kInvalid};
+  const uint32_t i = find_instance(s.instances, s.instance_count, prim);
+  return {s.instances[i].tri_base + (prim - s.instances[i].prim_base), i};
+}
+TRACER_HD TRACER_INLINE const TriangleShading& triangle_shading(const SceneView& s,
+                                                                TriangleRef r) {
+  return r.instance == kInvalid ? s.tri_shading[r.index] : s.inst_tri_shading[r.index];
+}
+// The triangle's uvs, or null when its mesh has none.
+TRACER_HD TRACER_INLINE const TriangleUv* triangle_uvs(const SceneView& s, TriangleRef r) {
+  const TriangleUv* uvs = r.instance == kInvalid ? s.tri_uvs : s.inst_tri_uvs;
+  return uvs ? uvs + r.index : nullptr;
+}
+// The triangle's corners in the world.
+TRACER_HD TRACER_INLINE TriangleVerts world_triangle(const SceneView& s, TriangleRef r) {
+  if (r.instance == kInvalid) return load_triangle(s.tri_verts, r.index);
+  TriangleVerts tv = load_triangle(s.inst_tri_verts, r.index);
+  const Instance in = load_instance(s.instances, r.instance);
+  tv.v0 = affine_point(in.world_from_object, tv.v0);
+  tv.v1 = affine_point(in.world_from_object, tv.v1);
+  tv.v2 = affine_point(in.world_from_object, tv.v2);
+  return tv;
+}
 
 // Everything the shading stage needs to know about a hit point.
 struct SurfaceHit {
@@ -94,7 +129,32 @@ struct SurfaceHit {
 template <uint32_t F = kAllFeatures>
 TRACER_HD inline SurfaceHit make_surface_hit(const SceneView& s, const Ray& ray, const Hit& hit) {
   SurfaceHit sh;
-  if (!(F & kFeatureSpheres) || hit.prim < s.tri_count) {
+  if ((F & kFeatureInstances) && hit.prim >= s.tri_count &&
+      hit.prim - s.tri_count >= s.sphere_count) {
+    // An instanced triangle: interpolated in its mesh's space, then mapped to the world (the
+    // normals by the inverse transpose, which keeps them facing out under a mirroring map).
+    const TriangleRef r = triangle_ref(s, hit.prim);
+    const Instance in = load_instance(s.instances, r.instance);
+    const TriangleVerts tv = load_triangle(s.inst_tri_verts, r.index);
+    const TriangleShading& ts = s.inst_tri_shading[r.index];
+    const float b0 = 1.0f - hit.u - hit.v;
+    sh.p = affine_point(in.world_from_object, b0 * tv.v0 + hit.u * tv.v1 + hit.v * tv.v2);
+    sh.ng = fast_normalize(instance_normal(in, glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0)));
+    sh.ns = sh.ng;
+    if (ts.has_normals) {
+      const vec3 n = instance_normal(in, b0 * ts.n0 + hit.u * ts.n1 + hit.v * ts.n2);
+      const float len = glm::length(n);
+      if (len > 0.0f) sh.ns = n / len;
+      if (glm::dot(sh.ns, sh.ng) < 0.0f) sh.ns = -sh.ns;
+    }
+    sh.material = ts.material;
+    sh.light = kInvalid;  // instanced meshes never emit (scene.h)
+    sh.uv = vec2(0.0f);
+    if ((F & kFeatureTextures) && s.inst_tri_uvs) {
+      const TriangleUv tu = s.inst_tri_uvs[r.index];
+      sh.uv = b0 * tu.uv0 + hit.u * tu.uv1 + hit.v * tu.uv2;
+    }
+  } else if (!(F & kFeatureSpheres) || hit.prim < s.tri_count) {
     const TriangleVerts tv = load_triangle(s.tri_verts, hit.prim);
     const TriangleShading& ts = s.tri_shading[hit.prim];
     const float b0 = 1.0f - hit.u - hit.v;
