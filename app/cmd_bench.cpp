@@ -220,10 +220,15 @@ int run_bench(const BenchOptions& o) {
                      {"nee", rs.nee}, {"mis", rs.mis}, {"russian_roulette", rs.russian_roulette},
                      {"spp_timed", o.spp}};
   out["triangles"] = cs.view().tri_count;
+  out["instances"] = cs.instances().size();
+  out["instanced_triangles"] = scene.instanced_triangle_count();
   out["features"] = tracer::describe_features(cs.features());
-  std::printf("scene %s: %u triangles, %u spheres, features: %s\n",
+  std::printf("scene %s: %u triangles, %u spheres, %zu instances of %zu triangles (%llu placed), "
+              "features: %s\n",
               out["scene"].get<std::string>().c_str(), cs.view().tri_count,
-              cs.view().sphere_count, tracer::describe_features(cs.features()).c_str());
+              cs.view().sphere_count, cs.instances().size(), cs.inst_tri_verts().size(),
+              (unsigned long long)scene.instanced_triangle_count(),
+              tracer::describe_features(cs.features()).c_str());
   std::printf("settings: %dx%d, max depth %d, NEE %s, MIS %s, roulette %s (from depth %d)\n",
               rs.width, rs.height, rs.max_depth, rs.nee ? "on" : "off", rs.mis ? "on" : "off",
               rs.russian_roulette ? "on" : "off", rs.rr_start_depth);

@@ -143,6 +143,21 @@ TEST(Gpu, MatchesCpuOnEveryAsset) {
   }
 }
 
+// Instanced meshes (the BVH's second level) on the GPU: the instanced room of the two-level
+// BVH's tests, with diffuse and with glass balls (the specular kernels), against the CPU.
+TEST(Gpu, InstancesMatchCpu) {
+  REQUIRE_GPU(gpu);
+  for (bool glass : {false, true}) {
+    const Scene s = instanced_scene(glass);
+    RenderSettings rs;
+    rs.width = 64;
+    rs.height = 64;
+    rs.max_depth = 6;
+    rs.seed = 5;
+    expect_gpu_matches_cpu(*gpu, glass ? "instances, glass balls" : "instances", s, rs);
+  }
+}
+
 // A PFM sky of w x h texels (equirectangular, or octahedral when square) with a small bright sun.
 std::string write_sky(int w, int h, const std::string& name) {
   const std::string path = testing::TempDir() + "/cuda_" + name + ".pfm";

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <glm/gtc/matrix_transform.hpp>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -206,6 +207,55 @@ inline PixelStats render_pixel_stats(const Scene& scene, const RenderSettings& r
   for (auto& th : pool) th.join();
   ps.nonfinite = bad;
   return ps;
+}
+
+// A room (scene mesh), a light, a sphere and three instanced meshes placed eleven times: moved,
+// rotated, scaled unevenly, mirrored and nested inside each other's boxes (the balls glass on
+// request). For the two-level BVH's tests.
+inline Scene instanced_scene(bool glass_balls = false) {
+  Scene s;
+  const uint32_t white = s.add_material("white", diffuse(vec3(0.7f)));
+  Material glass;
+  glass.type = MaterialType::kDielectric;
+  glass.ior = 1.5f;
+  const uint32_t red =
+      s.add_material("red", glass_balls ? glass : diffuse(vec3(0.7f, 0.1f, 0.1f)));
+  const uint32_t green = s.add_material("green", diffuse(vec3(0.1f, 0.7f, 0.1f)));
+  const uint32_t light = s.add_material("light", diffuse(vec3(0.0f), vec3(12.0f)));
+  add_box(s.mesh, vec3(-4.0f, -1.0f, -4.0f), vec3(4.0f, 5.0f, 4.0f), white);
+  // The room's faces point out; the camera is inside, so flip them.
+  for (uvec3& t : s.mesh.indices) std::swap(t.y, t.z);
+  add_quad(s.mesh, vec3(-1.0f, 4.9f, -1.0f), vec3(2.0f, 0.0f, 0.0f), vec3(0.0f, 0.0f, 2.0f), light);
+  s.spheres.push_back({vec3(2.5f, 0.0f, 2.5f), 0.6f, green});
+
+  InstancedMesh ball{"ball", {}};
+  add_icosphere(ball.mesh, vec3(0.0f), 0.5f, 2, red);  // smooth normals
+  InstancedMesh crate{"crate", {}};
+  add_grid_box(crate.mesh, vec3(-0.5f), vec3(0.5f), 3, white);  // no normals
+  InstancedMesh empty{"empty", {}};
+  s.instanced_meshes = {ball, crate, empty};
+  auto place = [&](uint32_t mesh, glm::mat4 m) { s.instances.push_back({mesh, m}); };
+  const glm::mat4 id(1.0f);
+  place(0, glm::translate(id, vec3(-2.0f, 0.0f, 0.0f)));
+  place(2, glm::translate(id, vec3(0.0f, 1.0f, 0.0f)));  // no triangles: no entry
+  place(0, glm::scale(glm::translate(id, vec3(0.0f, 0.5f, 0.0f)), vec3(1.0f, 2.0f, 0.5f)));
+  place(1, glm::rotate(glm::translate(id, vec3(2.0f, 0.0f, -1.0f)), 0.7f, vec3(0.3f, 1.0f, 0.2f)));
+  place(1, glm::scale(glm::translate(id, vec3(-2.0f, 2.0f, -2.0f)), vec3(-1.0f, 1.0f, 1.5f)));
+  place(0, glm::scale(glm::translate(id, vec3(1.0f, 2.5f, 1.0f)), vec3(-0.8f, 0.8f, 0.8f)));
+  for (int i = 0; i < 6; ++i)  // a row of small crates that overlap each other (no face shared)
+    place(1, glm::scale(glm::translate(id, vec3(-3.0f + 0.35f * i, -0.6f + 0.01f * i,
+                                                 3.0f + 0.013f * i)),
+                        vec3(0.4f + 0.007f * i)));
+  ObjectInfo o;
+  o.name = "things";
+  o.kind = "instances";
+  o.is_instances = true;
+  o.first = 0;
+  o.count = uint32_t(s.instances.size());
+  s.objects.push_back(o);
+  s.camera.position = vec3(0.0f, 1.5f, 3.9f);
+  s.camera.look_at = vec3(0.0f, 1.0f, 0.0f);
+  return s;
 }
 
 // The |z| above which one of n independent normal tests fails with overall probability alpha

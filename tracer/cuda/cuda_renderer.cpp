@@ -69,6 +69,13 @@ struct CudaRenderer::Impl {
   DeviceBuffer<LightLeafEntry> light_leaves;
   DeviceBuffer<uint64_t> light_trails;
   DeviceBuffer<TriangleUv> tri_uvs;  // empty unless the scene is textured
+  // Instances and their meshes (TraceView::inst_*; empty without instances).
+  DeviceBuffer<Instance> instances;
+  DeviceBuffer<BvhNode> inst_nodes;
+  DeviceBuffer<uint32_t> inst_prim_indices;
+  DeviceBuffer<TriangleVerts> inst_tri_verts;
+  DeviceBuffer<TriangleShading> inst_tri_shading;
+  DeviceBuffer<TriangleUv> inst_tri_uvs;
   DeviceBuffer<TextureDesc> textures;
   DeviceBuffer<uint32_t> texels;     // all textures' RGBA8 texels in one allocation
   // The lights at infinity (SceneView::infinite): the map's texels and sampling distribution,
@@ -411,9 +418,12 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   Impl& m = *impl_;
   {
     const size_t bvh = bytes_of(scene.nodes()) + bytes_of(scene.prim_indices()) +
-                       bytes_of(scene.bvh8().nodes) + bytes_of(scene.bvh8().prim_indices);
+                       bytes_of(scene.bvh8().nodes) + bytes_of(scene.bvh8().prim_indices) +
+                       bytes_of(scene.instance_bvh().nodes) +
+                       bytes_of(scene.instance_bvh().prim_indices) + bytes_of(scene.instances());
     const size_t tris = bytes_of(scene.tri_verts()) + bytes_of(scene.tri_shading()) +
-                        bytes_of(scene.tri_uvs());
+                        bytes_of(scene.tri_uvs()) + bytes_of(scene.inst_tri_verts()) +
+                        bytes_of(scene.inst_tri_shading()) + bytes_of(scene.inst_tri_uvs());
     const InfiniteLightsData& inf = scene.infinite();
     const size_t tex = bytes_of(scene.texels()) +
                        (inf.image ? bytes_of(inf.image->rgba) : 0) + bytes_of(inf.func) +
@@ -442,6 +452,12 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.light_leaves.upload(scene.light_tree().leaves);
   m.light_trails.upload(scene.light_tree().trails);
   m.tri_uvs.upload(scene.tri_uvs());
+  m.instances.upload(scene.instances());
+  m.inst_nodes.upload(scene.instance_bvh().nodes);
+  m.inst_prim_indices.upload(scene.instance_bvh().prim_indices);
+  m.inst_tri_verts.upload(scene.inst_tri_verts());
+  m.inst_tri_shading.upload(scene.inst_tri_shading());
+  m.inst_tri_uvs.upload(scene.inst_tri_uvs());
   m.textures.upload(scene.textures());
   m.texels.upload(scene.texels());
   const FlatList& fl = scene.flat_list();
@@ -471,6 +487,12 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.light_tree.leaves = m.light_leaves.get();
   m.view.light_tree.trails = m.light_trails.get();
   m.view.tri_uvs = scene.tri_uvs().empty() ? nullptr : m.tri_uvs.get();
+  m.view.instances = scene.instances().empty() ? nullptr : m.instances.get();
+  m.view.inst_nodes = m.inst_nodes.get();
+  m.view.inst_prim_indices = m.inst_prim_indices.get();
+  m.view.inst_tri_verts = m.inst_tri_verts.get();
+  m.view.inst_tri_shading = m.inst_tri_shading.get();
+  m.view.inst_tri_uvs = scene.inst_tri_uvs().empty() ? nullptr : m.inst_tri_uvs.get();
   m.view.textures = m.textures.get();
   m.view.texels = m.texels.get();
   m.view.cpu_bvh = CpuBvhView();  // host memory: the device traverses the shared layout
@@ -563,7 +585,9 @@ size_t CudaRenderer::scene_bytes() const {
          m.light_nodes.bytes() + m.light_leaves.bytes() + m.light_trails.bytes() +
          m.env_texels.bytes() + m.env_func.bytes() + m.env_cond_cdf.bytes() +
          m.env_marg_cdf.bytes() + m.distant.bytes() + m.infinite.bytes() + m.point_lights.bytes() +
-         m.flat.bytes() + m.flat_info.bytes() + m.tri_to_flat.bytes();
+         m.flat.bytes() + m.flat_info.bytes() + m.tri_to_flat.bytes() + m.instances.bytes() +
+         m.inst_nodes.bytes() + m.inst_prim_indices.bytes() + m.inst_tri_verts.bytes() +
+         m.inst_tri_shading.bytes() + m.inst_tri_uvs.bytes();
 }
 
 FrameStats CudaRenderer::render(uint32_t spp) {
