@@ -72,6 +72,14 @@ int run_info(const InfoOptions& o) {
   j["primitives"] = v.tri_count + v.sphere_count;
   j["triangles"] = v.tri_count;
   j["spheres"] = v.sphere_count;
+  // Instanced meshes are stored once and placed by every instance: the triangles the instances
+  // place, and those stored.
+  uint64_t stored = 0;
+  for (const tracer::InstancedMesh& m : scene.instanced_meshes) stored += m.mesh.indices.size();
+  j["instanced_meshes"] = scene.instanced_meshes.size();
+  j["instances"] = scene.instances.size();
+  j["instanced_triangles"] = scene.instanced_triangle_count();
+  j["instanced_triangles_stored"] = stored;
   // Every type, named as the scene format names it, so the counts add up to the total.
   std::string by_type_text;
   j["materials"] = {{"total", scene.materials.size()}, {"emissive", emissive}};
@@ -155,6 +163,12 @@ int run_info(const InfoOptions& o) {
             << "objects     " << scene.objects.size() << "\n"
             << "primitives  " << v.tri_count + v.sphere_count << " (" << v.tri_count
             << " triangles, " << v.sphere_count << " spheres)\n"
+            << (scene.instances.empty()
+                    ? std::string()
+                    : "instances   " + std::to_string(scene.instances.size()) + " of " +
+                          std::to_string(scene.instanced_meshes.size()) + " meshes (" +
+                          std::to_string(scene.instanced_triangle_count()) +
+                          " instanced triangles, " + std::to_string(stored) + " stored)\n")
             << "materials   " << scene.materials.size() << " (" << by_type_text << "; " << emissive
             << " emissive)\n"
             << "lights      " << emitters << " emissive primitives"

@@ -590,3 +590,58 @@ TEST(GltfWrongTypes, AssimpWrongTypes) {
 }
 
 }  // namespace
+
+namespace {
+
+// A mesh that three nodes use is read once and drawn by three instances (node transform times
+// the load transform); a mesh one node uses stays in the scene's mesh; an emissive mesh that
+// two nodes use is written out twice.
+TEST(GltfInstances, ReusedMeshesBecomeInstances) {
+  TempDir dir;
+  GltfBuilder g;
+  const int pos = g.positions({vec3(0, 0, 0), vec3(1, 0, 0), vec3(0, 1, 0)});
+  g.primitive({{"attributes", {{"POSITION", pos}}}});  // mesh 0, node 0
+  g.j["meshes"][0]["name"] = "leaf";
+  g.primitive({{"attributes", {{"POSITION", pos}}}});  // mesh 1, node 1: used once
+  g.j["materials"] = {{{"emissiveFactor", {1, 1, 1}}}};
+  g.primitive({{"attributes", {{"POSITION", pos}}}, {"material", 0}});  // mesh 2, node 2
+  for (int n = 0; n < 2; ++n) {
+    g.j["nodes"].push_back({{"mesh", 0}, {"translation", {0, 0, 2 + 2 * n}}});
+    g.j["scenes"][0]["nodes"].push_back(g.j["nodes"].size() - 1);
+  }
+  g.j["nodes"].push_back({{"mesh", 2}, {"scale", {3, 3, 3}}});
+  g.j["scenes"][0]["nodes"].push_back(g.j["nodes"].size() - 1);
+  const std::string path = g.write(dir);
+  Scene s;
+  ASSERT_NO_THROW(s = load_scene(path)) << load_error(path);
+  ASSERT_EQ(s.instanced_meshes.size(), 1u);
+  EXPECT_EQ(s.instanced_meshes[0].mesh.indices.size(), 1u);
+  EXPECT_EQ(s.instanced_meshes[0].mesh.positions[1], vec3(1, 0, 0));
+  ASSERT_EQ(s.instances.size(), 3u);
+  EXPECT_EQ(s.instances[0].world_from_object, mat4(1.0f));
+  EXPECT_EQ(s.instances[2].world_from_object[3], vec4(0, 0, 4, 1));
+  EXPECT_EQ(s.mesh.indices.size(), 1u + 2u);  // mesh 1 once, the emissive mesh 2 twice
+  bool found = false;
+  for (const ObjectInfo& o : s.objects)
+    if (o.is_instances) {
+      found = true;
+      EXPECT_EQ(o.name, "test.gltf mesh 0 (\"leaf\")");
+      EXPECT_EQ(o.count, 3u);
+    }
+  EXPECT_TRUE(found);
+  // Placed by a JSON mesh object, the instances carry the object's transform.
+  const std::string json = dir.path + "/scene.json";
+  std::ofstream(json) << R"({"environment": {"color": [1, 1, 1]}, "objects": [
+      {"type": "mesh", "file": "test.gltf", "transform": {"translate": [5, 0, 0]}}]})";
+  const Scene placed = load_scene(json);
+  ASSERT_EQ(placed.instances.size(), 3u);
+  EXPECT_EQ(placed.instances[2].world_from_object[3], vec4(5, 0, 4, 1));
+  // With "instances" of its own the file's instances are written into the object's mesh.
+  std::ofstream(json) << R"({"environment": {"color": [1, 1, 1]}, "objects": [
+      {"type": "mesh", "file": "test.gltf", "instances": [{"translate": [5, 0, 0]}]}]})";
+  const Scene nested = load_scene(json);
+  EXPECT_TRUE(nested.instances.empty()) << "the file's emitters flatten the object";
+  EXPECT_EQ(nested.mesh.indices.size(), 6u);
+}
+
+}  // namespace

@@ -118,7 +118,13 @@ TEST(Loader, EveryAssetLoads) {
       }
       Scene s;
       ASSERT_NO_THROW(s = load_scene(entry.path().string()));
-      EXPECT_GT(s.mesh.indices.size() + s.spheres.size(), 0u);
+      EXPECT_GT(s.mesh.indices.size() + s.spheres.size() + s.instances.size(), 0u);
+      if (entry.path().filename() == "instanced_100m.json") {
+        // A million-triangle tile placed 100 times; the mirrored tiles meet their neighbours.
+        EXPECT_EQ(s.instanced_meshes.size(), 1u);
+        EXPECT_EQ(s.instances.size(), 100u);
+        EXPECT_GE(s.instanced_triangle_count(), 100000000u);
+      }
       const bool sky = !s.environment.file.empty() || !s.distant_lights.empty();
       EXPECT_TRUE(emissive_materials(s) >= 1u || sky);
       for (const std::string& w : s.diagnostics.warnings) {
@@ -384,7 +390,7 @@ TEST(Loader, AssimpGltfSweep) {
     SCOPED_TRACE(entry.path().string());
     try {
       const Scene s = load_scene(entry.path().string());
-      EXPECT_GT(s.mesh.indices.size(), 0u);
+      EXPECT_GT(s.mesh.indices.size() + s.instanced_triangle_count(), 0u);
       ++loaded;
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find(entry.path().filename().string()), std::string::npos);

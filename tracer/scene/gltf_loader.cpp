@@ -112,31 +112,53 @@ class GltfReader {
       for (size_t i = 0; i < model_.nodes.size(); ++i)
         if (!is_child[i]) roots.push_back(int(i));
     }
-    struct Item {
-      int node;
-      mat4 parent;
-    };
-    std::vector<Item> stack;
-    for (auto it = roots.rbegin(); it != roots.rend(); ++it) {
-      if (*it < 0 || size_t(*it) >= model_.nodes.size())
-        fail("scene refers to node " + std::to_string(*it) + ", but the file has " +
-             std::to_string(model_.nodes.size()) + " nodes");
-      stack.push_back({*it, xform});
-    }
-    // The graph is acyclic (checked above), but a DAG that shares children can still blow up
-    // exponentially; cap the number of node instances.
-    size_t visits = 0;
-    while (!stack.empty()) {
-      const Item item = stack.back();
-      stack.pop_back();
-      if (++visits > 1000000) fail("node hierarchy expands to more than a million node instances");
-      const tinygltf::Node& node = model_.nodes[size_t(item.node)];
-      const mat4 world = item.parent * local_transform(node, item.node);
-      if (node.mesh >= 0) append_mesh(node.mesh, world);
+    // Meshes that several nodes use are instanced (read once, in their own space, with an
+    // instance per node), unless a material of theirs emits: emitters are world-space triangles.
+    std::map<int, size_t> uses;
+    walk(roots, xform, [&](const tinygltf::Node& node, const mat4&) {
+      if (node.mesh >= 0) ++uses[node.mesh];
+    });
+    std::map<int, Instanced> instanced;
+    std::vector<int> instanced_order;
+    walk(roots, xform, [&](const tinygltf::Node& node, const mat4& world) {
+      if (node.mesh >= 0) {
+        if (uses[node.mesh] < 2 || !instance_transform_problem(world).empty()) {
+          append_mesh(scene_, node.mesh, world);
+        } else {
+          auto [it, first] = instanced.try_emplace(node.mesh);
+          Instanced& in = it->second;
+          if (first) {
+            Scene local;
+            append_mesh(local, node.mesh, mat4(1.0f));
+            in.mesh = std::move(local.mesh);
+            in.emits = uses_emissive_material(scene_, in.mesh);
+            if (!in.emits) instanced_order.push_back(node.mesh);
+          }
+          if (in.emits)
+            append_part(scene_, mesh_part_of(in.mesh), world);
+          else if (!in.mesh.indices.empty())
+            in.placements.push_back(world);
+        }
+      }
       if (node.camera >= 0 && camera && !*has_camera)
         *has_camera = read_camera(node, world, camera);
-      for (auto c = node.children.rbegin(); c != node.children.rend(); ++c)
-        stack.push_back({*c, world});
+    });
+    for (int m : instanced_order) {
+      Instanced& in = instanced[m];
+      if (in.placements.empty()) continue;
+      const tinygltf::Mesh& mesh = model_.meshes[size_t(m)];
+      ObjectInfo info;
+      info.name = base_name(path_) + " mesh " + std::to_string(m) +
+                  (mesh.name.empty() ? "" : " (\"" + mesh.name + "\")");
+      info.kind = "instances";
+      info.is_instances = true;
+      info.first = uint32_t(scene_.instances.size());
+      info.count = uint32_t(in.placements.size());
+      info.loc = file();
+      const uint32_t index = uint32_t(scene_.instanced_meshes.size());
+      scene_.instanced_meshes.push_back({info.name, std::move(in.mesh)});
+      for (const mat4& w : in.placements) scene_.instances.push_back({index, w});
+      scene_.objects.push_back(info);
     }
     if (!approximated_.empty()) {
       std::string list;
@@ -170,6 +192,47 @@ class GltfReader {
 
  private:
   SourceLoc file() const { return {path_, 0}; }
+
+  // A mesh that several nodes use: its triangles in its own space and the nodes' transforms.
+  struct Instanced {
+    TriangleMesh mesh;
+    bool emits = false;
+    std::vector<mat4> placements;
+  };
+
+  // Calls f(node, global transform) for every node under `roots` (placed by `xform`) in
+  // depth-first order, children in their order.
+  template <typename F>
+  void walk(const std::vector<int>& roots, const mat4& xform, F&& f) const {
+    struct Item {
+      int node;
+      mat4 parent;
+    };
+    std::vector<Item> stack;
+    for (auto it = roots.rbegin(); it != roots.rend(); ++it) {
+      if (*it < 0 || size_t(*it) >= model_.nodes.size())
+        fail("scene refers to node " + std::to_string(*it) + ", but the file has " +
+             std::to_string(model_.nodes.size()) + " nodes");
+      stack.push_back({*it, xform});
+    }
+    // The graph is acyclic (checked before), but a DAG that shares children can still blow up
+    // exponentially; cap the number of node instances.
+    size_t visits = 0;
+    while (!stack.empty()) {
+      const Item item = stack.back();
+      stack.pop_back();
+      if (++visits > 1000000) fail("node hierarchy expands to more than a million node instances");
+      const tinygltf::Node& node = model_.nodes[size_t(item.node)];
+      const mat4 world = item.parent * local_transform(node, item.node);
+      f(node, world);
+      for (auto c = node.children.rbegin(); c != node.children.rend(); ++c)
+        stack.push_back({*c, world});
+    }
+  }
+  static std::string base_name(const std::string& path) {
+    const size_t slash = path.find_last_of('/');
+    return slash == std::string::npos ? path : path.substr(slash + 1);
+  }
   [[noreturn]] void fail(const std::string& problem) const {
     throw InputError(file(), problem + suffix_);
   }
@@ -681,7 +744,9 @@ class GltfReader {
     return metal_rough;
   }
 
-  void append_mesh(int mesh_index, const mat4& world) {
+  // Appends the mesh's primitives to `target`'s mesh (the scene's, or a mesh of its own for
+  // instancing); materials, textures and warnings go to the scene.
+  void append_mesh(Scene& target, int mesh_index, const mat4& world) {
     if (size_t(mesh_index) >= model_.meshes.size())
       fail("a node refers to mesh " + std::to_string(mesh_index) + ", which does not exist");
     const tinygltf::Mesh& mesh = model_.meshes[size_t(mesh_index)];
@@ -745,7 +810,7 @@ class GltfReader {
       const MaterialUse& mat = material(prim.material);
       part.materials.assign(part.indices.size(), mat.id);
       read_primitive_uvs(prim, mat, what, &part);
-      append_part(scene_, part, world);
+      append_part(target, part, world);
     }
   }
 

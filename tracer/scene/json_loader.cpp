@@ -1,6 +1,7 @@
 // The JSON scene format (docs/SCENE_FORMAT.md): camera, render settings, named materials and
 // objects, read with a line for every value so that each message points at the offending spot.
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <glm/gtc/matrix_transform.hpp>
 #include <initializer_list>
@@ -585,12 +586,12 @@ class JsonSceneReader {
   }
 
   // "materials": {"NAME": VALUE} on a mesh object: the file's material NAME (the materials from
-  // index `first` and the triangles from `first_triangle` on came from the file) is replaced by
-  // the scene material VALUE names, or edited by VALUE's keys (a material definition whose
-  // missing keys keep the file's values).
+  // index `first` and `triangle_materials` from `first_triangle` on came from the file) is
+  // replaced by the scene material VALUE names, or edited by VALUE's keys (a material definition
+  // whose missing keys keep the file's values).
   void override_file_materials(const json& overrides, const std::string& ptr,
                                const std::string& where, const std::string& file, size_t first,
-                               uint32_t first_triangle) {
+                               std::vector<uint32_t>& triangle_materials, size_t first_triangle) {
     require_object(overrides, ptr, "\"materials\" of " + where);
     std::vector<std::string> file_names;
     for (size_t i = first; i < scene_.materials.size(); ++i)
@@ -628,8 +629,8 @@ class JsonSceneReader {
                                              "definition {...})"
                                            : " (did you mean " + in_quotes(guess) + "?)"));
         }
-        for (size_t t = first_triangle; t < scene_.mesh.materials.size(); ++t)
-          if (scene_.mesh.materials[t] == index) scene_.mesh.materials[t] = id;
+        for (size_t t = first_triangle; t < triangle_materials.size(); ++t)
+          if (triangle_materials[t] == index) triangle_materials[t] = id;
       } else {
         Material& target = scene_.materials[index].material;
         target = parse_material("material " + in_quotes(it.key()) + " of " + where, it.value(),
@@ -641,9 +642,12 @@ class JsonSceneReader {
   // scale -> rotate (X, then Y, then Z, degrees) -> translate, or a row-major "matrix".
   mat4 read_transform(const json& o, const std::string& obj_ptr, const std::string& where) const {
     if (!o.contains("transform")) return mat4(1.0f);
-    const json& t = o["transform"];
-    const std::string ptr = json_pointer_child(obj_ptr, "transform");
-    const std::string w = "\"transform\" of " + where;
+    return transform_value(o["transform"], json_pointer_child(obj_ptr, "transform"),
+                           "\"transform\" of " + where);
+  }
+
+  // A transform's value, `t` at `ptr`; `w` names it in messages.
+  mat4 transform_value(const json& t, const std::string& ptr, const std::string& w) const {
     require_object(t, ptr, w);
     check_keys(t, ptr, {"translate", "rotate", "scale", "matrix"}, w);
     if (t.contains("matrix")) {
@@ -678,6 +682,83 @@ class JsonSceneReader {
     m = glm::rotate(m, glm::radians(rot.y), vec3(0, 1, 0));
     m = glm::rotate(m, glm::radians(rot.x), vec3(1, 0, 0));
     return glm::scale(m, scale);
+  }
+
+  // "instances" of a mesh or terrain object: its placements, each world_from_object =
+  // placement * the object's own `xform`. The value is an array whose items are transforms (the
+  // syntax of "transform") or grids, or one grid: {"grid": [nx, ny, nz], "spacing": [sx, sy, sz]}
+  // places nx * ny * nz copies translated by (i sx, j sy, k sz).
+  std::vector<mat4> read_instances(const json& o, const std::string& obj_ptr,
+                                   const std::string& where, const mat4& xform) const {
+    const json& v = o["instances"];
+    const std::string ptr = json_pointer_child(obj_ptr, "instances");
+    const std::string w = "\"instances\" of " + where;
+    if (!v.is_array() && !v.is_object())
+      fail(ptr, w +
+                    " must be an array of transforms or a grid {\"grid\": [nx, ny, nz], "
+                    "\"spacing\": [sx, sy, sz]}, not " +
+                    json_type_name(v));
+    std::vector<mat4> out;
+    auto add = [&](const mat4& placement, const std::string& at_ptr) {
+      const mat4 m = placement * xform;
+      const std::string problem = instance_transform_problem(m);
+      if (!problem.empty())
+        fail(at_ptr, "the placement of " + w + " (times the object's \"transform\") " + problem);
+      out.push_back(m);
+    };
+    if (v.is_object()) {
+      read_grid(v, ptr, w, add);
+    } else {
+      if (v.empty()) fail(ptr, w + " is empty (give at least one placement, or leave it out)");
+      for (size_t i = 0; i < v.size(); ++i) {
+        const std::string ip = json_pointer_child(ptr, i);
+        const std::string iw = "instance " + std::to_string(i) + " of " + where;
+        if (v[i].is_object() && v[i].contains("grid"))
+          read_grid(v[i], ip, iw, add);
+        else
+          add(transform_value(v[i], ip, iw), ip);
+        if (out.size() > kMaxInstances)
+          fail(ip, w + " place more than " + std::to_string(kMaxInstances) + " instances");
+      }
+    }
+    return out;
+  }
+
+  static constexpr size_t kMaxInstances = 10000000;
+
+  template <typename Add>
+  void read_grid(const json& g, const std::string& ptr, const std::string& w, Add&& add) const {
+    check_keys(g, ptr, {"grid", "spacing"}, w);
+    if (!g.contains("grid")) fail(ptr, w + " has no \"grid\" [nx, ny, nz]");
+    if (!g.contains("spacing")) fail(ptr, w + " has no \"spacing\" [sx, sy, sz]");
+    const json& n = g["grid"];
+    const std::string np = json_pointer_child(ptr, "grid");
+    if (!n.is_array() || n.size() != 3)
+      fail(np, "\"grid\" of " + w + " must be an array of 3 counts [nx, ny, nz], not " +
+                   (n.is_array() ? "one of " + std::to_string(n.size()) : json_type_name(n)));
+    double count[3];
+    for (int i = 0; i < 3; ++i) {
+      count[i] = number(n[size_t(i)], json_pointer_child(np, size_t(i)), "\"grid\" of " + w);
+      if (!(count[i] >= 1.0) || count[i] != std::floor(count[i]))
+        fail(json_pointer_child(np, size_t(i)),
+             "\"grid\" counts of " + w + " must be whole numbers >= 1");
+    }
+    const double total = count[0] * count[1] * count[2];
+    if (total > double(kMaxInstances))
+      fail(np, "\"grid\" of " + w + " places " + number_text(total) + " instances, more than " +
+                   std::to_string(kMaxInstances));
+    const vec3 spacing =
+        vec3_value(g["spacing"], json_pointer_child(ptr, "spacing"), "\"spacing\" of " + w);
+    for (int k = 0; k < int(count[2]); ++k)
+      for (int j = 0; j < int(count[1]); ++j)
+        for (int i = 0; i < int(count[0]); ++i)
+          add(glm::translate(mat4(1.0f), vec3(float(i), float(j), float(k)) * spacing), ptr);
+  }
+
+  static std::string number_text(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0f", x);
+    return buf;
   }
 
   void read_object(const json& o, const std::string& ptr, size_t index) {
@@ -778,7 +859,8 @@ class JsonSceneReader {
       info.count = uint32_t(d.indices.size());
     } else if (type == "terrain") {
       check_keys(o, ptr,
-                 {"type", "name", "size", "resolution", "height", "seed", "material", "transform"},
+                 {"type", "name", "size", "resolution", "height", "seed", "material", "transform",
+                  "instances"},
                  where);
       const uint32_t mat = object_material(o, ptr, where, true);
       const vec3 size = get_vec3(o, ptr, "size", vec3(10.0f, 0.0f, 10.0f), where);
@@ -797,10 +879,17 @@ class JsonSceneReader {
              "\"seed\" of " + where + " must be a whole number, 0..65535");
       MeshPart t = terrain_mesh(vec2(size.x, size.z), uint32_t(res), height, uint32_t(seed));
       t.materials.assign(t.indices.size(), mat);
+      if (o.contains("instances")) {
+        const std::vector<mat4> placements = read_instances(o, ptr, where, xform);
+        add_instanced_object(scene_, info, triangle_mesh_of(std::move(t)), placements);
+        return;
+      }
       info.first = append_part(scene_, t, xform);
       info.count = uint32_t(t.indices.size());
     } else {  // mesh
-      check_keys(o, ptr, {"type", "name", "file", "material", "materials", "transform"}, where);
+      check_keys(o, ptr,
+                 {"type", "name", "file", "material", "materials", "transform", "instances"},
+                 where);
       if (!o.contains("file")) fail(ptr, where + " has no \"file\"");
       const std::string file = get_string(o, ptr, "file", "", where);
       const uint32_t mat = object_material(o, ptr, where, false);
@@ -816,10 +905,19 @@ class JsonSceneReader {
                                    " not found (looked for " + in_quotes(full) + ")");
       const uint32_t before = uint32_t(scene_.mesh.indices.size());
       const size_t materials_before = scene_.materials.size();
+      if (o.contains("instances")) {
+        const std::vector<mat4> placements = read_instances(o, ptr, where, xform);
+        TriangleMesh local = read_mesh_file_local(scene_, full, mat, from);
+        if (o.contains("materials"))
+          override_file_materials(o["materials"], json_pointer_child(ptr, "materials"), where, file,
+                                  materials_before, local.materials, 0);
+        add_instanced_object(scene_, info, std::move(local), placements);
+        return;
+      }
       append_mesh_file(scene_, full, xform, mat, from);
       if (o.contains("materials"))
-        override_file_materials(o["materials"], json_pointer_child(ptr, "materials"), where,
-                                file, materials_before, before);
+        override_file_materials(o["materials"], json_pointer_child(ptr, "materials"), where, file,
+                                materials_before, scene_.mesh.materials, before);
       info.first = before;
       info.count = uint32_t(scene_.mesh.indices.size()) - before;
     }

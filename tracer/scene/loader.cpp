@@ -43,7 +43,7 @@ Scene load_scene(const std::string& path) {
     append_ply_file(scene, path, mat4(1.0f), kInvalid, file);
   else
     append_gltf_file(scene, path, mat4(1.0f), kInvalid, file, &scene.camera, &has_camera);
-  if (scene.mesh.indices.size() == before) {
+  if (scene.mesh.indices.size() == before && scene.instances.empty()) {
     // Say why, rather than a bare "no geometry": the reader's warnings usually hold the reason.
     std::string why;
     for (const std::string& w : scene.diagnostics.warnings) why += (why.empty() ? " (" : " | ") + w;
@@ -54,7 +54,7 @@ Scene load_scene(const std::string& path) {
   uint32_t degenerate = 0;
   for (uint32_t t = before; t < scene.mesh.indices.size(); ++t)
     degenerate += is_zero_area_triangle(scene.mesh, scene.mesh.indices[t]) ? 1u : 0u;
-  if (degenerate == scene.mesh.indices.size() - before) {
+  if (degenerate == scene.mesh.indices.size() - before && scene.instances.empty()) {
     throw InputError(file, (degenerate == 1 ? std::string("the file's only triangle has")
                                             : "all " + std::to_string(degenerate) +
                                                   " triangles of the file have") +
@@ -68,7 +68,9 @@ Scene load_scene(const std::string& path) {
   info.first = before;
   info.count = uint32_t(scene.mesh.indices.size()) - before;
   info.loc = file;
-  scene.objects.push_back(info);
+  // A glTF whose meshes are all instanced (each used by several nodes) leaves no triangles here;
+  // its objects are the instances.
+  if (info.count > 0 || scene.instances.empty()) scene.objects.push_back(info);
   frame_mesh_scene(scene, has_camera);
   validate_scene(scene);
   return scene;

@@ -8,11 +8,14 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "core/math.h"
+#include "scene/loader.h"
 
 namespace tracer {
 
@@ -60,17 +63,106 @@ uint32_t append_part(Scene& scene, const MeshPart& part, const mat4& xform) {
   return first_tri;
 }
 
+MeshPart mesh_part_of(const TriangleMesh& mesh) {
+  MeshPart part;
+  part.positions = mesh.positions;
+  if (mesh.normals.size() == mesh.positions.size()) part.normals = mesh.normals;
+  if (mesh.uvs.size() == mesh.positions.size()) part.uvs = mesh.uvs;
+  part.indices = mesh.indices;
+  part.materials = mesh.materials;
+  return part;
+}
+
+TriangleMesh triangle_mesh_of(MeshPart part) {
+  TriangleMesh mesh;
+  mesh.positions = std::move(part.positions);
+  if (part.normals.size() == mesh.positions.size()) mesh.normals = std::move(part.normals);
+  if (part.uvs.size() == mesh.positions.size()) mesh.uvs = std::move(part.uvs);
+  mesh.indices = std::move(part.indices);
+  mesh.materials = std::move(part.materials);
+  return mesh;
+}
+
+bool uses_emissive_material(const Scene& scene, const TriangleMesh& mesh) {
+  std::vector<uint8_t> seen(scene.materials.size(), 0);
+  for (uint32_t m : mesh.materials) {
+    if (m >= seen.size() || seen[m]) continue;
+    seen[m] = 1;
+    if (scene.materials[m].material.is_emissive()) return true;
+  }
+  return false;
+}
+
+std::string instance_transform_problem(const mat4& m) {
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r)
+      if (!std::isfinite(m[c][r])) return "is not finite";
+  if (m[0][3] != 0.0f || m[1][3] != 0.0f || m[2][3] != 0.0f || m[3][3] != 1.0f)
+    return "is not affine (its last row is not 0, 0, 0, 1)";
+  // In double: the product of three tiny scales underflows a float's determinant to zero, and the
+  // renderer inverts the matrix in float, which needs a normal determinant.
+  const glm::dmat3 a{glm::dvec3(m[0]), glm::dvec3(m[1]), glm::dvec3(m[2])};
+  const double det = glm::determinant(a);
+  if (!(std::fabs(det) >= double(std::numeric_limits<float>::min())) || !std::isfinite(det))
+    return "is singular (it flattens the mesh; determinant " + std::to_string(det) + ")";
+  return "";
+}
+
+void add_instanced_object(Scene& scene, ObjectInfo info, TriangleMesh mesh,
+                          const std::vector<mat4>& placements) {
+  if (uses_emissive_material(scene, mesh)) {
+    const MeshPart part = mesh_part_of(mesh);
+    info.first = uint32_t(scene.mesh.indices.size());
+    for (const mat4& m : placements) append_part(scene, part, m);
+    info.count = uint32_t(scene.mesh.indices.size()) - info.first;
+    scene.diagnostics.note(info.loc, "object \"" + info.name + "\" emits light, so its " +
+                                         std::to_string(placements.size()) +
+                                         " instance(s) are flattened into world-space triangles "
+                                         "(instances of emissive meshes are not instanced)");
+    scene.objects.push_back(info);
+    return;
+  }
+  const uint32_t index = uint32_t(scene.instanced_meshes.size());
+  scene.instanced_meshes.push_back({info.name, std::move(mesh)});
+  info.kind = "instances";
+  info.is_instances = true;
+  info.first = uint32_t(scene.instances.size());
+  info.count = uint32_t(placements.size());
+  for (const mat4& m : placements) scene.instances.push_back({index, m});
+  scene.objects.push_back(info);
+}
+
+TriangleMesh read_mesh_file_local(Scene& scene, const std::string& path, uint32_t material_override,
+                                  const SourceLoc& from) {
+  // The readers append to a scene: give them one whose materials, textures and diagnostics are
+  // the real scene's (moved in and back, not copied) and whose mesh starts empty.
+  Scene local;
+  local.source = scene.source;
+  std::swap(local.materials, scene.materials);
+  std::swap(local.textures, scene.textures);
+  std::swap(local.diagnostics, scene.diagnostics);
+  auto give_back = [&] {
+    std::swap(local.materials, scene.materials);
+    std::swap(local.textures, scene.textures);
+    std::swap(local.diagnostics, scene.diagnostics);
+  };
+  try {
+    append_mesh_file(local, path, mat4(1.0f), material_override, from);
+  } catch (...) {
+    give_back();
+    throw;
+  }
+  give_back();
+  // A glTF's own instances (a mesh that several nodes use) become part of this mesh: instances
+  // do not nest.
+  flatten_instances(local);
+  return std::move(local.mesh);
+}
+
 void flatten_instances(Scene& scene) {
   if (scene.instances.empty()) return;
   std::vector<MeshPart> parts(scene.instanced_meshes.size());
-  for (size_t m = 0; m < parts.size(); ++m) {
-    const TriangleMesh& src = scene.instanced_meshes[m].mesh;
-    parts[m].positions = src.positions;
-    if (src.normals.size() == src.positions.size()) parts[m].normals = src.normals;
-    if (src.uvs.size() == src.positions.size()) parts[m].uvs = src.uvs;
-    parts[m].indices = src.indices;
-    parts[m].materials = src.materials;
-  }
+  for (size_t m = 0; m < parts.size(); ++m) parts[m] = mesh_part_of(scene.instanced_meshes[m].mesh);
   std::vector<uint32_t> first_tri(scene.instances.size());
   for (size_t i = 0; i < scene.instances.size(); ++i) {
     const MeshInstance& inst = scene.instances[i];
@@ -207,21 +299,29 @@ MeshSurvey survey(const Scene& scene) {
     if (emission[i] > 0.0 && m.emissive_tex < scene.textures.size())
       emission[i] *= mean_luminance(scene.textures[m.emissive_tex]);
   }
-  for (size_t t = 0; t < mesh.indices.size(); ++t) {
-    const uvec3 tri = mesh.indices[t];
-    if (tri.x >= mesh.positions.size() || tri.y >= mesh.positions.size() ||
-        tri.z >= mesh.positions.size())
-      continue;  // validate_scene reports it
-    const vec3 p0 = mesh.positions[tri.x], p1 = mesh.positions[tri.y], p2 = mesh.positions[tri.z];
-    if (!is_finite(p0) || !is_finite(p1) || !is_finite(p2)) continue;
+  // Triangle t of `m`, placed by `xform`; instanced meshes never emit.
+  auto add = [&](const TriangleMesh& m, size_t t, const mat4& xform, bool emits) {
+    const uvec3 tri = m.indices[t];
+    if (tri.x >= m.positions.size() || tri.y >= m.positions.size() || tri.z >= m.positions.size())
+      return;  // validate_scene reports it
+    const vec3 p0 = vec3(xform * vec4(m.positions[tri.x], 1.0f));
+    const vec3 p1 = vec3(xform * vec4(m.positions[tri.y], 1.0f));
+    const vec3 p2 = vec3(xform * vec4(m.positions[tri.z], 1.0f));
+    if (!is_finite(p0) || !is_finite(p1) || !is_finite(p2)) return;
     s.lo = glm::min(s.lo, glm::min(p0, glm::min(p1, p2)));
     s.hi = glm::max(s.hi, glm::max(p0, glm::max(p1, p2)));
     const glm::dvec3 c = 0.5 * glm::cross(glm::dvec3(p1 - p0), glm::dvec3(p2 - p0));
     const double a = glm::length(c);
-    if (!(a > 0.0) || !std::isfinite(a)) continue;
+    if (!(a > 0.0) || !std::isfinite(a)) return;
     s.area += a;
     s.normal_sum += c;
-    if (mesh.materials[t] < emission.size()) s.power += a * emission[mesh.materials[t]];
+    if (emits && m.materials[t] < emission.size()) s.power += a * emission[m.materials[t]];
+  };
+  for (size_t t = 0; t < mesh.indices.size(); ++t) add(mesh, t, mat4(1.0f), true);
+  for (const MeshInstance& inst : scene.instances) {
+    if (inst.mesh >= scene.instanced_meshes.size()) continue;
+    const TriangleMesh& m = scene.instanced_meshes[inst.mesh].mesh;
+    for (size_t t = 0; t < m.indices.size(); ++t) add(m, t, inst.world_from_object, false);
   }
   return s;
 }

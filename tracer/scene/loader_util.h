@@ -31,6 +31,31 @@ MeshPart terrain_mesh(vec2 size, uint32_t resolution, float height, uint32_t see
 // flat geometric normal. Returns the index of the first appended triangle.
 uint32_t append_part(Scene& scene, const MeshPart& part, const mat4& xform);
 
+// A mesh's triangles as a part (normals and uvs kept where they cover every position).
+MeshPart mesh_part_of(const TriangleMesh& mesh);
+// The triangles of `part` as an instanced mesh's, untransformed.
+TriangleMesh triangle_mesh_of(MeshPart part);
+
+// Whether any triangle of `mesh` uses an emissive material of `scene` (such a mesh is flattened:
+// emitters are world-space triangles).
+bool uses_emissive_material(const Scene& scene, const TriangleMesh& mesh);
+
+// Why `world_from_object` cannot place an instance ("" when it can): not finite, not affine, or
+// singular (a zero determinant, also one that underflows a float).
+std::string instance_transform_problem(const mat4& world_from_object);
+
+// Adds `mesh` (object space) once with one instance per placement, as one object of kind
+// "instances" named `info`'s name. When a material of the mesh emits, appends each placement's
+// triangles to scene.mesh instead (an object of `info`'s kind) and says so in a note at `info.loc`.
+void add_instanced_object(Scene& scene, ObjectInfo info, TriangleMesh mesh,
+                          const std::vector<mat4>& placements);
+
+// Reads a mesh file's triangles in the file's own space (append_mesh_file without a transform)
+// into a mesh of their own; the file's materials and textures are added to `scene` and its
+// warnings to scene.diagnostics, so material indices refer to scene.materials.
+TriangleMesh read_mesh_file_local(Scene& scene, const std::string& path, uint32_t material_override,
+                                  const SourceLoc& from);
+
 // Gives triangles [first, first + count) their geometric normal as vertex normals (so shading is
 // exactly flat), duplicating a vertex where faces with different normals share it.
 void set_flat_normals(TriangleMesh& mesh, uint32_t first, uint32_t count);

@@ -1,6 +1,7 @@
 // The pbrt-v4 scene reader: reads directives in order, keeping pbrt's graphics state (the current
 // transform, material, area light and orientation, pushed by AttributeBegin), and appends each
-// shape to the scene in our world (pbrt_world_to_ours). Object instances are flattened.
+// shape to the scene in our world (pbrt_world_to_ours). An object of triangles that emits nothing
+// becomes one instanced mesh with an instance per ObjectInstance; other objects are flattened.
 #include "scene/pbrt_loader.h"
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -64,6 +65,13 @@ struct ObjectDef {
   SourceLoc loc;
   std::vector<ShapeCall> shapes;
   std::vector<std::shared_ptr<BuiltShape>> built;
+  // Decided at the first ObjectInstance: kUndecided, kFlattened (a shape that is an analytic
+  // sphere or emits), or the index of its mesh in Scene::instanced_meshes.
+  static constexpr int kUndecided = -1, kFlattened = -2;
+  int instanced = kUndecided;
+  // The transform that the shapes share, which instances apply (the mesh is stored without it);
+  // identity when the shapes' transforms differ (each is applied to its triangles).
+  mat4 shared_ctm = mat4(1.0f);
 };
 
 class Loader {
@@ -660,11 +668,69 @@ class Loader {
     }
     ObjectDef& obj = it->second;
     const int n = ++instance_counts_[name];
-    for (size_t i = 0; i < obj.shapes.size(); ++i) {
+    for (size_t i = 0; i < obj.shapes.size(); ++i)
       if (!obj.built[i]) obj.built[i] = build(obj.shapes[i]);
+    if (obj.instanced == ObjectDef::kUndecided) obj.instanced = make_instanced_mesh(name, obj);
+    if (obj.instanced >= 0) {
+      // As emit's transform for a shape, to_ours_ * gs_.ctm * shape ctm, with the shape's part
+      // (the shared ctm) left to the instance.
+      const mat4 m = to_ours_ * gs_.ctm * obj.shared_ctm;
+      if (instance_transform_problem(m).empty()) {
+        const uint64_t tris = scene_.instanced_meshes[size_t(obj.instanced)].mesh.indices.size();
+        instanced_triangles_ += tris;
+        if (instanced_triangles_ + scene_.mesh.indices.size() >= (uint64_t(1) << 31))
+          throw InputError(d.loc(), "the instances place more than 2^31 triangles in all (" +
+                                        std::to_string(instanced_triangles_) + ")");
+        ObjectInfo info;
+        info.name = name + " #" + std::to_string(n);
+        info.kind = "instances";
+        info.is_instances = true;
+        info.first = uint32_t(scene_.instances.size());
+        info.count = 1;
+        info.loc = d.loc();
+        scene_.instances.push_back({uint32_t(obj.instanced), m});
+        scene_.objects.push_back(info);
+        return;
+      }
+      // A singular or non-finite placement: flattened, as before instancing, so that its
+      // triangles are dropped as degenerate with the usual warning rather than failing the load.
+    }
+    for (size_t i = 0; i < obj.shapes.size(); ++i)
       emit(obj.shapes[i], *obj.built[i], gs_.ctm * obj.shapes[i].gs.ctm,
            " [" + name + " #" + std::to_string(n) + "]");
+  }
+
+  // The object's shapes as one instanced mesh (its index), or kFlattened when a shape is an
+  // analytic sphere or emits light (emitters must be world-space triangles) or there is nothing to
+  // instance. Each shape's triangles are placed by its transform relative to the shared one,
+  // exactly as emit places them (append_part: normals by the inverse transpose, winding flipped
+  // under a mirroring transform), so that flattening the instances gives emit's triangles.
+  int make_instanced_mesh(const std::string& name, ObjectDef& obj) {
+    std::vector<uint32_t> materials(obj.shapes.size(), kInvalid);
+    bool same_ctm = true;
+    size_t triangles = 0;
+    for (size_t i = 0; i < obj.shapes.size(); ++i) {
+      const BuiltShape& b = *obj.built[i];
+      if (b.skip) continue;
+      if (b.full_sphere) return ObjectDef::kFlattened;
+      const ShapeCall& call = obj.shapes[i];
+      materials[i] = materials_.scene_material(call.gs.material, call.gs.area);
+      if (materials[i] == kInvalid) continue;  // an interface: emit skips it too
+      if (scene_.materials[materials[i]].material.is_emissive()) return ObjectDef::kFlattened;
+      same_ctm &= call.gs.ctm == obj.shapes[0].gs.ctm;
+      triangles += b.part.indices.size();
     }
+    if (triangles == 0) return ObjectDef::kFlattened;
+    obj.shared_ctm = same_ctm ? obj.shapes[0].gs.ctm : mat4(1.0f);
+    Scene local;
+    for (size_t i = 0; i < obj.shapes.size(); ++i) {
+      if (materials[i] == kInvalid || obj.built[i]->skip) continue;
+      MeshPart part = obj.built[i]->part;
+      part.materials.assign(part.indices.size(), materials[i]);
+      append_part(local, part, same_ctm ? mat4(1.0f) : obj.shapes[i].gs.ctm);
+    }
+    scene_.instanced_meshes.push_back({name, std::move(local.mesh)});
+    return int(scene_.instanced_meshes.size() - 1);
   }
 
   void include(const PbrtToken& d) {
@@ -795,7 +861,7 @@ class Loader {
     if (b.part.indices.empty()) return;
     if (scene_.mesh.indices.size() + b.part.indices.size() > kMaxTriangles)
       throw InputError(call.loc, "the scene would have more than " + std::to_string(kMaxTriangles) +
-                                     " triangles (instancing is flattened)");
+                                     " triangles (instances that are flattened count)");
     MeshPart part = b.part;
     part.materials.assign(part.indices.size(), material);
     info.kind = "mesh";
@@ -814,6 +880,7 @@ class Loader {
   std::map<std::string, mat4> coord_systems_;
   std::map<std::string, ObjectDef> objects_;
   std::map<std::string, int> instance_counts_;
+  uint64_t instanced_triangles_ = 0;
   ObjectDef* object_ = nullptr;
   std::map<std::string, std::shared_ptr<PlyMesh>> ply_cache_;
   bool in_world_ = false;

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "core/math.h"
@@ -289,6 +290,170 @@ size_t validate_geometry(Scene& scene) {
   return removed;
 }
 
+// The object that places instance i, for messages.
+const ObjectInfo* owner_of_instance(const Scene& scene, size_t i) {
+  for (const ObjectInfo& o : scene.objects)
+    if (o.is_instances && i >= o.first && i - o.first < o.count) return &o;
+  return nullptr;
+}
+
+// The first object that places instanced mesh m, for messages.
+const ObjectInfo* owner_of_instanced_mesh(const Scene& scene, uint32_t m) {
+  for (size_t i = 0; i < scene.instances.size(); ++i)
+    if (scene.instances[i].mesh == m) return owner_of_instance(scene, i);
+  return nullptr;
+}
+
+// The object-space bounds of an instanced mesh's triangles.
+void instanced_bounds(const TriangleMesh& mesh, vec3* lo, vec3* hi) {
+  *lo = vec3(std::numeric_limits<float>::max());
+  *hi = -*lo;
+  for (const uvec3& tri : mesh.indices)
+    for (int k = 0; k < 3; ++k) {
+      *lo = glm::min(*lo, mesh.positions[tri[k]]);
+      *hi = glm::max(*hi, mesh.positions[tri[k]]);
+    }
+}
+
+// The world-space corners of instance `inst`'s bounds, given its mesh's object-space bounds.
+template <typename F>
+void for_each_corner(const MeshInstance& inst, vec3 lo, vec3 hi, F&& f) {
+  for (int c = 0; c < 8; ++c) {
+    const vec3 p((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+    f(glm::dvec3(glm::dmat4(inst.world_from_object) * glm::dvec4(p, 1.0)));
+  }
+}
+
+// Instanced meshes (the same checks as the scene's mesh, plus: no emissive material, which must
+// be world-space triangles) and their instances (a mesh that exists, a finite invertible affine
+// transform). Zero-area triangles are removed; a mesh left without triangles loses its instances.
+void validate_instances(Scene& scene) {
+  const size_t nmat = scene.materials.size();
+  std::vector<uint8_t> empty(scene.instanced_meshes.size(), 0);
+  for (size_t i = 0; i < scene.instances.size(); ++i) {
+    const MeshInstance& inst = scene.instances[i];
+    const ObjectInfo* o = owner_of_instance(scene, i);
+    if (inst.mesh >= scene.instanced_meshes.size())
+      throw InputError(where(scene, o), object_name(o, "an unnamed instance") +
+                                            " places instanced mesh " + std::to_string(inst.mesh) +
+                                            ", but the scene has " +
+                                            std::to_string(scene.instanced_meshes.size()));
+    const std::string problem = instance_transform_problem(inst.world_from_object);
+    if (!problem.empty())
+      throw InputError(where(scene, o), "the transform of instance " + std::to_string(i) + " (" +
+                                            object_name(o, "an unnamed object") + ") " + problem);
+  }
+  for (uint32_t m = 0; m < scene.instanced_meshes.size(); ++m) {
+    TriangleMesh& mesh = scene.instanced_meshes[m].mesh;
+    const ObjectInfo* o = owner_of_instanced_mesh(scene, m);
+    const SourceLoc loc = where(scene, o);
+    const std::string name =
+        o ? object_name(o) : "instanced mesh \"" + scene.instanced_meshes[m].name + "\"";
+    const size_t nv = mesh.positions.size();
+    if (mesh.materials.size() != mesh.indices.size() ||
+        (!mesh.normals.empty() && mesh.normals.size() != nv) ||
+        (!mesh.uvs.empty() && mesh.uvs.size() != nv))
+      throw InputError(loc, name + " has " + std::to_string(mesh.indices.size()) + " triangles, " +
+                                std::to_string(mesh.materials.size()) + " material ids, " +
+                                std::to_string(nv) + " positions, " +
+                                std::to_string(mesh.normals.size()) + " normals and " +
+                                std::to_string(mesh.uvs.size()) +
+                                " texture coordinates (expected one material per triangle and "
+                                "normals and texture coordinates empty or one per position)");
+    for (const vec3& p : mesh.positions)
+      if (!is_finite(p))
+        throw InputError(loc, name + " has a non-finite vertex position " + vec3_str(p));
+    for (const vec2& uv : mesh.uvs)
+      if (!std::isfinite(uv.x) || !std::isfinite(uv.y))
+        throw InputError(loc, name + " has a non-finite texture coordinate");
+    bool zero_normal = false;
+    for (vec3& n : mesh.normals) {
+      if (!is_finite(n)) throw InputError(loc, name + " has a non-finite vertex normal");
+      const float len = glm::length(n);
+      zero_normal |= len == 0.0f;
+      if (len > 0.0f) n /= len;
+    }
+    if (zero_normal) {
+      // Without normals the renderer shades the mesh flat, as set_flat_normals would.
+      mesh.normals.clear();
+      warn_once(scene, loc, name + " has zero-length vertex normals",
+                "dropped its normals (flat shading)");
+    }
+    size_t out = 0;
+    for (size_t t = 0; t < mesh.indices.size(); ++t) {
+      const uvec3 tri = mesh.indices[t];
+      if (tri.x >= nv || tri.y >= nv || tri.z >= nv)
+        throw InputError(loc, name + " has a vertex index out of range");
+      const uint32_t mat = mesh.materials[t];
+      if (mat >= nmat)
+        throw InputError(loc, name + " has material index " + std::to_string(mat) +
+                                  " out of range (the scene has " + std::to_string(nmat) + ")");
+      if (scene.materials[mat].material.is_emissive())
+        throw InputError(loc, name + " is instanced but its material \"" +
+                                  scene.materials[mat].name +
+                                  "\" emits light; emitters must be world-space triangles "
+                                  "(flatten_instances, as the loaders do for emissive meshes)");
+      if (is_zero_area_triangle(mesh, tri)) continue;
+      mesh.indices[out] = tri;
+      mesh.materials[out] = mat;
+      ++out;
+    }
+    if (out != mesh.indices.size()) {
+      warn_once(scene, loc,
+                name + " has " + std::to_string(mesh.indices.size() - out) +
+                    " zero-area triangle(s)" + (out == 0 ? " and no others" : ""),
+                out == 0 ? "removed its instances" : "removed them");
+      mesh.indices.resize(out);
+      mesh.materials.resize(out);
+    }
+    empty[m] = mesh.indices.empty();
+  }
+  // Drop the instances of meshes without triangles; objects keep their ranges of the rest.
+  std::vector<uint32_t> kept_before(scene.instances.size() + 1, 0);
+  size_t out = 0;
+  for (size_t i = 0; i < scene.instances.size(); ++i) {
+    kept_before[i] = uint32_t(out);
+    if (!empty[scene.instances[i].mesh]) scene.instances[out++] = scene.instances[i];
+  }
+  kept_before[scene.instances.size()] = uint32_t(out);
+  if (out != scene.instances.size()) {
+    for (ObjectInfo& o : scene.objects) {
+      if (!o.is_instances) continue;
+      const size_t end = std::min(size_t(o.first) + o.count, scene.instances.size());
+      const uint32_t first = kept_before[std::min(size_t(o.first), scene.instances.size())];
+      o.count = kept_before[end] - first;
+      o.first = first;
+    }
+    scene.instances.resize(out);
+  }
+  // Primitive ids (triangles of the scene's mesh, instanced triangles, spheres) are signed 32-bit
+  // in places; the renderer numbers them together.
+  const uint64_t total =
+      scene.instanced_triangle_count() + scene.mesh.indices.size() + scene.spheres.size();
+  if (total >= (uint64_t(1) << 31))
+    throw InputError({scene.source, 0},
+                     "the scene has " + std::to_string(total) + " primitives (" +
+                         std::to_string(scene.instanced_triangle_count()) +
+                         " instanced triangles, " + std::to_string(scene.mesh.indices.size()) +
+                         " other triangles and " + std::to_string(scene.spheres.size()) +
+                         " spheres), more than the limit of 2^31 - 1 = 2147483647");
+  // Reach, by the corners of each instance's bounds.
+  std::vector<std::pair<vec3, vec3>> bounds(scene.instanced_meshes.size());
+  for (size_t m = 0; m < bounds.size(); ++m)
+    instanced_bounds(scene.instanced_meshes[m].mesh, &bounds[m].first, &bounds[m].second);
+  for (size_t i = 0; i < scene.instances.size(); ++i) {
+    const auto& [lo, hi] = bounds[scene.instances[i].mesh];
+    double reach = 0.0;
+    for_each_corner(scene.instances[i], lo, hi, [&](glm::dvec3 p) {
+      reach = std::max(reach, std::max(std::fabs(p.x), std::max(std::fabs(p.y), std::fabs(p.z))));
+    });
+    if (reach > kMaxReach) {
+      const ObjectInfo* o = owner_of_instance(scene, i);
+      check_reach(where(scene, o), object_name(o, "an unnamed instance"), reach);
+    }
+  }
+}
+
 // The camera's reach, and the scene's span against the ray offset. offset_ray_origin moves a
 // spawned ray's origin by a fixed 2^-16 near the origin and by 256 ulps elsewhere; a scene not
 // much larger than that offset is skipped over by its own rays (the Cornell box scaled by 1e-8
@@ -311,6 +476,15 @@ void validate_extent(const Scene& scene) {
       lo = glm::min(lo, glm::dvec3(scene.mesh.positions[tri[k]]));
       hi = glm::max(hi, glm::dvec3(scene.mesh.positions[tri[k]]));
     }
+  }
+  std::vector<std::pair<vec3, vec3>> bounds(scene.instanced_meshes.size());
+  for (size_t m = 0; m < bounds.size(); ++m)
+    instanced_bounds(scene.instanced_meshes[m].mesh, &bounds[m].first, &bounds[m].second);
+  for (const MeshInstance& inst : scene.instances) {
+    for_each_corner(inst, bounds[inst.mesh].first, bounds[inst.mesh].second, [&](glm::dvec3 p) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    });
   }
   const glm::dvec3 size = hi - lo;
   const double span = std::max(size.x, std::max(size.y, size.z));
@@ -350,7 +524,8 @@ void validate_scene(Scene& scene) {
   // of range should be named as the cause rather than the camera placed beyond it.
   validate_materials(scene);
   const size_t removed = validate_geometry(scene);
-  if (scene.spheres.empty() && scene.mesh.indices.empty()) {
+  validate_instances(scene);
+  if (scene.spheres.empty() && scene.mesh.indices.empty() && scene.instances.empty()) {
     // As for a mesh file of only degenerate triangles (load_scene): an error, like an empty scene.
     if (removed > 0) {
       std::string names;
