@@ -198,6 +198,7 @@ int run_gui(const GuiOptions& o) {
   tracer::Scene scene;
   try {
     scene = o.scene.empty() ? tracer::builtin_default_scene() : tracer::load_scene(o.scene);
+    tracer::flatten_small_instances(scene);
   } catch (const tracer::InputError& e) {
     if (scripted) {  // a bad scene is an error, not something to look at
       std::cerr << "error: " << e.what() << "\n";

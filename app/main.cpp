@@ -13,6 +13,7 @@ namespace app {
 bool load_scene_or_report(const std::string& path, tracer::Scene* scene) {
   try {
     *scene = path.empty() ? tracer::builtin_default_scene() : tracer::load_scene(path);
+    tracer::flatten_small_instances(*scene);
   } catch (const tracer::InputError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return false;

@@ -41,7 +41,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite (the last three not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances (the last four not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -155,6 +155,27 @@ if [ "$MODE" = suite ]; then
   PATHTRACER=$DIST/pathtracer BUNNY=$PWD/$DIST/bunny.obj ENGINE=$PWD/$DIST/2CylinderEngine.glb \
     BITTERLI=${BITTERLI:-.devbuild/bitterli} OUT=$OUT scripts/bench-suite.sh
   python3 scripts/suite_table.py "$OUT/suite.jsonl"
+fi
+if [ "$MODE" = instances ]; then
+  # Instances against flattening (docs/BENCHMARKS.md#instances-against-flattening): 16 tiles of a
+  # 1M-triangle landscape placed by instances, the same 16 written out as 16M triangles (run
+  # alternately, twice), then the 100M-triangle instanced landscape.
+  for s in grid16_inst grid16_flat grid16_inst grid16_flat; do
+    echo "==== bench $s"
+    $DIST/pathtracer bench scripts/instances/$s.json --width 1920 --height 1080 --max-depth 8 \
+      --spp 16 --cpu-spp 0 --json /tmp/$s.json > /tmp/b.txt 2>&1
+    grep -E "^scene|^(megakernel|wavefront|auto) " /tmp/b.txt | head -4; grep -m2 "bounce rays" /tmp/b.txt
+    python3 -c "import json; print('GPU bytes', json.load(open('/tmp/$s.json')).get('scene_device_bytes'))"
+    TIMEFORMAT="first image %R s"; time $DIST/pathtracer render scripts/instances/$s.json --backend cuda --spp 1 --out /tmp/f.png > /dev/null 2>&1
+  done
+  echo "==== instanced_100m"
+  TIMEFORMAT="first image %R s"; time $DIST/pathtracer render assets/scenes/instanced_100m.json --backend cuda --spp 1 --width 1920 --height 1080 --out /tmp/f.png > /dev/null 2>&1
+  $DIST/pathtracer bench assets/scenes/instanced_100m.json --width 1920 --height 1080 --max-depth 8 \
+    --spp 16 --cpu-spp 0 --json /tmp/i100.json > /tmp/b.txt 2>&1
+  grep -E "^scene|^(megakernel|wavefront|auto) " /tmp/b.txt | head -4; grep -m2 "bounce rays" /tmp/b.txt
+  python3 -c "import json; print('GPU bytes', json.load(open('/tmp/i100.json')).get('scene_device_bytes'))"
+  $DIST/pathtracer render assets/scenes/instanced_100m.json --backend cuda --spp 256 --out "$OUT/instanced_100m.png" | tail -1
+  rm -f "$OUT/instanced_100m.png.json"
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction

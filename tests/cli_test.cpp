@@ -153,7 +153,7 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
   EXPECT_EQ(j["flat_list"]["quads"].get<int>(), 6);
   EXPECT_EQ(j["flat_list"]["box_faces"].get<int>(), 5);
   EXPECT_EQ(j["flat_list"]["solid_boxes"].get<int>(), 0);
-  EXPECT_EQ(j["gpu_specialization"].get<std::string>(), "spheres/instances+triangles, pinhole, specular");
+  EXPECT_EQ(j["gpu_specialization"].get<std::string>(), "spheres+triangles, pinhole, specular");
   // The Cornell box's two blocks are solid boxes (one slab test each on the GPU).
   ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
                                   "/assets/scenes/cornell_box.json", &log), 0) << log;

@@ -47,17 +47,21 @@ std::vector<GpuOptions> all_requests() {
 }
 
 // Every scene a rule distinguishes: the features the rules and the specialisation read
-// (textures, random walks, spheres, depth of field, specular materials, lights beyond emitters),
+// (textures, random walks, spheres, depth of field, specular materials, lights beyond emitters,
+// instances),
 // with and without a flat list, a jittered camera and a lens.
 std::vector<GpuSceneTraits> all_scenes() {
   const uint32_t bits[] = {kFeatureTextures, kFeatureSubsurface, kFeatureSpheres,
-                           kFeatureDepthOfField, kFeatureMirror, kFeaturePointLights};
+                           kFeatureDepthOfField, kFeatureMirror, kFeaturePointLights,
+                           kFeatureInstances};
   std::vector<GpuSceneTraits> out;
-  for (uint32_t mask = 0; mask < 64; ++mask)
+  for (uint32_t mask = 0; mask < 128; ++mask)
     for (int other = 0; other < 16; ++other) {
       GpuSceneTraits t;
-      for (int i = 0; i < 6; ++i)
+      for (int i = 0; i < 7; ++i)
         if (mask & (1u << i)) t.features |= bits[i];
+      // Scenes with instances have no flat list (CompiledScene).
+      if ((t.features & kFeatureInstances) && (other & 1)) continue;
       t.flat_available = other & 1;
       t.jitter = other & 2;
       t.depth_of_field = other & 4;
@@ -135,8 +139,11 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
   expect(!e.fused_tail || (e.fused_trace && o.tail_fraction > 0.0f),
          "the tail's fusion only with the fused trace stage and a tail");
   expect(!e.dynamic_fetch || !o.flat_list, "dynamic fetch only through the BVH");
-  expect(e.spec == (e.specialize ? spec_for_features(t.features) : kGeneralSpec),
-         "the kernels compiled for the scene's features, or the general ones");
+  expect(e.spec == (e.specialize                            ? spec_for_features(t.features)
+                    : (t.features & kFeatureInstances) ? kInstancesSpec
+                                                       : kGeneralSpec),
+         "the kernels compiled for the scene's features, or the general ones (with instances "
+         "where the scene has some)");
   expect((spec_for_features(t.features) & ~e.spec) == 0, "the kernels cover the scene's features");
   expect(!(e.spec & kSpecLights) || (e.spec & kSpecSpecular),
          "the lights' kernels are among the specular ones (no diffuse-with-lights variant)");
@@ -218,7 +225,7 @@ TEST(GpuOptions, EveryCombinationObeysTheRules) {
   const std::vector<GpuOptions> requests = all_requests();
   const std::vector<GpuSceneTraits> scenes = all_scenes();
   ASSERT_EQ(requests.size(), 192u);
-  ASSERT_EQ(scenes.size(), 1024u);
+  ASSERT_EQ(scenes.size(), 1536u);  // 64 x 16 without instances, 64 x 8 with (no flat list)
   size_t failed = 0, overridden = 0;
   for (const GpuSceneTraits& t : scenes)
     for (const GpuOptions& r : requests) {

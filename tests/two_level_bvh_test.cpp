@@ -94,6 +94,24 @@ TEST(TwoLevelBvh, HitsMatchTheFlattenedScene) {
   EXPECT_LE(blocked_mismatch, kRays / 1000);
 }
 
+// Instances that place few triangles are written out after loading (with a note), since
+// world-space triangles trace faster; the image is the same.
+TEST(TwoLevelBvh, SmallInstancesAreWrittenOut) {
+  Scene s = instanced_scene();
+  const uint64_t placed = s.instanced_triangle_count();
+  const size_t before = s.mesh.indices.size(), count = s.instances.size();
+  ASSERT_LT(placed, kKeepInstancesFrom);
+  EXPECT_TRUE(flatten_small_instances(s));
+  EXPECT_TRUE(s.instances.empty());
+  EXPECT_EQ(s.mesh.indices.size(), before + placed);
+  ASSERT_EQ(s.diagnostics.notes.size(), 1u);
+  EXPECT_NE(s.diagnostics.notes[0].find(std::to_string(count) + " instances written out as " +
+                                       std::to_string(placed) + " triangles"),
+            std::string::npos)
+      << s.diagnostics.notes[0];
+  EXPECT_FALSE(flatten_small_instances(s));  // nothing left to write out
+}
+
 TEST(TwoLevelBvh, ImagesMatchTheFlattenedScene) {
   const Scene inst = instanced_scene();
   RenderSettings rs;
@@ -119,6 +137,8 @@ TEST(TwoLevelBvh, AHundredMillionInstancedTrianglesStayOneMesh) {
     for (int x = 0; x < 21; ++x)
       s.instances.push_back({0, glm::translate(glm::mat4(1.0f), vec3(float(x), 0.0f, float(z)))});
   ASSERT_GE(s.instanced_triangle_count(), 100000000u);
+  EXPECT_FALSE(flatten_small_instances(s));  // far above kKeepInstancesFrom: kept
+  EXPECT_EQ(s.instances.size(), 525u);
   const CompiledScene cs(s, 32, 32);
   EXPECT_EQ(cs.inst_tri_verts().size(), tile.mesh.indices.size());
   EXPECT_EQ(cs.instances().size(), s.instances.size());

@@ -75,6 +75,7 @@ bool Workbench::start_loading(const std::string& path, std::string* error) {
   l->thread = std::thread([l, backend, threads] {
     try {
       tracer::Scene s = tracer::load_scene(l->path);
+      tracer::flatten_small_instances(s);
       // The renderer running now stays: its settings are the window's, not the file's.
       s.settings.backend = backend;
       s.settings.threads = threads;

@@ -47,26 +47,35 @@ constexpr uint32_t kFeatureSpecular = kFeatureDielectric | kFeatureMirror | kFea
 constexpr uint32_t kFeatureLights = kFeatureInfiniteLights | kFeaturePointLights |
                                     kFeatureLightTree;
 
-// Specialisations: four bits (1 primitives beside the mesh's triangles: spheres and instances, 2 depth of field, 4 specular materials, textures or
-// subsurface, 8 lights beyond emitters: always with 4) name the twelve compiled variants both
-// backends run; kGeneralSpec is the one for all features.
-constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4, kSpecLights = 8;
-constexpr uint32_t kGeneralSpec = 15;
-constexpr uint32_t kSpecCount = 16;  // indices 0..15; 8..11 are never used (8 implies 4)
+// Specialisations: four bits (1 spheres, 2 depth of field, 4 specular materials, textures or
+// subsurface, 8 lights beyond emitters: always with 4) name twelve compiled variants;
+// kGeneralSpec is the one for all features but instances. A fifth bit, 16, adds the BVH's second level (instances) to the general variant: the call into
+// an instance's tree slowed the spheres' kernels of scenes without instances by up to 2.5x
+// (PERFORMANCE.md, row 94), and scenes of instances are large scenes that pay for the general
+// kernels' code little. 13 variants in all.
+constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4, kSpecLights = 8,
+                   kSpecInstances = 16;
+constexpr uint32_t kGeneralSpec = 15;                      // every feature but instances
+constexpr uint32_t kInstancesSpec = kGeneralSpec | kSpecInstances;  // every feature
+constexpr uint32_t kSpecCount = 32;  // indices 0..31; 8..11 and 16..30 are never used
 
 template <uint32_t Spec>
 constexpr uint32_t features_of() {
   static_assert(!(Spec & kSpecLights) || (Spec & kSpecSpecular), "lights imply specular");
+  static_assert(!(Spec & kSpecInstances) || Spec == kInstancesSpec,
+                "instances imply every other feature");
   return kFeatureEmissiveMeshes | kFeatureShadingNormals |
-         ((Spec & kSpecSpheres) ? kFeatureSpheres | kFeatureInstances : 0u) |
+         ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
          ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
          ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u) |
-         ((Spec & kSpecLights) ? kFeatureLights : 0u);
+         ((Spec & kSpecLights) ? kFeatureLights : 0u) |
+         ((Spec & kSpecInstances) ? kFeatureInstances : 0u);
 }
 
 // The smallest specialisation that covers a scene's features.
 constexpr uint32_t spec_for_features(uint32_t f) {
-  return ((f & (kFeatureSpheres | kFeatureInstances)) ? kSpecSpheres : 0u) |
+  if (f & kFeatureInstances) return kInstancesSpec;
+  return ((f & kFeatureSpheres) ? kSpecSpheres : 0u) |
          ((f & kFeatureDepthOfField) ? kSpecDepthOfField : 0u) |
          ((f & (kFeatureSpecular | kFeatureLights)) ? kSpecSpecular : 0u) |
          ((f & kFeatureLights) ? kSpecLights : 0u);
@@ -75,14 +84,15 @@ constexpr uint32_t spec_for_features(uint32_t f) {
 // The name of a specialisation, as `pathtracer info`, the bench and the sidecar print it.
 inline const char* spec_label(uint32_t spec) {
   static const char* kNames[8] = {
-      "triangles, pinhole, diffuse only",      "spheres/instances+triangles, pinhole, diffuse only",
-      "triangles, thin lens, diffuse only",    "spheres/instances+triangles, thin lens, diffuse only",
-      "triangles, pinhole, specular",          "spheres/instances+triangles, pinhole, specular",
-      "triangles, thin lens, specular",        "spheres/instances+triangles, thin lens, specular"};
+      "triangles, pinhole, diffuse only",      "spheres+triangles, pinhole, diffuse only",
+      "triangles, thin lens, diffuse only",    "spheres+triangles, thin lens, diffuse only",
+      "triangles, pinhole, specular",          "spheres+triangles, pinhole, specular",
+      "triangles, thin lens, specular",        "spheres+triangles, thin lens, specular"};
   static const char* kWithLights[8] = {
       "", "", "", "",
-      "triangles, pinhole, specular, lights",  "spheres/instances+triangles, pinhole, specular, lights",
+      "triangles, pinhole, specular, lights",  "spheres+triangles, pinhole, specular, lights",
       "triangles, thin lens, specular, lights", "general (all features)"};
+  if (spec & kSpecInstances) return "general with instances (all features)";
   return (spec & kSpecLights) ? kWithLights[spec & 7] : kNames[spec & 7];
 }
 inline const char* spec_name_for_features(uint32_t f) { return spec_label(spec_for_features(f)); }

@@ -239,7 +239,11 @@ void launch_mega(uint32_t spec, const SceneView& s, const FlatParams& flat,
 #define CALL(S)                                                                            \
   megakernel<S, FromQueue><<<persistent_blocks(megakernel<S, FromQueue>, film.n), kBlock, 0, \
                              stream>>>(s, cfg, sample, first, film, counters, next_pixel, src)
-  TRACER_SPEC_SWITCH(spec, 15u, CALL)
+  if (spec & kSpecInstances) {  // scenes with instances have no flat list
+    CALL(kInstancesSpec);
+  } else {
+    TRACER_SPEC_SWITCH(spec, 15u, CALL)
+  }
 #undef CALL
   if (FromQueue) TRACER_CUDA_CHECK_LAUNCH("megakernel (tail)");
   else TRACER_CUDA_CHECK_LAUNCH("megakernel");

@@ -248,13 +248,17 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   }                                                                                       \
   shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
                                                       next_queue, shadow_queue)
-  switch (spec & (kSpecSpheres | kSpecSpecular | kSpecLights)) {
-    case 0: CALL(0); break;
-    case kSpecSpheres: CALL(kSpecSpheres); break;
-    case kSpecSpecular: CALL(kSpecSpecular); break;
-    case kSpecSpheres | kSpecSpecular: CALL(kSpecSpheres | kSpecSpecular); break;
-    case kSpecSpecular | kSpecLights: CALL(kSpecSpecular | kSpecLights); break;
-    default: CALL(kSpecSpheres | kSpecSpecular | kSpecLights); break;
+  if (spec & kSpecInstances) {  // instances imply every other feature (features.h)
+    CALL(kInstancesSpec);
+  } else {
+    switch (spec & (kSpecSpheres | kSpecSpecular | kSpecLights)) {
+      case 0: CALL(0); break;
+      case kSpecSpheres: CALL(kSpecSpheres); break;
+      case kSpecSpecular: CALL(kSpecSpecular); break;
+      case kSpecSpheres | kSpecSpecular: CALL(kSpecSpheres | kSpecSpecular); break;
+      case kSpecSpecular | kSpecLights: CALL(kSpecSpecular | kSpecLights); break;
+      default: CALL(kSpecSpheres | kSpecSpecular | kSpecLights); break;
+    }
   }
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("shade_kernel");

@@ -313,9 +313,10 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
 #define CALL(S)                                                                          \
   intersect_fetch_kernel<S><<<persistent_blocks(intersect_fetch_kernel<S>, w.n), kBlock, 0, \
                               stream>>>(s, w, queue, count, walks)
-    switch (spec & kSpecSpheres) {
+    switch (spec & (kSpecSpheres | kSpecInstances)) {
       case 0: CALL(0); break;
-      default: CALL(kSpecSpheres); break;
+      case kSpecSpheres: CALL(kSpecSpheres); break;
+      default: CALL(kInstancesSpec); break;  // instances imply the rest
     }
 #undef CALL
     TRACER_CUDA_CHECK_LAUNCH("intersect_fetch_kernel");
@@ -338,9 +339,10 @@ void launch_intersect(uint32_t spec, const SceneView& s, const FlatParams& flat,
   }
 #define CALL(S) \
   intersect_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, w, queue, count, walks)
-  switch (spec & kSpecSpheres) {
+  switch (spec & (kSpecSpheres | kSpecInstances)) {
     case 0: CALL(0); break;
-    default: CALL(kSpecSpheres); break;
+    case kSpecSpheres: CALL(kSpecSpheres); break;
+    default: CALL(kInstancesSpec); break;  // instances imply the rest
   }
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("intersect_kernel");
@@ -355,9 +357,10 @@ void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
 #define CALL(S)                                                                               \
   shadow_queued_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, shadow_queue, bounce, \
                                                               first, film, walks)
-    switch (spec & kSpecSpheres) {
+    switch (spec & (kSpecSpheres | kSpecInstances)) {
       case 0: CALL(0); break;
-      default: CALL(kSpecSpheres); break;
+      case kSpecSpheres: CALL(kSpecSpheres); break;
+      default: CALL(kInstancesSpec); break;  // instances imply the rest
     }
 #undef CALL
     TRACER_CUDA_CHECK_LAUNCH("shadow_queued_kernel");
@@ -366,9 +369,10 @@ void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,
 #define CALL(S)                                                 \
   shadow_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, w, queue, count, first, film, \
                                                        walks)
-  switch (spec & kSpecSpheres) {
+  switch (spec & (kSpecSpheres | kSpecInstances)) {
     case 0: CALL(0); break;
-    default: CALL(kSpecSpheres); break;
+    case kSpecSpheres: CALL(kSpecSpheres); break;
+    default: CALL(kInstancesSpec); break;  // instances imply the rest
   }
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("shadow_kernel");

@@ -228,7 +228,10 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
 
   e.specialize =
       path("specialize", kGeneralSpecVariant.on ? variant_reason(kGeneralSpecVariant) : "");
-  e.spec = e.specialize ? spec_for_features(scene.features) : kGeneralSpec;
+  // The general kernels leave out instances (features.h): a scene with some needs them added.
+  e.spec = e.specialize                              ? spec_for_features(scene.features)
+           : (scene.features & kFeatureInstances) ? kInstancesSpec
+                                                   : kGeneralSpec;
   return e;
 }
 

@@ -183,6 +183,22 @@ void flatten_instances(Scene& scene) {
   scene.instanced_meshes.clear();
 }
 
+bool flatten_small_instances(Scene& scene) {
+  if (scene.instances.empty()) return false;
+  const uint64_t placed = scene.instanced_triangle_count();
+  if (placed >= kKeepInstancesFrom) return false;
+  const size_t count = scene.instances.size();
+  flatten_instances(scene);
+  scene.diagnostics.note(SourceLoc{scene.source, 0},
+                         std::to_string(count) + " instances written out as " +
+                             std::to_string(placed) +
+                             " triangles (instances are kept from " +
+                             std::to_string(kKeepInstancesFrom / 1000000) +
+                             " million placed triangles on: below that, world-space triangles "
+                             "trace about twice as fast for little memory)");
+  return true;
+}
+
 void set_flat_normals(TriangleMesh& mesh, uint32_t first, uint32_t count) {
   if (mesh.normals.size() < mesh.positions.size()) mesh.normals.resize(mesh.positions.size());
   std::vector<uint8_t> assigned(mesh.positions.size(), 0);

@@ -168,6 +168,14 @@ struct Scene {
 // comparisons and for emissive meshes.
 void flatten_instances(Scene& scene);
 
+// Instances are kept where they save memory that matters: scenes whose instances place fewer
+// than kKeepInstancesFrom triangles in all are flattened, with a note (rays through the second
+// level cost about twice those through world-space triangles: docs/PERFORMANCE.md, row 95, while
+// 4 million triangles take about 0.5 GB written out). The commands and the workbench call it
+// after loading a scene; the loaders themselves keep what the file says. True when it flattened.
+constexpr uint64_t kKeepInstancesFrom = 4000000;
+bool flatten_small_instances(Scene& scene);
+
 // Brings environment_image up to date with environment.file (reads the file when it names
 // another one; drops the image when it is ""; warns once about clamped negative texels) and
 // checks the map's shape against environment.mapping. "" or the problem (the file's own
