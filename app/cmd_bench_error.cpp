@@ -24,6 +24,7 @@
 #include "core/diagnostics.h"
 #include "cpu/cpu_backend.h"
 #include "image/convergence.h"
+#include "image/denoise.h"
 #include "image/flip.h"
 #include "image/image.h"
 #include "image/svg_plot.h"
@@ -53,11 +54,14 @@ struct Config {
   int light_sampler = -1;   // tracer::kLightSampler*; < 0: the scene's
   bool scalar_bvh = false;  // CPU: the shared scalar traversal instead of the SSE one
   bool cpu_flat = false;    // CPU: the flat primitive list of small scenes (as the GPU)
+  // Each checkpoint's image denoised (image/denoise.h, guided by the albedo and normal AOVs);
+  // its time includes the AOVs and the denoise. Biased by construction.
+  bool denoise = false;
 };
 
 const std::vector<std::string> kBases = {"cpu", "megakernel", "wavefront", "auto"};
 // Modifiers that are no setting of the settings table.
-const std::vector<std::string> kOwnModifiers = {"schlick", "scalar-bvh"};
+const std::vector<std::string> kOwnModifiers = {"schlick", "scalar-bvh", "denoise"};
 
 // The settings a configuration may change: those of the table that shape the estimate or the GPU
 // design (not the image size, the stop condition, the seed or the backend, which the bench
@@ -79,7 +83,7 @@ std::string modifier_list() {
   for (const tracer::Setting& s : tracer::settings_table())
     if (modifier_setting(s.key) == &s)
       out += (out.empty() ? "" : ", ") + s.name() + "=" + tracer::setting_values_text(s);
-  return out + ", schlick, scalar-bvh (cpu)";
+  return out + ", schlick, scalar-bvh (cpu), denoise";
 }
 
 // Throws std::invalid_argument with a message naming the bad token.
@@ -119,6 +123,8 @@ Config parse_config(const std::string& text) {
     const size_t eq = m.find('=');
     if (m == "schlick") {
       c.schlick = true;
+    } else if (m == "denoise") {
+      c.denoise = true;
     } else if (m == "scalar-bvh") {
       if (!c.cpu)
         throw std::invalid_argument("\"scalar-bvh\" in \"" + text +
@@ -175,6 +181,8 @@ struct Sweep {
   tracer::ConvergenceSummary summary;
   std::string kernel, specialization, device;
   uint64_t nonfinite = 0;
+  double to_flip05 = -1;  // seconds to the first checkpoint of mean FLIP <= 0.05 (-1: never)
+  std::string denoiser;   // what denoised it (denoise configurations)
 };
 
 // Pending FLIP jobs, oldest first: (checkpoint index, mean FLIP).
@@ -297,7 +305,12 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
   if (c.light_sampler >= 0) cfg.light_sampler = uint32_t(c.light_sampler);
   r.set_gpu_options(c.gpu);
   r.set_scene(cs, cfg);
+  r.set_aovs(c.denoise);
   r.render(c.gpu.kernel == tracer::KernelMode::kAuto ? 4 : 1);  // warm-up (and auto's timing)
+  if (c.denoise) {  // the denoiser's first call sets up its device and filter
+    const tracer::AovImages a = r.aov_images();
+    tracer::denoise_image(r.image(), &a.albedo, &a.normal);
+  }
   r.reset();
   sw.device = r.device_name();
   double seconds = 0;
@@ -318,10 +331,19 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
     tracer::Checkpoint cp;
     cp.spp = done;
     cp.seconds = seconds;
-    const tracer::ImageRGB img = r.image();
+    tracer::ImageRGB img = r.image();
+    if (c.denoise) {
+      // What a user waits for: the AOVs' download and the denoise, on top of the samples.
+      const auto t1 = Clock::now();
+      const tracer::AovImages a = r.aov_images();
+      tracer::DenoiseInfo info;
+      img = tracer::denoise_image(img, &a.albedo, &a.normal, &info);
+      cp.seconds += std::chrono::duration<double>(Clock::now() - t1).count();
+      sw.denoiser = info.denoiser + " (" + info.device + ", " + info.inputs + ")";
+    }
     // The noise/bias split per pixel needs independent halves; with the single Sobol sequence
     // error_terms tests the bias on 8x8-block means instead (a lower bound, see convergence.h).
-    if (done >= 2) {
+    if (done >= 2 && !c.denoise) {
       tracer::ImageRGB even, odd;
       r.half_images(&even, &odd);
       cp.error =
@@ -349,6 +371,16 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
   std::fprintf(stderr, "%s%-32s %6u spp %8.3f s relMSE %.3e\n", isatty(2) ? "\r" : "",
                c.name.c_str(), last.spp, last.seconds, last.error.relmse);
   sw.summary = tracer::summarize(sw.points);
+  if (c.denoise) {  // a denoiser trades noise for bias whatever the slope says
+    sw.summary.biased = true;
+    sw.summary.verdict = "biased (denoised by " + sw.denoiser + ")";
+  }
+  for (const tracer::Checkpoint& p : sw.points) {
+    if (p.flip >= 0 && p.flip <= 0.05) {
+      sw.to_flip05 = p.seconds;
+      break;
+    }
+  }
   return sw;
 }
 
@@ -372,7 +404,7 @@ void write_outputs(const std::string& dir, const std::vector<Sweep>& sweeps,
   std::string sum =
       "config,backend_kernel,specialization,final_spp,seconds,relmse,rmse,flip,"
       "time_to_1e-2_s,extrapolated_1e-2,time_to_1e-3_s,extrapolated_1e-3,"
-      "efficiency,slope,slope_stderr,biased,nonfinite,verdict\n";
+      "efficiency,slope,slope_stderr,biased,nonfinite,time_to_flip_0.05_s,verdict\n";
   char buf[2048];
   nlohmann::json arr = nlohmann::json::array();
   tracer::PlotSpec relp, flipp;
@@ -405,6 +437,8 @@ void write_outputs(const std::string& dir, const std::vector<Sweep>& sweeps,
         last.spp, last.seconds, last.error.relmse, last.error.rmse, last.flip, m.to_1e2.seconds,
         int(m.to_1e2.extrapolated), m.to_1e3.seconds, int(m.to_1e3.extrapolated), m.efficiency,
         m.slope, m.slope_stderr, int(m.biased), static_cast<unsigned long long>(s.nonfinite));
+    sum += buf;
+    std::snprintf(buf, sizeof(buf), "%.6g,", s.to_flip05);
     sum += buf + csv_quote(m.verdict) + "\n";
     nlohmann::json cps = nlohmann::json::array();
     for (const auto& p : s.points)
@@ -431,6 +465,7 @@ void write_outputs(const std::string& dir, const std::vector<Sweep>& sweeps,
                    {"biased", m.biased},
                    {"verdict", m.verdict},
                    {"nonfinite", s.nonfinite},
+                   {"time_to_flip_0.05_s", s.to_flip05},
                    {"checkpoints", cps}});
   }
   meta["configs"] = arr;
@@ -464,7 +499,9 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
                  "light_sampler, compaction, sort, cache, flat, tail: the settings table's "
                  "names, values and checks; flat=on on cpu: the GPU's flat list of small scenes), schlick (every "
                  "dielectric with Schlick's Fresnel), scalar-bvh (CPU: the GPU's scalar "
-                 "traversal instead of SSE). Default: a suite for the backends present")
+                 "traversal instead of SSE), denoise (each checkpoint denoised by Open Image Denoise "
+                 "with the albedo and normal AOVs; its time includes them; biased). Default: a "
+                 "suite for the backends present")
       ->group(g);
   cmd.add_option("--max-spp", o->max_spp,
                  "Last sample count of each sweep (default 4096 GPU, "
@@ -625,18 +662,21 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
   if (sweeps.empty()) return kExitInputError;
 
   // The table.
-  std::printf("\n%-30s %7s %8s %10s %9s %7s %9s %9s %9s %7s  %s\n", "configuration", "spp",
-              "time s", "relMSE", "RMSE", "FLIP", "t(1e-2)", "t(1e-3)", "1/(e*t)", "slope",
-              "verdict");
+  std::printf("\n%-30s %7s %8s %10s %9s %7s %9s %9s %9s %9s %7s  %s\n", "configuration",
+              "spp", "time s", "relMSE", "RMSE", "FLIP", "t(1e-2)", "t(1e-3)", "t(F.05)", "1/(e*t)",
+              "slope", "verdict");
   const Sweep* fastest3 = nullptr;
   for (const Sweep& s : sweeps) {
     const auto& p = s.points.back();
     const auto& m = s.summary;
     char flip[16] = "      -";  // not computed (--flip off)
     if (p.flip >= 0) std::snprintf(flip, sizeof(flip), "%7.4f", p.flip);
-    std::printf("%-30s %7u %8.3f %10.3e %9.3e %s %9s %9s %9.3g %7.2f  %s\n", s.config.name.c_str(),
-                p.spp, p.seconds, p.error.relmse, p.error.rmse, flip, fmt_time(m.to_1e2).c_str(),
-                fmt_time(m.to_1e3).c_str(), m.efficiency, m.slope, m.verdict.c_str());
+    char flip05[16] = "never";
+    if (s.to_flip05 >= 0) std::snprintf(flip05, sizeof(flip05), "%.3g", s.to_flip05);
+    std::printf("%-30s %7u %8.3f %10.3e %9.3e %s %9s %9s %9s %9.3g %7.2f  %s\n",
+                s.config.name.c_str(), p.spp, p.seconds, p.error.relmse, p.error.rmse, flip,
+                fmt_time(m.to_1e2).c_str(), fmt_time(m.to_1e3).c_str(), flip05, m.efficiency,
+                m.slope, m.verdict.c_str());
     if (s.nonfinite)
       std::printf("%-30s   %llu NaN/Inf samples rejected\n", "",
                   static_cast<unsigned long long>(s.nonfinite));
@@ -646,7 +686,8 @@ int run_error_bench(const ErrorBenchScene& bs, const ErrorBenchOptions& o) {
   }
   std::printf(
       "times: s of rendering to reach the relMSE (~: extrapolated as error ~ 1/time); "
-      "relMSE excludes the reference's own noise.\n");
+      "relMSE excludes the reference's own noise; t(F.05): s to the first checkpoint of mean "
+      "FLIP <= 0.05 (denoised configurations: the AOVs and the denoise included).\n");
   if (fastest3)
     std::printf("fastest unbiased configuration to relMSE 1e-3: %s, %s s\n",
                 fastest3->config.name.c_str(), fmt_time(fastest3->summary.to_1e3).c_str());

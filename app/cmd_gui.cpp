@@ -298,7 +298,9 @@ int run_gui(const GuiOptions& o) {
     if (resizing) interop.reset();  // unregister before the buffer is reallocated
     const bool resized = tex.ensure(w, h) || resizing;
     bool uploaded = false;
-    if (const tracer::Renderer* gpu = wb.gpu_renderer()) {
+    // The denoised view goes through host memory (the denoiser's output is there).
+    const tracer::Renderer* gpu = wb.denoise_view() ? nullptr : wb.gpu_renderer();
+    if (gpu) {
       try {
         if (resized || !interop) {
           interop.reset();  // unregister before the buffer is reallocated

@@ -16,6 +16,7 @@
 #include "settings_cli.h"
 #include "image/image.h"
 #include "integrator/black_image.h"
+#include "integrator/export.h"
 #include "integrator/renderer.h"
 #include "image/display.h"
 #include "scene/compiled_scene.h"
@@ -28,6 +29,8 @@ struct RenderOptions {
   std::string scene;
   std::string out = "out/render.png";
   bool quiet = false;
+  std::string aov;       // --aov albedo,normal,depth,id
+  bool aov_png = false;  // --aov-png
   SettingArgs settings;  // the table's flags and --set
 };
 
@@ -82,6 +85,22 @@ int run_render(const RenderOptions& o) {
       return kExitInputError;
     }
   }
+  tracer::AovRequest aovs;
+  aovs.png = o.aov_png;
+  if (!tracer::parse_aov_list(o.aov, &aovs, &problem)) {
+    std::cerr << "error: " << problem << "\n";
+    return kExitUsage;
+  }
+  if (o.aov_png && !aovs.any()) {
+    std::cerr << "error: --aov-png needs --aov (which AOVs to write)\n";
+    return kExitUsage;
+  }
+  const bool denoise = scene.display.denoise != tracer::DenoiseMode::kOff;
+  if (denoise && !tracer::denoiser_available()) {
+    std::cerr << "error: display.denoise is on but the denoiser is absent: "
+              << tracer::denoiser_status() << "\nnothing was rendered\n";
+    return kExitInputError;
+  }
   const tracer::ToneMap op = scene.display.tone_map;
   const tracer::BackendChoice choice = rs.backend;
   std::unique_ptr<tracer::Renderer> renderer;
@@ -99,6 +118,7 @@ int run_render(const RenderOptions& o) {
   try {
     renderer->set_gpu_options(scene.gpu);
     renderer->set_scene(compiled, cfg);  // e.g. more than the GPU's free memory: says so
+    renderer->set_aovs(aovs.any() || denoise);  // the denoiser is guided by albedo and normal
   } catch (const std::exception& e) {
     std::cerr << "error: " << o.scene << ": " << e.what() << "\n";
     return kExitInputError;
@@ -173,9 +193,11 @@ int run_render(const RenderOptions& o) {
   run.kept_luminance *= double(spp_done);
   run.features = tracer::describe_features(compiled.features());
   run.last = last_stats;
+  run.aov_samples = renderer->aov_samples();
+  tracer::ExportResult exported;
   try {
-    tracer::write_image(o.out, img, scene.display.exposure, op);
-    tracer::write_sidecar(scene, run);
+    const tracer::AovImages aov_images = renderer->aov_images();
+    exported = tracer::export_render(o.out, img, &aov_images, aovs, scene, run);
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInputError;
@@ -215,6 +237,16 @@ int run_render(const RenderOptions& o) {
               << " spp, " << fmt_seconds(render_s) << ", " << renderer->backend_name() << ")";
     if (nonfinite) std::cerr << "; " << nonfinite << " NaN/Inf samples rejected";
     std::cerr << "\n";
+    if (!exported.denoise.denoiser.empty())
+      std::cerr << "denoised with " << exported.denoise.denoiser << " (" << exported.denoise.device
+                << ", " << exported.denoise.inputs << ", " << std::fixed << std::setprecision(1)
+                << exported.denoise.ms << " ms): "
+                << (scene.display.denoise == tracer::DenoiseMode::kOn
+                        ? o.out
+                        : tracer::denoised_path(o.out))
+                << " (biased: the raw image is the unbiased estimate)\n";
+    for (const std::string& f : exported.files)
+      if (f != o.out && f != o.out + ".json") std::cerr << "wrote " << f << "\n";
     if (!clamp_report.empty()) std::cerr << "note: " << clamp_report << "\n";
   }
   if (rays.walk_capped)
@@ -247,6 +279,11 @@ Runner add_render_command(CLI::App& cmd) {
   cmd.add_option("--out", o->out, "Output file: .png (tone-mapped sRGB) or .exr (linear float)")
       ->capture_default_str();
   cmd.add_flag("--quiet,-q", o->quiet, "No progress or summary on stderr");
+  cmd.add_option("--aov", o->aov,
+                 "Feature buffers to write: albedo, normal, depth, id (material and object) or "
+                 "all, comma-separated: layers of an .exr output (albedo.R, normal.X, depth.Z, "
+                 "id.material, id.object), PNG images beside a .png output (name.albedo.png)");
+  cmd.add_flag("--aov-png", o->aov_png, "Also write the --aov images as PNG beside an .exr output");
   add_setting_options(cmd, &o->settings, {"render", "gpu", "display", "environment"},
                       {"render.samples_per_frame"});
   return [o] { return run_render(*o); };

@@ -9,7 +9,8 @@ scripts/setup.sh >/dev/null
 # .devbuild/dist-name: kernel macros (e.g. -DTRACER_MEGA_MIN_BLOCKS=3) go in EXTRA_CUDA_FLAGS, the
 # GPU build variants of tracer/integrator/gpu_options.h (e.g. -DTRACER_VARIANT_UNFUSED, read by
 # host code) in EXTRA_CXX_FLAGS. The flags are set when VARIANT's build folder is configured.
-BUILD=.devbuild/build${VARIANT:+-$VARIANT}
+# DEVICE_BUILD=build reuses the host's build folder (configured Release for sm_90 as here).
+BUILD=${DEVICE_BUILD:-.devbuild/build${VARIANT:+-$VARIANT}}
 DIST=.devbuild/dist${VARIANT:+-$VARIANT}
 if [ ! -f "$BUILD/build.ninja" ]; then
   cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CUDA_ARCHITECTURES=90 \
@@ -47,4 +48,14 @@ if [ -n "${SUITE_DIST:-}" ]; then
   cp -r "$DIST/pathtracer" "$DIST/lib" "$DIST/bunny.obj" "$S/"
   cp /usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb "$S/"
   du -sh "$S"
+fi
+# Open Image Denoise for the device (OIDN_DIST=1): the library, its core (with the weights) and
+# its CUDA device, 54 MB: carried on its own (.devbuild/oidn) because with the binaries it would
+# pass the 64 MiB carry limit; gpu-check.sh points TRACER_OIDN_LIBRARY at it.
+if [ -n "${OIDN_DIST:-}" ]; then
+  L=.deps/oidn/pyoidn/oidn/lib
+  rm -rf .devbuild/oidn && mkdir -p .devbuild/oidn/lib
+  cp -L "$L/libOpenImageDenoise.so.2" "$L/libOpenImageDenoise_core.so.2.5.1" \
+    "$L/libOpenImageDenoise_device_cuda.so.2.5.1" .devbuild/oidn/lib/
+  du -sh .devbuild/oidn
 fi

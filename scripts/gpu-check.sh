@@ -41,7 +41,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances (the last four not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom (the last six not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -176,6 +176,45 @@ if [ "$MODE" = instances ]; then
   python3 -c "import json; print('GPU bytes', json.load(open('/tmp/i100.json')).get('scene_device_bytes'))"
   $DIST/pathtracer render assets/scenes/instanced_100m.json --backend cuda --spp 256 --out "$OUT/instanced_100m.png" | tail -1
   rm -f "$OUT/instanced_100m.png.json"
+fi
+if [ "$MODE" = denoise ] || [ "$MODE" = denoise-classroom ]; then
+  # AOVs and the denoiser (docs/BENCHMARKS.md#denoised-previews). Open Image Denoise travels on
+  # its own: `OIDN_DIST=1 scripts/build-device.sh` makes .devbuild/oidn (54 MB), carried in one
+  # call with $DIST; it stays on the machine while it is warm, so `denoise-classroom` (carry
+  # $DIST and .devbuild/bitterli) follows at once. Everything comes back in $OUT/denoise*.tgz.
+  export TRACER_OIDN_LIBRARY=${TRACER_OIDN_LIBRARY:-$PWD/.devbuild/oidn/lib}
+  D=/tmp/dn && mkdir -p $D
+  $DIST/pathtracer render --backend cuda --spp 1 --width 64 --height 64 --denoise on --out $D/probe.png 2>&1 | tail -2
+  if [ "$MODE" = denoise ]; then
+    echo "== GPU tests"
+    $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
+    echo "== the AOVs' cost: 1920x1080, 64 spp, without and with (wall time of the render)"
+    for sc in cornell_box cornell_spheres cornell_bunnies; do
+      for aov in "" "--aov albedo"; do
+        $DIST/pathtracer render "$(scene $sc)" --backend cuda --spp 64 --width 1920 --height 1080 \
+          $aov --quiet --out $D/cost.exr
+        python3 -c "import json; j=json.load(open('$D/cost.exr.json')); print('$sc', '${aov:-no AOVs}', 'wall', round(j['wall_time_s'],3), 's')"
+      done
+    done
+    SCENES="cornell_box cornell_spheres"
+  else
+    B=${BITTERLI:-.devbuild/bitterli}
+    SCENES="$B/classroom/scene-v4.pbrt"
+  fi
+  for sc in $SCENES; do
+    path=$sc; [ -f "$path" ] || path=$(scene $sc)
+    name=$(basename "$(dirname "$path")"); [ "$name" = scenes ] && name=$sc
+    echo "==== bench --error $name, 1920x1080"
+    $DIST/pathtracer bench "$path" --error --width 1920 --height 1080 --backend cuda \
+      --reference-spp ${REF_SPP:-8192} --configs megakernel,megakernel+denoise,wavefront+denoise \
+      --time-limit ${TIME_LIMIT:-20} --out $D/$name 2>&1 | grep -vE "^\s*$" | tail -12
+    # Pictures: raw and denoised at 4, 16 and 64 spp, and the reference (PNG).
+    for spp in 4 16 64; do
+      $DIST/pathtracer render "$path" --backend cuda --width 1920 --height 1080 --spp $spp \
+        --denoise both --aov albedo,normal --out $D/$name.$spp.png 2>&1 | grep -E "denoised|error"
+    done
+  done
+  (cd $D && tar czf "$OUT/$MODE.tgz" --exclude='*.exr' --exclude='*.variance*' . )
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction

@@ -15,6 +15,19 @@ PACKAGES=(
 
 scripts/install-packages.sh setup "${PACKAGES[@]}"
 
+# Intel Open Image Denoise, loaded at run time by tracer/image/denoise.cpp: Debian has no package
+# (it needs ISPC), so it comes from PyPI's pyoidn wheel (the library with its CPU and CUDA
+# devices and weights) into .deps/oidn. Optional: without it the denoiser says it is absent and
+# its tests skip, so a failed download only prints a note.
+OIDN_VERSION=2.5.1
+if [ ! -e .deps/oidn/pyoidn/oidn/lib/libOpenImageDenoise.so.2 ] && [ -z "${TRACER_NO_OIDN:-}" ]; then
+  echo "setup: installing Open Image Denoise $OIDN_VERSION (PyPI pyoidn) into .deps/oidn" >&2
+  rm -rf .deps/oidn
+  python3 -m pip install -q --disable-pip-version-check --root-user-action=ignore --no-deps --target .deps/oidn \
+    "pyoidn==$OIDN_VERSION" >&2 ||
+    echo "setup: note: pyoidn could not be installed; the denoiser will be absent" >&2
+fi
+
 BUILD_DIR=${BUILD_DIR:-build}
 # TRACER_CUDA=ON/OFF chooses whether the CUDA backend is built (default: whenever nvcc is found);
 # an existing build folder is reconfigured only when the choice changes.

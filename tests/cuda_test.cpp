@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "cpu/cpu_backend.h"
 #include "cuda/cuda_renderer.h"
 #include "scene/loader.h"
 #include "scene_builders.h"
@@ -155,6 +156,55 @@ TEST(Gpu, InstancesMatchCpu) {
     rs.max_depth = 6;
     rs.seed = 5;
     expect_gpu_matches_cpu(*gpu, glass ? "instances, glass balls" : "instances", s, rs);
+  }
+}
+
+// The feature buffers on the GPU are the CPU's: the same camera rays and the same choices at
+// mirrors and glass (same seed), in both kernels, on scenes with glass, textures, depth of field
+// and the flat list; the colour is the same with AOVs on as off.
+TEST(Gpu, AovsMatchCpu) {
+  REQUIRE_GPU(gpu);
+  for (const char* name : {"cornell_spheres.json", "textured.gltf", "depth_of_field.json",
+                           "cornell_box.json"}) {
+    RenderSettings rs;
+    const Scene s = small_asset(name, &rs);
+    const CompiledScene cs(s, rs.width, rs.height);
+    CpuRenderer cpu(0);
+    cpu.set_scene(cs, make_integrator_settings(rs));
+    cpu.set_aovs(true);
+    cpu.render(16);
+    const AovImages c = cpu.aov_images();
+    for (KernelMode mode : {KernelMode::kWavefront, KernelMode::kMegakernel}) {
+      GpuOptions o;
+      o.kernel = mode;
+      gpu->set_gpu_options(o);
+      gpu->set_scene(cs, make_integrator_settings(rs));
+      gpu->render(16);
+      const ImageRGB off = gpu->image();
+      gpu->set_aovs(true);
+      gpu->reset();
+      gpu->render(16);
+      const ImageRGB on = gpu->image();
+      const AovImages g = gpu->aov_images();
+      gpu->set_aovs(false);
+      ASSERT_FALSE(g.empty());
+      EXPECT_EQ(identical_fraction(on, off), 1.0) << name;
+      const double albedo = identical_fraction(g.albedo, c.albedo),
+                   normal = identical_fraction(g.normal, c.normal);
+      size_t ids = 0, depth = 0;
+      for (size_t i = 0; i < g.depth.size(); ++i) {
+        ids += g.material[i] == c.material[i];
+        depth += std::abs(g.depth[i] - c.depth[i]) <= 1e-3f * (1.0f + c.depth[i]);
+      }
+      std::printf("%-24s %-10s AOVs identical to the CPU's: albedo %.4f normal %.4f depth %.4f "
+                  "material %.4f\n",
+                  name, mode == KernelMode::kWavefront ? "wavefront" : "megakernel", albedo,
+                  normal, double(depth) / g.depth.size(), double(ids) / g.depth.size());
+      EXPECT_GT(albedo, 0.98) << name;
+      EXPECT_GT(normal, 0.98) << name;
+      EXPECT_GT(double(depth) / g.depth.size(), 0.98) << name;
+      EXPECT_GT(double(ids) / g.depth.size(), 0.98) << name;
+    }
   }
 }
 

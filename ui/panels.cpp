@@ -510,6 +510,7 @@ void stats_panel(Workbench& wb, PanelState& ps) {
   ImGui::Text("%.2f ms per frame, %.0f Mrays/s, %.1f UI fps", s.ms_per_frame, s.mrays_per_s,
               ImGui::GetIO().Framerate);
   ImGui::Text("NaN/Inf samples rejected: %llu", (unsigned long long)s.nonfinite);
+  ImGui::TextWrapped("%s", wb.shown_image().c_str());
   if (s.relmse_halves >= 0) {
     ImGui::Text("half-buffer relMSE: %.3g", s.relmse_halves);
     if (!tracer::independent_halves(wb.settings().sampler)) {
@@ -582,6 +583,10 @@ void display_panel(Workbench& wb, PanelState& ps) {
   if (!section(ps, "Display", ImGuiTreeNodeFlags_DefaultOpen)) return;
   setting_widget(wb, ps, "display.exposure", "exposure", 0.05f, "%+.2f stops", 8.0);
   setting_widget(wb, ps, "display.tonemap", "tone map");
+  setting_widget(wb, ps, "display.denoise", "denoise");
+  if (wb.display().denoise != tracer::DenoiseMode::kOff && !tracer::denoiser_available())
+    ImGui::TextColored(ImVec4(1.0f, 0.45f, 0.35f, 1.0f), "denoiser absent: %s",
+                       tracer::denoiser_status().c_str());
 }
 
 void export_now(Workbench& wb, PanelState& ps) {

@@ -13,6 +13,7 @@
 #include "cpu/cpu_backend.h"
 #include "image/display.h"
 #include "image/image.h"
+#include "integrator/export.h"
 #include "integrator/sidecar.h"
 #include "scene/loader.h"
 
@@ -276,9 +277,12 @@ void Workbench::update() {
     rebuild(geometry_dirty_);
     dirty_ = geometry_dirty_ = false;
   }
+  // The denoiser is guided by the albedo and normal AOVs: they are on while it is.
+  const bool want_aovs = scene_.display.denoise != tracer::DenoiseMode::kOff;
   if (async_) {
     tracer::ImageRGB img;  // copied under the lock, compared with the reference after it
     std::unique_lock<std::mutex> lk(mutex_);
+    worker_aovs_ = want_aovs;
     stats_.spp = worker_spp_;
     stats_.last = worker_stats_;
     stats_.ms_per_frame = worker_stats_.ms;
@@ -305,6 +309,7 @@ void Workbench::update() {
     if (!img.pixels.empty()) record_reference_error(img);
     return;
   }
+  if (renderer_->aovs() != want_aovs) renderer_->set_aovs(want_aovs);
   if (paused || converged()) return;
   uint32_t spp = uint32_t(std::max(1, samples_per_frame));
   if (target_spp() > 0) spp = std::min(spp, target_spp() - stats_.spp);
@@ -354,9 +359,86 @@ void Workbench::record_reference_error(const tracer::ImageRGB& img) {
     curve.push_back(cp);
 }
 
+bool Workbench::denoise_view() const {
+  return scene_.display.denoise != tracer::DenoiseMode::kOff && tracer::denoiser_available();
+}
+
+std::string Workbench::shown_image() const {
+  if (scene_.display.denoise == tracer::DenoiseMode::kOff) return "shown: the raw image";
+  if (!tracer::denoiser_available())
+    return "shown: the raw image; the denoiser is absent: " + tracer::denoiser_status();
+  if (!denoise_error_.empty()) return "shown: the raw image; the denoiser failed: " + denoise_error_;
+  if (denoised_reset_ != stats_.resets || denoised_.pixels.empty())
+    return "shown: the raw image (the denoiser waits for the AOVs)";
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "shown: denoised at %u spp by %s (%s, %s, %.1f ms); biased",
+                denoised_spp_, denoise_info_.denoiser.c_str(), denoise_info_.device.c_str(),
+                denoise_info_.inputs.c_str(), denoise_info_.ms);
+  return buf;
+}
+
+void Workbench::current_image(tracer::ImageRGB* img, tracer::AovImages* aovs, uint32_t* spp) {
+  if (async_) {
+    std::lock_guard<std::mutex> lk(mutex_);
+    img->width = published_w_;
+    img->height = published_h_;
+    img->pixels = published_mean_;
+    if (aovs) *aovs = published_aovs_;
+    *spp = worker_spp_;
+    return;
+  }
+  *img = renderer_->image();
+  if (aovs) *aovs = renderer_->aov_images();
+  *spp = renderer_->samples_done();
+}
+
+bool Workbench::try_denoise() {
+  const uint32_t spp = stats_.spp;
+  if (spp == 0) return false;
+  const bool new_accumulation = denoised_reset_ != stats_.resets;
+  const bool due = new_accumulation ||
+                   (spp > denoised_spp_ &&
+                    (seconds_since(denoised_at_) >= kDenoiseInterval || converged() || paused));
+  if (!due) return false;
+  tracer::ImageRGB img;
+  tracer::AovImages aovs;
+  uint32_t at = 0;
+  current_image(&img, &aovs, &at);
+  if (img.pixels.empty() || aovs.empty() || img.width != aovs.albedo.width ||
+      img.height != aovs.albedo.height)
+    return false;  // the AOVs start with the next sample
+  try {
+    denoised_ = tracer::denoise_image(img, &aovs.albedo, &aovs.normal, &denoise_info_);
+  } catch (const std::exception& e) {
+    if (denoise_error_ != e.what()) messages.error(e.what());
+    denoise_error_ = e.what();
+    return false;
+  }
+  denoise_error_.clear();
+  denoised_spp_ = at;
+  denoised_reset_ = stats_.resets;
+  denoised_at_ = Clock::now();
+  return true;
+}
+
 bool Workbench::fetch_display(std::vector<uint32_t>& rgba, int& width, int& height) {
   width = scene_.settings.width;
   height = scene_.settings.height;
+  if (denoise_view()) {
+    const bool fresh = try_denoise();
+    if (denoised_reset_ == stats_.resets && denoised_.width == width &&
+        denoised_.height == height) {
+      if (!fresh && !display_dirty_) return false;
+      display_dirty_ = false;
+      rgba.resize(size_t(width) * height);
+      const float scale = scene_.display.scale();
+      const std::vector<float>& d = denoised_.pixels;
+      for (size_t i = 0; i < rgba.size(); ++i)
+        rgba[i] = tracer::display_rgba8(vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]), scale,
+                                        scene_.display.tone_map);
+      return true;
+    }
+  }
   if (async_) {
     std::unique_lock<std::mutex> lk(mutex_);
     if (!published_new_ && !display_dirty_) return false;
@@ -421,8 +503,10 @@ void Workbench::worker_loop() {
       generation = generation_;
       cancel_ = false;
     }
+    if (renderer_->aovs() != worker_aovs_) renderer_->set_aovs(worker_aovs_);
     lk.unlock();
     const tracer::FrameStats fs = renderer_->render(1);
+    tracer::AovImages aovs = renderer_->aovs() ? renderer_->aov_images() : tracer::AovImages();
     lk.lock();
     if (generation != generation_ || fs.spp_added == 0) continue;  // an edit made it stale
     worker_stats_ = fs;
@@ -433,6 +517,7 @@ void Workbench::worker_loop() {
     published_mean_ = img.pixels;
     published_w_ = img.width;
     published_h_ = img.height;
+    published_aovs_ = std::move(aovs);
     published_new_ = true;
     if (worker_spp_ % 4 == 0) worker_relmse_ = tracer::half_buffer_relmse(*renderer_);
   }
@@ -600,19 +685,14 @@ bool Workbench::load_reference(const std::string& path, std::string* error) {
 std::string Workbench::export_image(const std::string& path) {
   try {
     tracer::ImageRGB img;
-    uint32_t spp;
-    if (async_) {  // the worker may be adding a pass: take what it last published
-      std::lock_guard<std::mutex> lk(mutex_);
-      img.width = published_w_;
-      img.height = published_h_;
-      img.pixels = published_mean_;
-      spp = worker_spp_;
-      if (img.pixels.empty()) return "nothing rendered yet; nothing was exported";
-    } else {
-      img = renderer_->image();
-      spp = renderer_->samples_done();
-    }
-    tracer::write_image(path, img, scene_.display.exposure, scene_.display.tone_map);
+    tracer::AovImages aovs;
+    uint32_t spp = 0;
+    // The worker may be adding a pass: this takes what it last published.
+    current_image(&img, &aovs, &spp);
+    if (img.pixels.empty() || spp == 0) return "nothing rendered yet; nothing was exported";
+    // With the denoiser on the AOVs exist: they go with the image (EXR layers or PNGs beside).
+    tracer::AovRequest request;
+    if (!aovs.empty()) request.albedo = request.normal = request.depth = request.id = true;
     tracer::SidecarRun run;
     run.output = path;
     run.backend = renderer_->backend_name();
@@ -622,7 +702,8 @@ std::string Workbench::export_image(const std::string& path) {
     run.nonfinite = stats_.nonfinite;
     run.last = stats_.last;
     if (compiled_) run.features = tracer::describe_features(compiled_->features());
-    tracer::write_sidecar(scene_, run);
+    run.aov_samples = aovs.empty() ? 0 : (async_ ? spp : renderer_->aov_samples());
+    tracer::export_render(path, img, &aovs, request, scene_, run);
   } catch (const std::exception& e) {
     return e.what();
   }

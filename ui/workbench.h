@@ -16,6 +16,7 @@
 
 #include "backends/backend_select.h"
 #include "image/convergence.h"
+#include "image/denoise.h"
 #include "integrator/renderer.h"
 #include "scene/compiled_scene.h"
 #include "scene/scene.h"
@@ -86,6 +87,14 @@ class Workbench {
   // The display image as RGBA8 (top row first); false when nothing new since the last call.
   bool fetch_display(std::vector<uint32_t>& rgba, int& width, int& height);
   tracer::Renderer* gpu_renderer();  // the CUDA renderer when it is the active backend
+  // The denoiser on the viewport (display.denoise, image/denoise.h): on and available. It
+  // denoises the mean that is shown, never the accumulator (toggling it never restarts), at
+  // once after each restart and then at most every kDenoiseInterval seconds or when the render
+  // stops (converged or paused); fetch_display shows the result.
+  bool denoise_view() const;
+  static constexpr double kDenoiseInterval = 0.5;
+  // One line for the Stats panel: which image is shown and, when denoised, by what from what.
+  std::string shown_image() const;
   int width() const { return scene_.settings.width; }
   int height() const { return scene_.settings.height; }
   std::string backend_name() const;
@@ -166,6 +175,16 @@ class Workbench {
   WorkbenchStats stats_;
   double since_reset_s_ = 0.0;
   void record_reference_error(const tracer::ImageRGB& img);
+  // The viewport's denoised image: of which accumulation (stats_.resets) at which spp.
+  bool try_denoise();
+  tracer::ImageRGB denoised_;
+  uint32_t denoised_spp_ = 0;
+  uint64_t denoised_reset_ = ~0ull;
+  std::chrono::steady_clock::time_point denoised_at_{};
+  tracer::DenoiseInfo denoise_info_;
+  std::string denoise_error_;
+  // The current image and its AOVs for the denoiser and the export.
+  void current_image(tracer::ImageRGB* img, tracer::AovImages* aovs, uint32_t* spp);
   std::unique_ptr<tracer::ReferenceImage> reference_;
   int frames_since_estimate_ = 0;
   uint32_t next_curve_spp_ = 1;
@@ -182,6 +201,8 @@ class Workbench {
   std::shared_ptr<tracer::CompiledScene> worker_scene_;
   tracer::IntegratorSettings worker_cfg_;
   std::vector<float> published_mean_;
+  tracer::AovImages published_aovs_;  // with AOVs on (the denoiser asks for them)
+  bool worker_aovs_ = false;
   int published_w_ = 0, published_h_ = 0;
   bool published_new_ = false;
   tracer::FrameStats worker_stats_;

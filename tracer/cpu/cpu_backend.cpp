@@ -6,7 +6,13 @@
 #include <stdexcept>
 #include <thread>
 
+#include "integrator/aov.h"
+
 namespace tracer {
+
+namespace {
+constexpr size_t kAovFloats = 7;  // albedo rgb, normal xyz, depth
+}  // namespace
 
 CpuRenderer::CpuRenderer(int threads) {
   threads_ = threads > 0 ? threads : int(std::max(1u, std::thread::hardware_concurrency()));
@@ -25,6 +31,7 @@ void CpuRenderer::set_settings(const IntegratorSettings& cfg) {
   cfg_ = cfg;
   const size_t n = size_t(cfg.width) * cfg.height * 3;
   for (auto* b : {&sum_even_, &sum_odd_, &pass_even_, &pass_odd_}) b->assign(n, 0.0);
+  allocate_aovs();
   samples_ = 0;
   nonfinite_ = 0;
 }
@@ -32,8 +39,24 @@ void CpuRenderer::set_settings(const IntegratorSettings& cfg) {
 void CpuRenderer::reset() {
   std::fill(sum_even_.begin(), sum_even_.end(), 0.0);
   std::fill(sum_odd_.begin(), sum_odd_.end(), 0.0);
+  allocate_aovs();
   samples_ = 0;
   nonfinite_ = 0;
+}
+
+void CpuRenderer::allocate_aovs() {
+  const size_t pixels = aovs_on_ ? size_t(cfg_.width) * cfg_.height : 0;
+  for (auto* b : {&aov_even_, &aov_odd_, &pass_aov_even_, &pass_aov_odd_})
+    b->assign(pixels * kAovFloats, 0.0);
+  aov_ids_.assign(pixels * 2, kInvalid);
+  pass_aov_ids_.assign(pixels * 2, kInvalid);
+  aov_count_[0] = aov_count_[1] = 0;
+}
+
+void CpuRenderer::set_aovs(bool on) {
+  if (on == aovs_on_) return;
+  aovs_on_ = on;
+  allocate_aovs();
 }
 
 namespace {
@@ -46,6 +69,10 @@ struct Pass {
   std::atomic<uint32_t>* next_row;
   double* pass_even;  // 3 per pixel
   double* pass_odd;
+  double* aov_even;  // kAovFloats per pixel, or null while AOVs are off
+  double* aov_odd;
+  uint32_t* aov_ids;  // 2 per pixel
+  bool aov_first;     // the pass holds the first AOV sample: it writes the ids
   const std::atomic<bool>* cancel;
 };
 struct ThreadTotals {
@@ -86,6 +113,25 @@ TRACER_CPU_MULTIVERSION void render_rows(const Pass& p, ThreadTotals& out) {
         p.pass_even[size_t(pixel) * 3 + c] = acc[0][c];
         p.pass_odd[size_t(pixel) * 3 + c] = acc[1][c];
       }
+      if (p.aov_even) {
+        double aov[2][kAovFloats] = {};
+        for (uint32_t s = 0; s < p.spp; ++s) {
+          const uint32_t sample = p.first_sample + s;
+          const AovSample a = trace_aov(*p.view, cfg, pixel, sample);
+          double* d = aov[sample & 1];
+          const float v[kAovFloats] = {a.albedo.x, a.albedo.y, a.albedo.z, a.normal.x,
+                                       a.normal.y, a.normal.z, a.depth};
+          for (size_t c = 0; c < kAovFloats; ++c) d[c] += v[c];
+          if (p.aov_first && s == 0) {
+            p.aov_ids[size_t(pixel) * 2] = a.material;
+            p.aov_ids[size_t(pixel) * 2 + 1] = a.prim;
+          }
+        }
+        for (size_t c = 0; c < kAovFloats; ++c) {
+          p.aov_even[size_t(pixel) * kAovFloats + c] = aov[0][c];
+          p.aov_odd[size_t(pixel) * kAovFloats + c] = aov[1][c];
+        }
+      }
     }
     if (p.cancel && p.cancel->load(std::memory_order_relaxed)) break;
   }
@@ -104,8 +150,19 @@ FrameStats CpuRenderer::render(uint32_t spp) {
   if (!simd_traversal_) view.cpu_bvh = CpuBvhView();
   view.use_flat = flat_list_ && scene_->flat_list().enabled ? 1u : 0u;
   std::atomic<uint32_t> next_row{0};
-  const Pass pass{&view,           &cfg_,           samples_, spp, &next_row, pass_even_.data(),
-                  pass_odd_.data(), cancel_};
+  const bool aovs = aovs_on_ && !aov_even_.empty();
+  const Pass pass{&view,
+                  &cfg_,
+                  samples_,
+                  spp,
+                  &next_row,
+                  pass_even_.data(),
+                  pass_odd_.data(),
+                  aovs ? pass_aov_even_.data() : nullptr,
+                  aovs ? pass_aov_odd_.data() : nullptr,
+                  aovs ? pass_aov_ids_.data() : nullptr,
+                  aov_count_[0] + aov_count_[1] == 0,
+                  cancel_};
   std::vector<ThreadTotals> totals(threads_);
   auto worker = [&](int t) { render_rows(pass, totals[t]); };
   std::vector<std::thread> pool;
@@ -123,6 +180,14 @@ FrameStats CpuRenderer::render(uint32_t spp) {
   for (size_t i = 0; i < sum_even_.size(); ++i) {
     sum_even_[i] += pass_even_[i];
     sum_odd_[i] += pass_odd_[i];
+  }
+  if (aovs) {
+    for (size_t i = 0; i < aov_even_.size(); ++i) {
+      aov_even_[i] += pass_aov_even_[i];
+      aov_odd_[i] += pass_aov_odd_[i];
+    }
+    if (aov_count_[0] + aov_count_[1] == 0) aov_ids_ = pass_aov_ids_;
+    for (uint32_t k = 0; k < spp; ++k) ++aov_count_[(samples_ + k) & 1];
   }
   st.spp_added = spp;
   for (const ThreadTotals& t : totals) {
@@ -166,6 +231,35 @@ void CpuRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
     const double inv = counts[k] > 0 ? 1.0 / counts[k] : 0.0;
     for (size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = float((*sums[k])[i] * inv);
   }
+}
+
+AovImages CpuRenderer::aov_images(int half) const {
+  AovImages out;
+  const uint32_t count = half < 0 ? aov_count_[0] + aov_count_[1] : aov_count_[half & 1];
+  if (aov_even_.empty() || aov_count_[0] + aov_count_[1] == 0) return out;
+  const size_t n = size_t(cfg_.width) * cfg_.height;
+  out.albedo = make_image(int(cfg_.width), int(cfg_.height));
+  out.normal = make_image(int(cfg_.width), int(cfg_.height));
+  out.depth.assign(n, 0.0f);
+  out.material.resize(n);
+  out.prim.resize(n);
+  const double inv = count > 0 ? 1.0 / count : 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    double v[kAovFloats];
+    for (size_t c = 0; c < kAovFloats; ++c) {
+      const size_t k = i * kAovFloats + c;
+      v[c] = (half < 0 ? aov_even_[k] + aov_odd_[k] : half == 0 ? aov_even_[k] : aov_odd_[k]) *
+             inv;
+    }
+    for (int c = 0; c < 3; ++c) {
+      out.albedo.pixels[3 * i + c] = float(v[c]);
+      out.normal.pixels[3 * i + c] = float(v[3 + c]);
+    }
+    out.depth[i] = float(v[6]);
+    out.material[i] = aov_ids_[2 * i];
+    out.prim[i] = aov_ids_[2 * i + 1];
+  }
+  return out;
 }
 
 }  // namespace tracer

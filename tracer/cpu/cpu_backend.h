@@ -22,6 +22,10 @@ class CpuRenderer final : public Renderer {
   uint64_t nonfinite_total() const override { return nonfinite_; }
   ImageRGB image() const override;
   void half_images(ImageRGB* even, ImageRGB* odd) const override;
+  void set_aovs(bool on) override;
+  bool aovs() const override { return aovs_on_; }
+  AovImages aov_images(int half = -1) const override;
+  uint32_t aov_samples() const override { return aov_count_[0] + aov_count_[1]; }
   int threads() const { return threads_; }
   // When set, render() checks the flag between rows and abandons the pass (adding nothing and
   // returning spp_added = 0) once it is true: edits in the workbench never wait for a pass.
@@ -40,6 +44,13 @@ class CpuRenderer final : public Renderer {
   IntegratorSettings cfg_;
   std::vector<double> sum_even_, sum_odd_;    // 3 per pixel: samples 0, 2, 4... and 1, 3, 5...
   std::vector<double> pass_even_, pass_odd_;  // this call's sums, added when it completes
+  // With AOVs on: 7 per pixel (albedo, normal, depth), summed per half like the colour, and
+  // the material and primitive of the first AOV sample (2 per pixel).
+  bool aovs_on_ = false;
+  std::vector<double> aov_even_, aov_odd_, pass_aov_even_, pass_aov_odd_;
+  std::vector<uint32_t> aov_ids_, pass_aov_ids_;
+  uint32_t aov_count_[2] = {0, 0};  // AOV samples in each half
+  void allocate_aovs();
   const std::atomic<bool>* cancel_ = nullptr;
   uint32_t samples_ = 0;
   uint64_t nonfinite_ = 0;

@@ -101,6 +101,29 @@ struct CudaRenderer::Impl {
 
   // Films for the even and the odd samples, and counters.
   DeviceBuffer<float4> film[2];
+  // The feature buffers (while aovs_on; empty otherwise): per half, albedo + depth and normal,
+  // and the samples each half holds.
+  bool aovs_on = false;
+  DeviceBuffer<float4> aov_a[2], aov_b[2];
+  DeviceBuffer<uint2> aov_ids;
+  uint32_t aov_count[2] = {0, 0};
+  void allocate_aovs() {
+    const uint32_t pixels = aovs_on ? n() : 0;
+    for (auto* b : {&aov_a[0], &aov_a[1], &aov_b[0], &aov_b[1]}) b->resize(pixels);
+    aov_ids.resize(pixels);
+    aov_count[0] = aov_count[1] = 0;
+  }
+  AovFilm aov_film() {
+    AovFilm f;
+    for (int h = 0; h < 2; ++h) {
+      f.a[h] = aov_a[h].get();
+      f.b[h] = aov_b[h].get();
+    }
+    f.ids = aov_ids.get();
+    f.n = n();
+    f.write_ids = aov_count[0] + aov_count[1] == 0;
+    return f;
+  }
   DeviceBuffer<unsigned long long> counters;  // [kCounterCount], indexed by Counter
   uint32_t samples = 0;
   uint64_t nonfinite = 0;
@@ -194,7 +217,9 @@ struct CudaRenderer::Impl {
   void allocate() {
     const uint32_t count_pixels = n();
     // The two accumulators, ten float4 ray and path arrays, the alive flags and five queues.
-    const size_t per_pixel = 12 * sizeof(float4) + 1 + 5 * sizeof(uint32_t);
+    // With AOVs four float4 feature sums and two ids more.
+    const size_t per_pixel = (aovs_on ? 16 : 12) * sizeof(float4) + 1 + 5 * sizeof(uint32_t) +
+                             (aovs_on ? sizeof(uint2) : 0);
     require_device_memory(size_t(count_pixels) * per_pixel, film[0].size() * per_pixel,
                           "a " + std::to_string(cfg.width) + "x" + std::to_string(cfg.height) +
                               " image",
@@ -203,6 +228,7 @@ struct CudaRenderer::Impl {
                           prop.name);
     film[0].resize(count_pixels);
     film[1].resize(count_pixels);
+    allocate_aovs();
     for (auto* b : {&ray_o, &ray_d, &ray_o_odd, &ray_d_odd, &throughput, &radiance, &hit,
                     &shadow_o, &shadow_d, &shadow_c})
       b->resize(count_pixels);
@@ -539,7 +565,17 @@ void CudaRenderer::reset() {
   impl_->samples = 0;
   impl_->nonfinite = 0;
   impl_->cache_valid = false;
+  impl_->aov_count[0] = impl_->aov_count[1] = 0;
 }
+
+void CudaRenderer::set_aovs(bool on) {
+  Impl& m = *impl_;
+  if (on == m.aovs_on) return;
+  m.aovs_on = on;
+  if (m.has_scene) m.allocate_aovs();
+}
+bool CudaRenderer::aovs() const { return impl_->aovs_on; }
+uint32_t CudaRenderer::aov_samples() const { return impl_->aov_count[0] + impl_->aov_count[1]; }
 
 void CudaRenderer::set_gpu_options(const GpuOptions& o) {
   impl_->opts = o;
@@ -620,6 +656,12 @@ FrameStats CudaRenderer::render(uint32_t spp) {
       m.megakernel_wave(sample, first, timed);
     } else {
       m.wavefront_wave(sample, first, timed);
+    }
+    // The feature buffers after the sample's paths (outside its timed stages).
+    if (m.aovs_on) {
+      launch_aov(m.view, m.flat_params, m.cfg, sample, m.aov_count[sample & 1] == 0, m.aov_film(),
+                 m.stream);
+      ++m.aov_count[sample & 1];
     }
     if (timed) {
       StageTimes t;
@@ -747,6 +789,45 @@ void CudaRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
     TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
     rgb.download(outs[k]->pixels);
   }
+}
+
+AovImages CudaRenderer::aov_images(int half) const {
+  Impl& m = *impl_;
+  AovImages out;
+  const uint32_t* counts = m.aov_count;
+  if (!m.aovs_on || counts[0] + counts[1] == 0) return out;
+  TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
+  const uint32_t count = half < 0 ? counts[0] + counts[1] : counts[half & 1];
+  const size_t n = m.n();
+  out.albedo = make_image(int(m.cfg.width), int(m.cfg.height));
+  out.normal = make_image(int(m.cfg.width), int(m.cfg.height));
+  out.depth.assign(n, 0.0f);
+  const float inv = count > 0 ? 1.0f / float(count) : 0.0f;
+  std::vector<float4> a, b;
+  for (int h = 0; h < 2; ++h) {
+    // A half that has no sample yet holds stale memory.
+    if ((half >= 0 && h != half) || counts[h] == 0) continue;
+    m.aov_a[h].download(a);
+    m.aov_b[h].download(b);
+    for (size_t i = 0; i < n; ++i) {
+      out.albedo.pixels[3 * i + 0] += a[i].x * inv;
+      out.albedo.pixels[3 * i + 1] += a[i].y * inv;
+      out.albedo.pixels[3 * i + 2] += a[i].z * inv;
+      out.depth[i] += a[i].w * inv;
+      out.normal.pixels[3 * i + 0] += b[i].x * inv;
+      out.normal.pixels[3 * i + 1] += b[i].y * inv;
+      out.normal.pixels[3 * i + 2] += b[i].z * inv;
+    }
+  }
+  std::vector<uint2> ids;
+  m.aov_ids.download(ids);
+  out.material.resize(n);
+  out.prim.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    out.material[i] = ids[i].x;
+    out.prim[i] = ids[i].y;
+  }
+  return out;
 }
 
 void CudaRenderer::display_to_device(void* rgba8, float exposure_scale, ToneMap op) const {

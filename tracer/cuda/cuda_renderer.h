@@ -25,6 +25,10 @@ class CudaRenderer final : public Renderer {
   ImageRGB image() const override;
   void set_gpu_options(const GpuOptions& o) override;
   void half_images(ImageRGB* even, ImageRGB* odd) const override;
+  void set_aovs(bool on) override;
+  bool aovs() const override;
+  AovImages aov_images(int half = -1) const override;
+  uint32_t aov_samples() const override;
   void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const override;
   uint32_t width_times_height() const;
   // Writes the display image (RGBA8) into device memory, e.g. a mapped OpenGL pixel buffer.

@@ -88,6 +88,21 @@ struct FilmView {
   unsigned long long* clamped = nullptr;        // how many samples it scaled
 };
 
+// The feature buffers (integrator/aov.h) of the two halves: a = albedo rgb and depth, b = the
+// normal (w unused); ids = the material and primitive of the first AOV sample.
+struct AovFilm {
+  float4* a[2] = {nullptr, nullptr};
+  float4* b[2] = {nullptr, nullptr};
+  uint2* ids = nullptr;
+  uint32_t n = 0;
+  bool write_ids = false;  // this launch is the first AOV sample
+};
+
+// One AOV sample of every pixel (sample `sample`: its half is sample & 1; `first` overwrites
+// the half's sums).
+void launch_aov(const SceneView& s, const FlatParams& flat, const IntegratorSettings& cfg,
+                uint32_t sample, bool first, const AovFilm& film, cudaStream_t stream);
+
 // counters[kCounterMegaSegments] receives the path segments traced (camera rays included);
 // next_pixel is scratch.
 void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat,

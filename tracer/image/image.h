@@ -52,6 +52,15 @@ float srgb_to_linear(float encoded01);
 // empty image or any I/O failure, after removing the temporary file.
 void write_image(const std::string& path, const ImageRGB& img, float exposure_stops = 0.0f,
                  ToneMap op = ToneMap::kNone);
+// One float32 channel of a layered EXR: its full name ("albedo.R", "depth.Z") and width x height
+// values, rows top first.
+struct ExrChannel {
+  std::string name;
+  std::vector<float> values;
+};
+// Writes `img` as the R, G, B channels of an EXR and `layers` beside them (channels sorted by
+// name, as OpenEXR wants), atomically as write_image does. Throws InputError naming the path.
+void write_exr_layers(const std::string& path, const ImageRGB& img, std::vector<ExrChannel> layers);
 // Writes 8-bit RGBA pixels (e.g. a window screenshot) as PNG, atomically. bottom_up: the first
 // row in memory is the bottom of the image (OpenGL's glReadPixels order).
 void write_png_rgba8(const std::string& path, int width, int height, const uint8_t* rgba,

@@ -7,6 +7,7 @@
 #include <tinyexr.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cctype>
 #include <cerrno>
@@ -137,41 +138,42 @@ std::vector<unsigned char> encode_png(const std::string& path, const ImageRGB& i
   return png;
 }
 
-std::vector<unsigned char> encode_exr(const std::string& path, const ImageRGB& img) {
-  // OpenEXR stores channels planar and viewers expect them sorted by name: B, G, R.
-  const size_t n = static_cast<size_t>(img.width) * img.height;
-  std::vector<float> planes[3];
-  for (int c = 0; c < 3; ++c) {
-    planes[c].resize(n);
-    for (size_t i = 0; i < n; ++i) planes[c][i] = img.pixels[3 * i + (2 - c)];
+std::vector<unsigned char> encode_exr_channels(const std::string& path, int width, int height,
+                                               std::vector<ExrChannel> channels) {
+  // OpenEXR stores channels planar and viewers expect them sorted by name (B, G, R, ...).
+  std::sort(channels.begin(), channels.end(),
+            [](const ExrChannel& a, const ExrChannel& b) { return a.name < b.name; });
+  const size_t n = static_cast<size_t>(width) * height;
+  const int count = int(channels.size());
+  std::vector<unsigned char*> images(channels.size());
+  std::vector<EXRChannelInfo> infos(channels.size());
+  std::vector<int> pixel_types(channels.size(), TINYEXR_PIXELTYPE_FLOAT);
+  // Full float32, no conversion to half.
+  std::vector<int> requested_types(channels.size(), TINYEXR_PIXELTYPE_FLOAT);
+  for (int c = 0; c < count; ++c) {
+    if (channels[c].values.size() != n || channels[c].name.empty() ||
+        channels[c].name.size() >= sizeof(infos[c].name))
+      fail(path, "OpenEXR channel '" + channels[c].name + "' has the wrong size or name", kNotSaved);
+    std::memset(&infos[c], 0, sizeof(infos[c]));
+    std::memcpy(infos[c].name, channels[c].name.c_str(), channels[c].name.size());
+    images[c] = reinterpret_cast<unsigned char*>(channels[c].values.data());
   }
-  unsigned char* images[3] = {reinterpret_cast<unsigned char*>(planes[0].data()),
-                              reinterpret_cast<unsigned char*>(planes[1].data()),
-                              reinterpret_cast<unsigned char*>(planes[2].data())};
   EXRImage image;
   InitEXRImage(&image);
-  image.images = images;
-  image.num_channels = 3;
-  image.width = img.width;
-  image.height = img.height;
+  image.images = images.data();
+  image.num_channels = count;
+  image.width = width;
+  image.height = height;
 
-  EXRChannelInfo channels[3];
-  std::memset(channels, 0, sizeof(channels));
-  int pixel_types[3], requested_types[3];
-  for (int c = 0; c < 3; ++c) {
-    channels[c].name[0] = "BGR"[c];
-    pixel_types[c] = TINYEXR_PIXELTYPE_FLOAT;
-    requested_types[c] = TINYEXR_PIXELTYPE_FLOAT;  // full float32, no conversion to half
-  }
   EXRHeader header;
   InitEXRHeader(&header);
-  header.num_channels = 3;
-  header.channels = channels;
-  header.pixel_types = pixel_types;
-  header.requested_pixel_types = requested_types;
+  header.num_channels = count;
+  header.channels = infos.data();
+  header.pixel_types = pixel_types.data();
+  header.requested_pixel_types = requested_types.data();
   // As in tinyexr's own SaveEXR: tiny images are stored uncompressed.
-  header.compression_type = (img.width < 16 && img.height < 16) ? TINYEXR_COMPRESSIONTYPE_NONE
-                                                                : TINYEXR_COMPRESSIONTYPE_ZIP;
+  header.compression_type = (width < 16 && height < 16) ? TINYEXR_COMPRESSIONTYPE_NONE
+                                                        : TINYEXR_COMPRESSIONTYPE_ZIP;
 
   unsigned char* memory = nullptr;
   const char* err = nullptr;
@@ -186,6 +188,21 @@ std::vector<unsigned char> encode_exr(const std::string& path, const ImageRGB& i
   std::vector<unsigned char> out(memory, memory + size);
   std::free(memory);
   return out;
+}
+
+std::vector<ExrChannel> rgb_channels(const ImageRGB& img, const std::string& prefix) {
+  const size_t n = static_cast<size_t>(img.width) * img.height;
+  std::vector<ExrChannel> out(3);
+  for (int c = 0; c < 3; ++c) {
+    out[c].name = prefix + "RGB"[c];
+    out[c].values.resize(n);
+    for (size_t i = 0; i < n; ++i) out[c].values[i] = img.pixels[3 * i + c];
+  }
+  return out;
+}
+
+std::vector<unsigned char> encode_exr(const std::string& path, const ImageRGB& img) {
+  return encode_exr_channels(path, img.width, img.height, rgb_channels(img, ""));
 }
 
 std::vector<unsigned char> read_file(const std::string& path) {
@@ -380,6 +397,19 @@ void write_image(const std::string& path, const ImageRGB& img, float exposure_st
   }
   const std::vector<unsigned char> bytes =
       ext == ".png" ? encode_png(path, img, exposure_stops, op) : encode_exr(path, img);
+  write_bytes_atomic(path, bytes.data(), bytes.size());
+}
+
+void write_exr_layers(const std::string& path, const ImageRGB& img,
+                      std::vector<ExrChannel> layers) {
+  if (lower_extension(path) != ".exr") fail(path, "layers need an .exr file", kNotSaved);
+  if (img.width <= 0 || img.height <= 0 ||
+      img.pixels.size() != 3 * static_cast<size_t>(img.width) * img.height)
+    fail(path, "image is empty or inconsistent", kNotSaved);
+  std::vector<ExrChannel> channels = rgb_channels(img, "");
+  for (ExrChannel& l : layers) channels.push_back(std::move(l));
+  const std::vector<unsigned char> bytes =
+      encode_exr_channels(path, img.width, img.height, std::move(channels));
   write_bytes_atomic(path, bytes.data(), bytes.size());
 }
 

@@ -76,6 +76,14 @@ struct AutoKernelTimes {
   double wavefront_ms = 0, megakernel_ms = 0;
 };
 
+// The means of the feature buffers (integrator/aov.h) over the samples so far.
+struct AovImages {
+  ImageRGB albedo, normal;               // linear RGB; unit normals averaged (not renormalised)
+  std::vector<float> depth;              // width * height: mean distance to the first hit
+  std::vector<uint32_t> material, prim;  // width * height, of each pixel's sample 0
+  bool empty() const { return albedo.pixels.empty(); }
+};
+
 class Renderer {
  public:
   virtual ~Renderer() = default;
@@ -94,6 +102,17 @@ class Renderer {
   // Means of the even-numbered and of the odd-numbered samples: two independent estimates whose
   // difference measures the remaining noise (relMSE between half buffers).
   virtual void half_images(ImageRGB* even, ImageRGB* odd) const = 0;
+  // The feature buffers (integrator/aov.h: one more camera ray, and the specular chain behind
+  // it, per sample). Off by default. Turning them on does not clear the colour: they start with
+  // the next sample (so a viewer can switch a denoiser on without restarting the render);
+  // reset() and set_settings() clear them with the colour and keep them on.
+  virtual void set_aovs(bool on) = 0;
+  virtual bool aovs() const = 0;
+  // Their means: over every AOV sample (half -1), the even-numbered (0) or the odd-numbered
+  // ones (1). Empty while off or before their first sample.
+  virtual AovImages aov_images(int half = -1) const = 0;
+  // AOV samples so far (fewer than samples_done() when they were turned on late).
+  virtual uint32_t aov_samples() const = 0;
   // The display image, exposure and tone map applied, as RGBA8 rows top first.
   virtual void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const;
   // GPU-only switches; the CPU backend ignores them.

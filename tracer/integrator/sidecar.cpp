@@ -81,6 +81,15 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
     if (run.last.gpu) j["gpu_run"].update(effective_gpu_json(*run.last.gpu));
   }
   j["features"] = run.features;
+  if (!run.aovs.empty()) j["aovs"] = {{"layers", run.aovs}, {"samples", run.aov_samples}};
+  if (!run.denoise.denoiser.empty()) {
+    // The denoised image is biased: the sidecar says what made it from what.
+    j["denoise"] = {{"denoiser", run.denoise.denoiser},
+                    {"device", run.denoise.device},
+                    {"inputs", run.denoise.inputs},
+                    {"ms", run.denoise.ms},
+                    {"output", run.denoised_output}};
+  }
   j["warnings"] = scene.diagnostics.warnings;
   return j;
 }

@@ -5,7 +5,9 @@
 
 #include <nlohmann/json_fwd.hpp>
 #include <string>
+#include <vector>
 
+#include "image/denoise.h"
 #include "integrator/gpu_options.h"
 #include "integrator/renderer.h"
 #include "scene/scene.h"
@@ -26,6 +28,11 @@ struct SidecarRun {
   double kept_luminance = 0.0;     // the image's luminance summed over samples
   std::string features;            // describe_features() of the compiled scene
   FrameStats last;                 // the last frame: kernel, specialization, note
+  std::vector<std::string> aovs;   // the feature layers written with the image (EXR) or beside it
+  uint32_t aov_samples = 0;        // the samples the AOVs averaged
+  // The denoiser, when display.denoise was on: what ran and where its image went.
+  DenoiseInfo denoise;
+  std::string denoised_output;
 };
 
 // What the GPU ran for a request (resolve_gpu_options()): the effective switches, the wavefront's

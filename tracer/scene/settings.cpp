@@ -313,6 +313,14 @@ std::vector<Setting> make_table() {
                               {ToneMap::kNone, ToneMap::kReinhard, ToneMap::kAces},
                               "Tone mapping of the display and of PNG exports.", E::kDisplay,
                               [](Scene& s) -> ToneMap& { return s.display.tone_map; }));
+  t.push_back(choice<DenoiseMode>(
+      "display.denoise", "--denoise", {"off", "on", "both"},
+      {DenoiseMode::kOff, DenoiseMode::kOn, DenoiseMode::kBoth},
+      "Open Image Denoise on what is shown and exported, guided by the albedo and normal AOVs "
+      "(biased: it trades noise for blur). on: the viewport and the export show the denoised "
+      "image; both: the export writes the raw image and the denoised one beside it "
+      "(name.denoised.ext). The accumulator is never changed: toggling it does not restart.",
+      E::kDisplay, [](Scene& s) -> DenoiseMode& { return s.display.denoise; }));
   return t;
 }
 

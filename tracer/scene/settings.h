@@ -51,10 +51,15 @@ inline bool operator!=(const GpuOptions& a, const GpuOptions& b) {
 // Which renderer runs: the GPU when there is one (kAuto), or the one named.
 enum class BackendChoice { kAuto, kCpu, kCuda };
 
+// The denoiser (image/denoise.h) on what is shown and exported: kOn shows and exports the
+// denoised image, kBoth shows it and exports the raw image and the denoised one beside it.
+enum class DenoiseMode { kOff, kOn, kBoth };
+
 // How the image is shown and exported as PNG (the accumulator is linear radiance).
 struct DisplaySettings {
   float exposure = 0.0f;  // stops
   ToneMap tone_map = ToneMap::kNone;
+  DenoiseMode denoise = DenoiseMode::kOff;
   float scale() const { return std::exp2(exposure); }
 };
 
