@@ -307,10 +307,7 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
   r.set_scene(cs, cfg);
   r.set_aovs(c.denoise);
   r.render(c.gpu.kernel == tracer::KernelMode::kAuto ? 4 : 1);  // warm-up (and auto's timing)
-  if (c.denoise) {  // the denoiser's first call sets up its device and filter
-    const tracer::AovImages a = r.aov_images();
-    tracer::denoise_image(r.image(), &a.albedo, &a.normal);
-  }
+  if (c.denoise) r.denoised_image();  // the denoiser's first call sets up its device and filter
   r.reset();
   sw.device = r.device_name();
   double seconds = 0;
@@ -333,11 +330,11 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
     cp.seconds = seconds;
     tracer::ImageRGB img = r.image();
     if (c.denoise) {
-      // What a user waits for: the AOVs' download and the denoise, on top of the samples.
+      // What a user waits for: the resolves, the denoise and the image back in host memory, on
+      // top of the samples (on the GPU the denoiser reads the renderer's device buffers).
       const auto t1 = Clock::now();
-      const tracer::AovImages a = r.aov_images();
       tracer::DenoiseInfo info;
-      img = tracer::denoise_image(img, &a.albedo, &a.normal, &info);
+      img = r.denoised_image(&info);
       cp.seconds += std::chrono::duration<double>(Clock::now() - t1).count();
       sw.denoiser = info.denoiser + " (" + info.device + ", " + info.inputs + ")";
     }

@@ -197,7 +197,11 @@ int run_render(const RenderOptions& o) {
   tracer::ExportResult exported;
   try {
     const tracer::AovImages aov_images = renderer->aov_images();
-    exported = tracer::export_render(o.out, img, &aov_images, aovs, scene, run);
+    tracer::ImageRGB denoised;
+    tracer::DenoiseInfo info;
+    if (denoise) denoised = renderer->denoised_image(&info);  // on the GPU in device memory
+    exported = tracer::export_render(o.out, img, &aov_images, aovs, scene, run,
+                                     denoise ? &denoised : nullptr, &info);
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInputError;

@@ -188,33 +188,42 @@ if [ "$MODE" = denoise ] || [ "$MODE" = denoise-classroom ]; then
   if [ "$MODE" = denoise ]; then
     echo "== GPU tests"
     $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
-    echo "== the AOVs' cost: 1920x1080, 64 spp, without and with (wall time of the render)"
+    echo "== the AOVs' cost: 1920x1080, 256 spp, without and with (wall time of the render)"
     for sc in cornell_box cornell_spheres cornell_bunnies; do
       for aov in "" "--aov albedo"; do
-        $DIST/pathtracer render "$(scene $sc)" --backend cuda --spp 64 --width 1920 --height 1080 \
+        $DIST/pathtracer render "$(scene $sc)" --backend cuda --spp 256 --width 1920 --height 1080 \
           $aov --quiet --out $D/cost.exr
-        python3 -c "import json; j=json.load(open('$D/cost.exr.json')); print('$sc', '${aov:-no AOVs}', 'wall', round(j['wall_time_s'],3), 's')"
+        python3 -c "import json; j=json.load(open('$D/cost.exr.json')); print('$sc', '${aov:-no AOVs}', 'wall', round(j['wall_time_s'],3), 's', j['gpu_run']['kernel'])"
       done
     done
+    echo "== where the denoiser fails: caustics, fine texture, subsurface (16 spp denoised, 4096 raw)"
+    for sc in cornell_spheres textured subsurface; do
+      $DIST/pathtracer render "$(scene $sc)" --backend cuda --spp 16 --denoise both --out $D/fail-$sc.16.png 2>&1 | grep -E "denoised|error"
+      $DIST/pathtracer render "$(scene $sc)" --backend cuda --spp 4096 --quiet --out $D/fail-$sc.4096.png
+    done
+    (cd $D && tar czf "$OUT/denoise-fail.tgz" fail-*.png)
     SCENES="cornell_box cornell_spheres"
+    CONFIGS=${CONFIGS:-megakernel,megakernel+denoise,wavefront+denoise}
   else
     B=${BITTERLI:-.devbuild/bitterli}
     SCENES="$B/classroom/scene-v4.pbrt"
+    CONFIGS=${CONFIGS:-wavefront,wavefront+denoise}  # the classroom's faster kernel (suite)
   fi
   for sc in $SCENES; do
     path=$sc; [ -f "$path" ] || path=$(scene $sc)
     name=$(basename "$(dirname "$path")"); [ "$name" = scenes ] && name=$sc
     echo "==== bench --error $name, 1920x1080"
     $DIST/pathtracer bench "$path" --error --width 1920 --height 1080 --backend cuda \
-      --reference-spp ${REF_SPP:-8192} --configs megakernel,megakernel+denoise,wavefront+denoise \
+      --reference-spp ${REF_SPP:-8192} --configs $CONFIGS \
       --time-limit ${TIME_LIMIT:-20} --out $D/$name 2>&1 | grep -vE "^\s*$" | tail -12
     # Pictures: raw and denoised at 4, 16 and 64 spp, and the reference (PNG).
     for spp in 4 16 64; do
       $DIST/pathtracer render "$path" --backend cuda --width 1920 --height 1080 --spp $spp \
         --denoise both --aov albedo,normal --out $D/$name.$spp.png 2>&1 | grep -E "denoised|error"
     done
+    (cd $D && tar czf "$OUT/$MODE-$name.tgz" $name.4.png $name.4.denoised.png $name.64.denoised.png)
   done
-  (cd $D && tar czf "$OUT/$MODE.tgz" --exclude='*.exr' --exclude='*.variance*' . )
+  (cd $D && tar czf "$OUT/$MODE-data.tgz" --exclude='*.exr' --exclude='*.png' .)
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction

@@ -400,15 +400,21 @@ bool Workbench::try_denoise() {
                    (spp > denoised_spp_ &&
                     (seconds_since(denoised_at_) >= kDenoiseInterval || converged() || paused));
   if (!due) return false;
-  tracer::ImageRGB img;
-  tracer::AovImages aovs;
   uint32_t at = 0;
-  current_image(&img, &aovs, &at);
-  if (img.pixels.empty() || aovs.empty() || img.width != aovs.albedo.width ||
-      img.height != aovs.albedo.height)
-    return false;  // the AOVs start with the next sample
   try {
-    denoised_ = tracer::denoise_image(img, &aovs.albedo, &aovs.normal, &denoise_info_);
+    if (async_) {
+      tracer::ImageRGB img;
+      tracer::AovImages aovs;
+      current_image(&img, &aovs, &at);
+      if (img.pixels.empty() || aovs.empty() || img.width != aovs.albedo.width ||
+          img.height != aovs.albedo.height)
+        return false;  // the AOVs start with the next sample
+      denoised_ = tracer::denoise_image(img, &aovs.albedo, &aovs.normal, &denoise_info_);
+    } else {
+      if (renderer_->aov_samples() == 0) return false;  // they start with the next sample
+      at = renderer_->samples_done();
+      denoised_ = renderer_->denoised_image(&denoise_info_);  // the GPU's in device memory
+    }
   } catch (const std::exception& e) {
     if (denoise_error_ != e.what()) messages.error(e.what());
     denoise_error_ = e.what();

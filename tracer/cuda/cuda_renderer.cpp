@@ -107,6 +107,8 @@ struct CudaRenderer::Impl {
   DeviceBuffer<float4> aov_a[2], aov_b[2];
   DeviceBuffer<uint2> aov_ids;
   uint32_t aov_count[2] = {0, 0};
+  // The denoiser's images in device memory (3 floats per pixel; allocated at its first use).
+  DeviceBuffer<float> dn_color, dn_albedo, dn_normal, dn_out;
   void allocate_aovs() {
     const uint32_t pixels = aovs_on ? n() : 0;
     for (auto* b : {&aov_a[0], &aov_a[1], &aov_b[0], &aov_b[1]}) b->resize(pixels);
@@ -659,8 +661,8 @@ FrameStats CudaRenderer::render(uint32_t spp) {
     }
     // The feature buffers after the sample's paths (outside its timed stages).
     if (m.aovs_on) {
-      launch_aov(m.view, m.flat_params, m.cfg, sample, m.aov_count[sample & 1] == 0, m.aov_film(),
-                 m.stream);
+      launch_aov(m.eff.spec, m.view, m.flat_params, m.cfg, sample, m.aov_count[sample & 1] == 0,
+                 m.aov_film(), m.stream);
       ++m.aov_count[sample & 1];
     }
     if (timed) {
@@ -827,6 +829,38 @@ AovImages CudaRenderer::aov_images(int half) const {
     out.material[i] = ids[i].x;
     out.prim[i] = ids[i].y;
   }
+  return out;
+}
+
+ImageRGB CudaRenderer::denoised_image(DenoiseInfo* info) const {
+  Impl& m = *impl_;
+  if (m.samples == 0) return Renderer::denoised_image(info);
+  const auto start = std::chrono::steady_clock::now();
+  const size_t n3 = size_t(m.n()) * 3;
+  for (auto* b : {&m.dn_color, &m.dn_out}) b->resize(n3);
+  const float inv = 1.0f / float(m.samples);
+  const float4* b = m.samples > 1 ? m.film[1].get() : m.film[0].get();
+  launch_resolve(m.film[0].get(), inv, b, m.samples > 1 ? inv : 0.0f, m.n(), m.dn_color.get(),
+                 m.stream);
+  const uint32_t aovs = m.aovs_on ? m.aov_count[0] + m.aov_count[1] : 0;
+  if (aovs > 0) {
+    for (auto* b : {&m.dn_albedo, &m.dn_normal}) b->resize(n3);
+    launch_aov_resolve(m.aov_film(), m.aov_count[0] > 0 ? 1.0f / aovs : 0.0f,
+                       m.aov_count[1] > 0 ? 1.0f / aovs : 0.0f, m.dn_albedo.get(),
+                       m.dn_normal.get(), m.stream);
+  }
+  TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
+  if (!denoise_device_images(m.dn_color.get(), aovs ? m.dn_albedo.get() : nullptr,
+                             aovs ? m.dn_normal.get() : nullptr, m.dn_out.get(), int(m.cfg.width),
+                             int(m.cfg.height), info))
+    return Renderer::denoised_image(info);  // a CPU denoiser: through the host
+  ImageRGB out;
+  out.width = int(m.cfg.width);
+  out.height = int(m.cfg.height);
+  m.dn_out.download(out.pixels);
+  if (info)  // the resolves and the copy back included
+    info->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                   .count();
   return out;
 }
 

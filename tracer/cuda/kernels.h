@@ -100,8 +100,13 @@ struct AovFilm {
 
 // One AOV sample of every pixel (sample `sample`: its half is sample & 1; `first` overwrites
 // the half's sums).
-void launch_aov(const SceneView& s, const FlatParams& flat, const IntegratorSettings& cfg,
-                uint32_t sample, bool first, const AovFilm& film, cudaStream_t stream);
+void launch_aov(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                const IntegratorSettings& cfg, uint32_t sample, bool first, const AovFilm& film,
+                cudaStream_t stream);
+// The mean albedo and normal as 3 floats per pixel (the denoiser's guides): half h weighted by
+// w0 / w1 (0 for a half without samples).
+void launch_aov_resolve(const AovFilm& film, float w0, float w1, float* albedo, float* normal,
+                        cudaStream_t stream);
 
 // counters[kCounterMegaSegments] receives the path segments traced (camera rays included);
 // next_pixel is scratch.

@@ -5,6 +5,7 @@
 #include <dlfcn.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <climits>
 #include <cstdlib>
@@ -35,6 +36,8 @@ struct OidnApi {
   OIDNFilter (*NewFilter)(OIDNDevice, const char*);
   void (*SetFilterImage)(OIDNFilter, const char*, OIDNBuffer, int, size_t, size_t, size_t, size_t,
                          size_t);
+  void (*SetSharedFilterImage)(OIDNFilter, const char*, void*, int, size_t, size_t, size_t, size_t,
+                               size_t);
   void (*UnsetFilterImage)(OIDNFilter, const char*);
   void (*SetFilterBool)(OIDNFilter, const char*, bool);
   void (*CommitFilter)(OIDNFilter);
@@ -75,6 +78,10 @@ struct Oidn {
   OIDNBuffer buf_color = nullptr, buf_albedo = nullptr, buf_normal = nullptr, buf_out = nullptr;
   int width = 0, height = 0;
   bool has_albedo = false, has_normal = false;
+  // The filter on device images (denoise_device_images) and the pointers it was committed with.
+  OIDNFilter dev_filter = nullptr;
+  const void* dev_ptrs[4] = {nullptr, nullptr, nullptr, nullptr};
+  int dev_width = 0, dev_height = 0;
 
   void release_filter() {
     if (filter) api.ReleaseFilter(filter);
@@ -143,6 +150,7 @@ struct Oidn {
                     bind(api.ReleaseBuffer, "oidnReleaseBuffer") &&
                     bind(api.NewFilter, "oidnNewFilter") &&
                     bind(api.SetFilterImage, "oidnSetFilterImage") &&
+                    bind(api.SetSharedFilterImage, "oidnSetSharedFilterImage") &&
                     bind(api.UnsetFilterImage, "oidnUnsetFilterImage") &&
                     bind(api.SetFilterBool, "oidnSetFilterBool") &&
                     bind(api.CommitFilter, "oidnCommitFilter") &&
@@ -280,6 +288,55 @@ ImageRGB denoise_image(const ImageRGB& color, const ImageRGB* albedo, const Imag
                    .count();
   }
   return out;
+}
+
+bool denoise_device_images(const float* color, const float* albedo, const float* normal,
+                           float* out, int width, int height, DenoiseInfo* info) {
+  const auto start = std::chrono::steady_clock::now();
+  Oidn& o = oidn();
+  std::lock_guard<std::mutex> lock(o.mutex);
+  o.load();
+  if (!o.device) throw std::runtime_error(o.status);
+  if (o.device_name != "CUDA") return false;
+  if (!albedo) normal = nullptr;
+  const OidnApi& api = o.api;
+  const size_t w = size_t(width), h = size_t(height);
+  const void* ptrs[4] = {color, albedo, normal, out};
+  if (!o.dev_filter || o.dev_width != width || o.dev_height != height ||
+      !std::equal(ptrs, ptrs + 4, o.dev_ptrs)) {
+    if (o.dev_filter) api.ReleaseFilter(o.dev_filter);
+    o.dev_filter = api.NewFilter(o.device, "RT");
+    auto set = [&](const char* name, const void* p) {
+      api.SetSharedFilterImage(o.dev_filter, name, const_cast<void*>(p), kOidnFormatFloat3, w, h,
+                               0, 0, 0);
+    };
+    set("color", color);
+    if (albedo) set("albedo", albedo);
+    if (normal) set("normal", normal);
+    set("output", out);
+    api.SetFilterBool(o.dev_filter, "hdr", true);
+    api.CommitFilter(o.dev_filter);
+    const std::string err = o.error();
+    if (!err.empty()) {
+      api.ReleaseFilter(o.dev_filter);
+      o.dev_filter = nullptr;
+      throw std::runtime_error("denoise: Open Image Denoise: " + err);
+    }
+    std::copy(ptrs, ptrs + 4, o.dev_ptrs);
+    o.dev_width = width;
+    o.dev_height = height;
+  }
+  api.ExecuteFilter(o.dev_filter);
+  const std::string err = o.error();
+  if (!err.empty()) throw std::runtime_error("denoise: Open Image Denoise: " + err);
+  if (info) {
+    info->denoiser = "Open Image Denoise " + o.version;
+    info->device = o.device_name + ", in device memory";
+    info->inputs = std::string("color") + (albedo ? "+albedo" : "") + (normal ? "+normal" : "");
+    info->ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                   .count();
+  }
+  return true;
 }
 
 }  // namespace tracer

@@ -33,4 +33,11 @@ std::string denoiser_status();
 ImageRGB denoise_image(const ImageRGB& color, const ImageRGB* albedo, const ImageRGB* normal,
                        DenoiseInfo* info = nullptr);
 
+// The same on images in CUDA device memory (3 floats per pixel, rows top first; the CUDA
+// renderer's buffers), read and written in place by OIDN's CUDA device: no copy through the
+// host. The caller has finished writing them (its stream synchronised). Returns false, doing
+// nothing, when the loaded device is not a CUDA device; throws as denoise_image does.
+bool denoise_device_images(const float* color, const float* albedo, const float* normal,
+                           float* out, int width, int height, DenoiseInfo* info = nullptr);
+
 }  // namespace tracer

@@ -171,7 +171,8 @@ ImageRGB aov_preview(const AovImages& a, const std::string& which) {
 }
 
 ExportResult export_render(const std::string& path, const ImageRGB& color, const AovImages* aovs,
-                           const AovRequest& request, const Scene& scene, SidecarRun run) {
+                           const AovRequest& request, const Scene& scene, SidecarRun run,
+                           const ImageRGB* given, const DenoiseInfo* given_info) {
   ExportResult res;
   const DenoiseMode mode = scene.display.denoise;
   if (aovs && aovs->empty()) aovs = nullptr;
@@ -180,7 +181,10 @@ ExportResult export_render(const std::string& path, const ImageRGB& color, const
   const bool exr = lower_ext(path) == ".exr";
   // Everything that can fail without touching a file first: the denoiser.
   ImageRGB denoised;
-  if (mode != DenoiseMode::kOff) {
+  if (mode != DenoiseMode::kOff && given) {
+    denoised = *given;
+    if (given_info) res.denoise = *given_info;
+  } else if (mode != DenoiseMode::kOff) {
     denoised = denoise_image(color, aovs ? &aovs->albedo : nullptr,
                              aovs ? &aovs->normal : nullptr, &res.denoise);
   }

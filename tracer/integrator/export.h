@@ -40,8 +40,12 @@ struct ExportResult {
 // AOV layers from `aovs`; and the sidecar (run's output, aovs and denoise fields are filled
 // here). Everything that can fail before a file is written (the denoiser absent, AOVs missing)
 // fails first; each file is written atomically. Throws std::exception with the reason.
+// `denoised`, when given (Renderer::denoised_image's, with `denoised_info`), is used instead of
+// denoising here.
 ExportResult export_render(const std::string& path, const ImageRGB& color, const AovImages* aovs,
-                           const AovRequest& request, const Scene& scene, SidecarRun run);
+                           const AovRequest& request, const Scene& scene, SidecarRun run,
+                           const ImageRGB* denoised = nullptr,
+                           const DenoiseInfo* denoised_info = nullptr);
 
 // AOV images as a viewer shows them (display-referred, stored linear so that a PNG shows the
 // encoded values): albedo as is, normals as n * 0.5 + 0.5, depth as grey from near (white) to

@@ -41,6 +41,12 @@ uint32_t wavefront_tail_bounce(const std::vector<uint32_t>& estimate, float frac
   return 0;
 }
 
+ImageRGB Renderer::denoised_image(DenoiseInfo* info) const {
+  const AovImages a = aov_images();
+  return denoise_image(image(), a.empty() ? nullptr : &a.albedo, a.empty() ? nullptr : &a.normal,
+                       info);
+}
+
 double half_buffer_relmse(const Renderer& r) {
   if (r.samples_done() < 2) return -1.0;
   ImageRGB a, b;

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "image/denoise.h"
 #include "image/image.h"
 #include "integrator/gpu_options.h"
 #include "integrator/path.h"
@@ -113,6 +114,10 @@ class Renderer {
   virtual AovImages aov_images(int half = -1) const = 0;
   // AOV samples so far (fewer than samples_done() when they were turned on late).
   virtual uint32_t aov_samples() const = 0;
+  // image() denoised (image/denoise.h), guided by the albedo and normal AOVs when they are on.
+  // The CUDA backend denoises in device memory (no copy of the inputs through the host). Throws
+  // with the reason when the denoiser is absent or fails.
+  virtual ImageRGB denoised_image(DenoiseInfo* info = nullptr) const;
   // The display image, exposure and tone map applied, as RGBA8 rows top first.
   virtual void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const;
   // GPU-only switches; the CPU backend ignores them.
