@@ -299,7 +299,8 @@ int run_gui(const GuiOptions& o) {
     const bool resized = tex.ensure(w, h) || resizing;
     bool uploaded = false;
     // The denoised view goes through host memory (the denoiser's output is there).
-    const tracer::Renderer* gpu = wb.denoise_view() ? nullptr : wb.gpu_renderer();
+    const tracer::Renderer* gpu =
+        wb.denoise_view() || wb.aov_view() ? nullptr : wb.gpu_renderer();
     if (gpu) {
       try {
         if (resized || !interop) {

@@ -41,7 +41,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom (the last six not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit (the last seven not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -224,6 +224,23 @@ if [ "$MODE" = denoise ] || [ "$MODE" = denoise-classroom ]; then
     (cd $D && tar czf "$OUT/$MODE-$name.tgz" $name.4.png $name.4.denoised.png $name.64.denoised.png)
   done
   (cd $D && tar czf "$OUT/$MODE-data.tgz" --exclude='*.exr' --exclude='*.png' .)
+fi
+if [ "$MODE" = subsurface-exit ]; then
+  # The subsurface scene's error against time with the smooth exit and the diffuse exit (issue 24),
+  # each against a reference of its own model. Carry $DIST.
+  D=/tmp/sss && rm -rf $D && mkdir -p $D
+  for exit in smooth diffuse; do
+    echo "==== bench --error subsurface, $exit exit"
+    $DIST/pathtracer bench "$(scene subsurface)" --error --backend cuda \
+      --set materials.wax.exit=$exit --set materials.jade.exit=$exit \
+      --reference-spp ${REF_SPP:-16384} --configs megakernel,wavefront --time-limit ${TIME_LIMIT:-20} \
+      --out $D/$exit 2>&1 | grep -vE "^\s*$" | tail -8
+    $DIST/pathtracer render "$(scene subsurface)" --backend cuda --spp 64 \
+      --set materials.wax.exit=$exit --set materials.jade.exit=$exit --out $D/sss-$exit-64.png | tail -1
+    $DIST/pathtracer render "$(scene subsurface)" --backend cuda --spp 8192 -q \
+      --set materials.wax.exit=$exit --set materials.jade.exit=$exit --out $D/sss-$exit-8192.png
+  done
+  (cd $D && tar czf "$OUT/subsurface-exit.tgz" --exclude='*.exr' .)
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction

@@ -723,16 +723,19 @@ TEST(Gpu, SubsurfaceSlabMatchesAnalyticAlbedo) {
     float albedo;
     double expected;
   } cases[] = {{0.5f, 0.1152}, {0.9f, 0.4150}, {0.99f, 0.7527}};
+  // The smooth exit by BSDF sampling, and the diffuse exit with light sampling at the exit
+  // point (under the uniform sky the exit's direction does not change the total).
+  for (bool smooth : {true, false})
   for (const auto& c : cases) {
-    Scene s = slab_scene(c.albedo, 1);
+    Scene s = slab_scene(c.albedo, 1, smooth);
     s.camera.position = vec3(0.0f, 1.0f, 0.0f);
     s.camera.look_at = vec3(0.0f);
     s.camera.up = vec3(0.0f, 0.0f, 1.0f);
     s.camera.vfov_deg = 0.2f;
     RenderSettings rs;
     rs.width = rs.height = 64;
-    rs.nee = false;
-    rs.mis = false;
+    rs.nee = !smooth;
+    rs.mis = !smooth;
     rs.max_depth = 64;
     std::vector<double> means;
     for (KernelMode mode : {KernelMode::kWavefront, KernelMode::kMegakernel}) {
@@ -752,8 +755,8 @@ TEST(Gpu, SubsurfaceSlabMatchesAnalyticAlbedo) {
     for (double m : means) mean += m / means.size();
     for (double m : means) var += (m - mean) * (m - mean) / (means.size() - 1);
     const double se = std::sqrt(var / means.size());
-    std::printf("GPU slab albedo %.2f: R = %.4f +- %.4f (analytic %.4f)\n", c.albedo, mean, se,
-                c.expected);
+    std::printf("GPU slab, %s exit, albedo %.2f: R = %.4f +- %.4f (analytic %.4f)\n",
+                smooth ? "smooth" : "diffuse (NEE)", c.albedo, mean, se, c.expected);
     EXPECT_NEAR(mean, c.expected, 4.0 * se + 0.004) << "albedo " << c.albedo;
   }
 }

@@ -139,10 +139,14 @@ inline Material diffuse(vec3 albedo, vec3 emission = vec3(0.0f), bool two_sided 
 // coordinates small enough that the boundary's rounding error is far below a mean free path.
 constexpr float kSlabHalf = 200.0f;
 
-inline Scene slab_scene(float albedo, int grid) {
+// The random walk leaves through the smooth boundary or the diffuse exit (integrator/medium.h):
+// index-matched under a uniform sky the two reflect the same total (only the exit's direction
+// differs, and every direction sees the same sky), so the analytic albedos hold for both.
+inline Scene slab_scene(float albedo, int grid, bool smooth_exit = true) {
   Scene s;
   Material slab;
   slab.type = MaterialType::kSubsurface;
+  slab.flags = smooth_exit ? kMaterialSmoothExit : 0u;
   slab.albedo = vec3(1.0f);  // boundary tint
   slab.ior = 1.0f;           // index-matched: the boundary neither reflects nor bends
   slab.scattering = vec3(albedo);

@@ -115,6 +115,54 @@ TEST(Workbench, EditsResetAndDisplayChangesDoNot) {
   }
 }
 
+// The Display panel's AOV view and denoiser never restart the render; the view shows the AOV,
+// the denoised view is what the Stats line and the overlay say.
+TEST(Workbench, AovViewAndDenoiserShowWithoutRestarting) {
+  auto wb = small_cornell(16);
+  std::string err;
+  ASSERT_TRUE(wb->apply("render.spp=0", &err)) << err;  // keeps rendering
+  for (int i = 0; i < 20; ++i) {
+    wb->update();
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const uint64_t resets = wb->stats().resets;
+  ASSERT_TRUE(wb->apply("display.view=albedo", &err)) << err;
+  std::vector<uint32_t> rgba;
+  int w = 0, h = 0;
+  bool shown = false;
+  const auto start = std::chrono::steady_clock::now();
+  while (!shown && std::chrono::steady_clock::now() - start < std::chrono::seconds(30)) {
+    wb->update();
+    // The back wall (white, albedo 0.73 in the built-in box) at the image's centre.
+    if (wb->fetch_display(rgba, w, h) && w == 48 && (rgba[24 * 48 + 24] & 0xffffffu) != 0)
+      shown = true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(shown) << "the albedo view stayed black";
+  const uint32_t c = rgba[24 * 48 + 24];
+  const float expected = tracer::linear_to_srgb(0.73f) * 255.0f;  // the box's white albedo
+  EXPECT_NEAR(float(c & 0xffu), expected, 3.0f);
+  EXPECT_NE(wb->shown_image().find("albedo AOV"), std::string::npos) << wb->shown_image();
+  EXPECT_EQ(wb->stats().resets, resets) << "showing an AOV must not restart";
+  ASSERT_TRUE(wb->apply("display.view=image", &err)) << err;
+  if (!tracer::denoiser_available()) {
+    ASSERT_TRUE(wb->apply("display.denoise=on", &err)) << err;
+    EXPECT_NE(wb->shown_image().find("absent"), std::string::npos) << wb->shown_image();
+    GTEST_SKIP() << "denoiser absent: " << tracer::denoiser_status();
+  }
+  ASSERT_TRUE(wb->apply("display.denoise=on", &err)) << err;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (wb->shown_denoised_spp() == 0 &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30)) {
+    wb->update();
+    wb->fetch_display(rgba, w, h);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_GT(wb->shown_denoised_spp(), 0u);
+  EXPECT_NE(wb->shown_image().find("denoised at"), std::string::npos) << wb->shown_image();
+  EXPECT_EQ(wb->stats().resets, resets) << "the denoiser must not restart";
+}
+
 TEST(Workbench, ReconvergesToTheEditedSceneAndSavesIt) {
   auto wb = small_cornell(64);
   converge(*wb);

@@ -72,9 +72,14 @@ void viewport(Workbench& wb, PanelState& ps, ImVec2 pos, ImVec2 size) {
   // The frame's figures over the image, so they stay visible with the panels hidden.
   char line[256];
   const std::string counts = wb.messages.summary();
-  std::snprintf(line, sizeof line, "%u spp  %.1f spp/s  %.0f Mrays/s  %s%s%s", wb.stats().spp,
+  char denoised[48] = "";
+  if (wb.aov_view())
+    std::snprintf(denoised, sizeof denoised, "  showing an AOV (Display)");
+  else if (const uint32_t d = wb.shown_denoised_spp())
+    std::snprintf(denoised, sizeof denoised, "  denoised (%u spp)", d);
+  std::snprintf(line, sizeof line, "%u spp  %.1f spp/s  %.0f Mrays/s  %s%s%s%s", wb.stats().spp,
                 wb.stats().samples_per_s, wb.stats().mrays_per_s, wb.backend_name().c_str(),
-                counts.empty() ? "" : "  ", counts.c_str());
+                denoised, counts.empty() ? "" : "  ", counts.c_str());
   ImGui::GetWindowDrawList()->AddText(ImVec2(origin.x + 8, origin.y + 8), IM_COL32(255, 255, 0, 255),
                                       line);
   if (wb.loading())  // the scene shown stays until the new one is ready
@@ -238,6 +243,19 @@ void material_panel(Workbench& wb, PanelState& ps) {
     }
     changed |= slider(ps, "anisotropy g", &m.g, 1, -0.95f, 0.95f, "%.2f");
     changed |= slider(ps, "IOR", &m.ior, 1, 1.0f, 3.0f, "%.3f");
+    bool smooth = m.flags & tracer::kMaterialSmoothExit;
+    if (ImGui::Checkbox("smooth exit (else diffuse)", &smooth)) {
+      m.flags = smooth ? (m.flags | tracer::kMaterialSmoothExit)
+                       : (m.flags & ~tracer::kMaterialSmoothExit);
+      changed = true;
+    }
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip(
+          "How a random walk leaves the medium. Diffuse (default): the boundary scatters the\n"
+          "light out as a Lambertian sheet with the smooth boundary's energy fractions, and\n"
+          "light sampling works at the exit point (far less noise). Smooth: refraction through\n"
+          "the dielectric boundary, reachable by BSDF sampling only (materials.NAME.exit)");
+    check_fit(ps, "smooth exit (else diffuse)");
   }
   if (m.type == tracer::MaterialType::kDielectric) {
     changed |= slider(ps, "IOR", &m.ior, 1, 1.01f, 3.0f, "%.3f");
@@ -584,6 +602,7 @@ void display_panel(Workbench& wb, PanelState& ps) {
   setting_widget(wb, ps, "display.exposure", "exposure", 0.05f, "%+.2f stops", 8.0);
   setting_widget(wb, ps, "display.tonemap", "tone map");
   setting_widget(wb, ps, "display.denoise", "denoise");
+  setting_widget(wb, ps, "display.view", "show");
   if (wb.display().denoise != tracer::DenoiseMode::kOff && !tracer::denoiser_available())
     ImGui::TextColored(ImVec4(1.0f, 0.45f, 0.35f, 1.0f), "denoiser absent: %s",
                        tracer::denoiser_status().c_str());

@@ -161,7 +161,7 @@ bool Workbench::set_backend(tracer::BackendChoice b, std::string* error) {
 
 void Workbench::changed(Edit e) {
   if (e == Edit::kDisplay) {
-    display_dirty_ = true;
+    display_dirty_ = view_dirty_ = true;
     return;
   }
   if (e == Edit::kStop) {  // the accumulator stays; the CPU worker sees the new target
@@ -188,7 +188,7 @@ void Workbench::reset_stats() {
   stats_.resets = resets;
   since_reset_s_ = 0.0;
   next_curve_spp_ = 1;
-  display_dirty_ = true;
+  display_dirty_ = view_dirty_ = true;
 }
 
 void Workbench::rebuild(bool geometry) {
@@ -278,7 +278,8 @@ void Workbench::update() {
     dirty_ = geometry_dirty_ = false;
   }
   // The denoiser is guided by the albedo and normal AOVs: they are on while it is.
-  const bool want_aovs = scene_.display.denoise != tracer::DenoiseMode::kOff;
+  const bool want_aovs =
+      scene_.display.denoise != tracer::DenoiseMode::kOff || aov_view();
   if (async_) {
     tracer::ImageRGB img;  // copied under the lock, compared with the reference after it
     std::unique_lock<std::mutex> lk(mutex_);
@@ -364,6 +365,11 @@ bool Workbench::denoise_view() const {
 }
 
 std::string Workbench::shown_image() const {
+  if (aov_view()) {
+    static const char* kNames[] = {"image", "albedo", "normal", "depth", "id"};
+    return std::string("shown: the ") + kNames[int(scene_.display.view)] +
+           " AOV (display.view; the image accumulates behind it)";
+  }
   if (scene_.display.denoise == tracer::DenoiseMode::kOff) return "shown: the raw image";
   if (!tracer::denoiser_available())
     return "shown: the raw image; the denoiser is absent: " + tracer::denoiser_status();
@@ -375,6 +381,12 @@ std::string Workbench::shown_image() const {
                 denoised_spp_, denoise_info_.denoiser.c_str(), denoise_info_.device.c_str(),
                 denoise_info_.inputs.c_str(), denoise_info_.ms);
   return buf;
+}
+
+uint32_t Workbench::shown_denoised_spp() const {
+  const bool shown = denoise_view() && denoise_error_.empty() &&
+                     denoised_reset_ == stats_.resets && !denoised_.pixels.empty();
+  return shown ? denoised_spp_ : 0;
 }
 
 void Workbench::current_image(tracer::ImageRGB* img, tracer::AovImages* aovs, uint32_t* spp) {
@@ -430,6 +442,30 @@ bool Workbench::try_denoise() {
 bool Workbench::fetch_display(std::vector<uint32_t>& rgba, int& width, int& height) {
   width = scene_.settings.width;
   height = scene_.settings.height;
+  if (aov_view()) {
+    // Redrawn when asked to (a display edit) or, while samples come in, at most every
+    // kDenoiseInterval seconds (each draw copies the AOVs to the host).
+    if (!view_dirty_ && (stats_.spp == aov_view_spp_ ||
+                         seconds_since(aov_view_at_) < kDenoiseInterval))
+      return false;
+    view_dirty_ = false;
+    tracer::ImageRGB img;
+    tracer::AovImages aovs;
+    uint32_t at = 0;
+    current_image(&img, &aovs, &at);
+    display_dirty_ = false;
+    aov_view_at_ = Clock::now();
+    aov_view_spp_ = stats_.spp;
+    rgba.assign(size_t(width) * height, 0xff000000u);
+    if (aovs.empty() || aovs.albedo.width != width || aovs.albedo.height != height)
+      return true;  // black until the AOVs' first sample
+    static const char* kNames[] = {"image", "albedo", "normal", "depth", "id"};
+    const tracer::ImageRGB v = tracer::aov_preview(aovs, kNames[int(scene_.display.view)]);
+    for (size_t i = 0; i < rgba.size(); ++i)
+      rgba[i] = tracer::display_rgba8(vec3(v.pixels[3 * i], v.pixels[3 * i + 1], v.pixels[3 * i + 2]),
+                                      1.0f, tracer::ToneMap::kNone);
+    return true;
+  }
   if (denoise_view()) {
     const bool fresh = try_denoise();
     if (denoised_reset_ == stats_.resets && denoised_.width == width &&
@@ -693,6 +729,7 @@ std::string Workbench::export_image(const std::string& path) {
     tracer::ImageRGB img;
     tracer::AovImages aovs;
     uint32_t spp = 0;
+    tracer::check_writable(path);  // a path that cannot be written is the first thing to say
     // The worker may be adding a pass: this takes what it last published.
     current_image(&img, &aovs, &spp);
     if (img.pixels.empty() || spp == 0) return "nothing rendered yet; nothing was exported";

@@ -95,6 +95,10 @@ class Workbench {
   static constexpr double kDenoiseInterval = 0.5;
   // One line for the Stats panel: which image is shown and, when denoised, by what from what.
   std::string shown_image() const;
+  // The viewport shows a denoised image, of this many samples per pixel (0: the raw image).
+  uint32_t shown_denoised_spp() const;
+  // The viewport shows an AOV (display.view), not the image: it goes through host memory.
+  bool aov_view() const { return scene_.display.view != tracer::ViewMode::kImage; }
   int width() const { return scene_.settings.width; }
   int height() const { return scene_.settings.height; }
   std::string backend_name() const;
@@ -183,6 +187,9 @@ class Workbench {
   std::chrono::steady_clock::time_point denoised_at_{};
   tracer::DenoiseInfo denoise_info_;
   std::string denoise_error_;
+  std::chrono::steady_clock::time_point aov_view_at_{};  // when the AOV view was last drawn
+  uint32_t aov_view_spp_ = 0;
+  bool view_dirty_ = true;  // a display edit or a restart since the AOV view was drawn
   // The current image and its AOVs for the denoiser and the export.
   void current_image(tracer::ImageRGB* img, tracer::AovImages* aovs, uint32_t* spp);
   std::unique_ptr<tracer::ReferenceImage> reference_;

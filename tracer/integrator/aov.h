@@ -56,14 +56,8 @@ TRACER_HD inline AovSample trace_aov(const SceneView& s, const IntegratorSetting
     if (!hit.valid()) return out;
     if (st.depth == 1) out.depth = hit.t;
     SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
-    const Material* mp = &s.materials[sh.material];
     Material textured;
-    if ((F & kFeatureTextures) && mp->has_textures()) {
-      textured = *mp;
-      apply_textures<F>(s, hit.prim, sh, textured);
-      mp = &textured;
-    }
-    const Material& m = *mp;
+    const Material& m = *hit_material<F>(s, hit.prim, sh, textured);
     const MaterialType type = (F & kFeatureSpecular) ? m.type : MaterialType::kDiffuse;
     const vec3 wo_world = -st.ray.d;
     const bool delta = bsdf_is_delta(m, type) && type != MaterialType::kSubsurface;

@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/rng.h"
+
 namespace tracer {
 namespace {
 
@@ -87,14 +89,6 @@ std::vector<ExrChannel> aov_layers(const AovImages& a, const AovRequest& r, cons
   return out;
 }
 
-uint32_t hash_colour(uint32_t x) {
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return x;
-}
 
 }  // namespace
 
@@ -161,7 +155,7 @@ ImageRGB aov_preview(const AovImages& a, const std::string& which) {
   if (which == "id") {
     for (size_t i = 0; i < n; ++i) {
       if (a.material[i] == kInvalid) continue;
-      const uint32_t h = hash_colour(a.material[i] + 1);
+      const uint32_t h = uint32_t(mix64(a.material[i] + 1ull));  // a colour per material
       for (int c = 0; c < 3; ++c)
         out.pixels[3 * i + c] = srgb_to_linear(float((h >> (8 * c)) & 0xffu) / 255.0f);
     }

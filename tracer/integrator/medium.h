@@ -5,6 +5,7 @@
 #pragma once
 
 #include "core/sampling.h"
+#include "materials/fresnel.h"
 #include "materials/material.h"
 #include "materials/subsurface.h"
 
@@ -36,6 +37,30 @@ TRACER_HD TRACER_INLINE vec3 sample_hg(vec3 d, float g, vec2 u) {
   const float phi = 2.0f * kPi * u.y;
   return Frame::from_normal(d).to_world(
       vec3(sin_t * glm::cos(phi), sin_t * glm::sin(phi), cos_t));
+}
+
+// The diffuse exit of a subsurface random walk (the default; kMaterialSmoothExit keeps the smooth
+// dielectric boundary): where a walk meets the boundary from inside, the boundary scatters as a
+// thin Lambertian sheet (MaterialType::kDiffuseTransmission) that reflects back into the medium
+// with albedo F_in, the hemispherical average of the Fresnel reflectance seen from inside
+// (fresnel_average_inside), and transmits out with 1 - F_out = ior^2 (1 - F_in) times the
+// material's tint, cosine-distributed. These are the smooth boundary's energy fractions for
+// diffuse light inside, radiance scaling by ior^2 across the interface included, so a lossless
+// medium in a white furnace stays at 1 and an index-matched boundary (ior 1) becomes a plain
+// Lambertian exit of weight 1. What changes is the angular distribution of the light that leaves
+// (diffuse instead of refracted) and where it leaves from: light sampling now works at the exit
+// point, which the smooth boundary's delta lobe never allowed. Entry stays the smooth refraction
+// (its specular reflection is the material's gloss). This is the exit model of Cycles' and
+// Arnold's random-walk subsurface, whose exits are shaded as a diffuse surface.
+TRACER_HD TRACER_INLINE Material subsurface_exit_material(const Material& m) {
+  const float f_in = fresnel_average_inside(m.ior, (m.flags & kMaterialSchlickFresnel) != 0);
+  Material e;
+  e.type = MaterialType::kDiffuseTransmission;
+  e.albedo = vec3(f_in);
+  e.transmittance = m.albedo * (m.ior * m.ior * (1.0f - f_in));
+  e.ior = m.ior;
+  e.flags = 0;
+  return e;
 }
 
 struct MediumEvent {

@@ -249,14 +249,19 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     return false;
   }
   SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
-  // Textured materials are evaluated on a copy holding this point's texel values; scenes without
-  // textures (F without kFeatureTextures) read the material in place.
-  const Material* mp = &s.materials[sh.material];
   Material textured;
-  if ((F & kFeatureTextures) && mp->has_textures()) {
-    textured = *mp;
-    apply_textures<F>(s, hit.prim, sh, textured);
-    mp = &textured;
+  const Material* mp = hit_material<F>(s, hit.prim, sh, textured);
+  // A random walk meeting its medium's boundary from inside leaves through the diffuse exit
+  // (unless the material asks for the smooth one): a Lambertian sheet, so that light sampling
+  // reaches the lights outside from the exit point.
+  Material exit_sheet;
+  const bool diffuse_exit = (F & kFeatureSubsurface) && (st.flags & kPathInMedium) &&
+                            !sh.front && sh.material == st.medium &&
+                            mp->type == MaterialType::kSubsurface &&
+                            !(mp->flags & kMaterialSmoothExit);
+  if (diffuse_exit) {
+    exit_sheet = subsurface_exit_material(*mp);
+    mp = &exit_sheet;
   }
   const Material& m = *mp;
   // Without specular features in F, the compiler drops every non-diffuse branch below.
@@ -351,8 +356,10 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   // A rough transmitter whose shading normal disagrees with the true surface about the side of
   // the sample: next-event estimation refuses these directions, so BSDF sampling must too.
   if (transmits && !bs.specular && (side > 0.0f) != (bs.wi.z > 0.0f)) return false;
-  if ((F & kFeatureSubsurface) && type == MaterialType::kSubsurface &&
-      side * glm::dot(wo_world, sh.ng) < 0.0f) {
+  if (diffuse_exit && side * glm::dot(wo_world, sh.ng) < 0.0f) {
+    st.flags &= ~kPathInMedium;  // transmitted out; reflected back, the walk goes on
+  } else if ((F & kFeatureSubsurface) && type == MaterialType::kSubsurface &&
+             side * glm::dot(wo_world, sh.ng) < 0.0f) {
     if (sh.front) {  // refracted in: the random walk starts
       st.flags |= kPathInMedium;
       st.medium = sh.material;

@@ -74,4 +74,19 @@ TRACER_HD inline void apply_textures(const SceneView& s, uint32_t prim, SurfaceH
   }
 }
 
+// The material at a hit: textured materials are evaluated on `scratch`, a copy holding this
+// point's texel values (sh.ns perturbed by a normal map); scenes without textures (F without
+// kFeatureTextures) read the material in place.
+template <uint32_t F>
+TRACER_HD TRACER_INLINE const Material* hit_material(const SceneView& s, uint32_t prim,
+                                                    SurfaceHit& sh, Material& scratch) {
+  const Material* mp = &s.materials[sh.material];
+  if ((F & kFeatureTextures) && mp->has_textures()) {
+    scratch = *mp;
+    apply_textures<F>(s, prim, sh, scratch);
+    mp = &scratch;
+  }
+  return mp;
+}
+
 }  // namespace tracer

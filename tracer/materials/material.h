@@ -28,6 +28,10 @@ enum MaterialFlags : uint32_t {
   kMaterialSchlickFresnel = 1u << 0,    // Schlick's approximation instead of the exact equations
   kMaterialTwoSidedEmission = 1u << 1,  // emit from both faces, not only the front face
   kMaterialConductorIor = 1u << 2,      // conductor: exact Fresnel of eta + i k, not Schlick's F0
+  // Subsurface: a random walk leaves through the smooth dielectric boundary (refraction; no light
+  // sampling at the exit) instead of the default diffuse exit (integrator/path.h,
+  // subsurface_exit_material).
+  kMaterialSmoothExit = 1u << 3,
 };
 
 struct alignas(16) Material {

@@ -298,7 +298,7 @@ class JsonSceneReader {
     check_keys(m, ptr,
                {"type", "albedo", "emission", "emission_strength", "two_sided", "ior", "fresnel",
                 "absorption", "roughness", "scattering", "mean_free_path", "g", "metal", "eta", "k",
-                "thickness", "transmittance"},
+                "thickness", "transmittance", "exit"},
                where);
     Material mat = base ? *base : Material();
     std::string type =
@@ -364,8 +364,9 @@ class JsonSceneReader {
                               "no light is emitted");
     }
     const bool two_sided = base && (base->flags & kMaterialTwoSidedEmission);
-    mat.flags &=
-        ~uint32_t(kMaterialTwoSidedEmission | kMaterialSchlickFresnel | kMaterialConductorIor);
+    const bool smooth_exit = base && (base->flags & kMaterialSmoothExit);
+    mat.flags &= ~uint32_t(kMaterialTwoSidedEmission | kMaterialSchlickFresnel |
+                           kMaterialConductorIor | kMaterialSmoothExit);
     if (get_bool(m, ptr, "two_sided", two_sided, where)) mat.flags |= kMaterialTwoSidedEmission;
 
     auto ignored = [&](const char* key, bool applies) {
@@ -379,7 +380,7 @@ class JsonSceneReader {
     ignored("fresnel", has_boundary);
     ignored("absorption", has_boundary);
     ignored("roughness", dielectric || conductor || coated);
-    for (const char* key : {"scattering", "mean_free_path", "g"}) ignored(key, subsurface);
+    for (const char* key : {"scattering", "mean_free_path", "g", "exit"}) ignored(key, subsurface);
     for (const char* key : {"metal", "eta", "k"}) ignored(key, conductor);
     ignored("thickness", coated);
     ignored("transmittance", transmission);
@@ -413,6 +414,16 @@ class JsonSceneReader {
     if (!(mat.thickness >= 0.0f))
       fail(json_pointer_child(ptr, "thickness"), "\"thickness\" in " + where + " must be >= 0");
     if (subsurface) read_medium(m, ptr, where, mat);
+    // How a random walk leaves (integrator/medium.h, subsurface_exit_material).
+    const std::string exit = get_string(m, ptr, "exit", smooth_exit ? "smooth" : "diffuse", where);
+    if (exit == "smooth") {
+      if (subsurface) mat.flags |= kMaterialSmoothExit;
+    } else if (exit != "diffuse") {
+      const std::string guess = did_you_mean(exit, {"diffuse", "smooth"});
+      fail(json_pointer_child(ptr, "exit"),
+           "\"exit\" in " + where + " must be \"diffuse\" or \"smooth\", not " + in_quotes(exit) +
+               (guess.empty() ? "" : " (did you mean " + in_quotes(guess) + "?)"));
+    }
     if (ior_conductor) read_complex_ior(m, ptr, where, base, mat);
     if (transmission) read_transmittance(m, ptr, where, base, mat);
     if (!has_boundary) mat.absorption = vec3(0.0f), mat.ior = 1.5f;

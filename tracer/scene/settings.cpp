@@ -321,6 +321,13 @@ std::vector<Setting> make_table() {
       "image; both: the export writes the raw image and the denoised one beside it "
       "(name.denoised.ext). The accumulator is never changed: toggling it does not restart.",
       E::kDisplay, [](Scene& s) -> DenoiseMode& { return s.display.denoise; }));
+  t.push_back(choice<ViewMode>(
+      "display.view", "", {"image", "albedo", "normal", "depth", "id"},
+      {ViewMode::kImage, ViewMode::kAlbedo, ViewMode::kNormal, ViewMode::kDepth, ViewMode::kId},
+      "What the workbench's viewport shows: the image, or an AOV of the first non-specular hit "
+      "(albedo; normal as n x 0.5 + 0.5; depth, near is white; id, a colour per material). "
+      "Showing an AOV turns the AOVs on from the next sample; the image goes on accumulating.",
+      E::kDisplay, [](Scene& s) -> ViewMode& { return s.display.view; }));
   return t;
 }
 
@@ -596,7 +603,8 @@ const std::vector<std::string> kMaterialSetKeys = {
     "materials.NAME.roughness",  "materials.NAME.scattering",
     "materials.NAME.g",          "materials.NAME.metal",
     "materials.NAME.eta",        "materials.NAME.k",
-    "materials.NAME.thickness",  "materials.NAME.transmittance"};
+    "materials.NAME.thickness",  "materials.NAME.transmittance",
+    "materials.NAME.exit"};
 
 bool parse_floats(const std::string& s, float* out, int n) {
   size_t start = 0;
@@ -718,6 +726,13 @@ std::string set_material_assignment(Scene& scene, const std::string& assignment)
       m.flags |= kMaterialSchlickFresnel;
     else
       return "expected exact or schlick";
+  } else if (field == "exit") {
+    if (value == "diffuse")
+      m.flags &= ~kMaterialSmoothExit;
+    else if (value == "smooth")
+      m.flags |= kMaterialSmoothExit;
+    else
+      return "expected diffuse or smooth (how a subsurface random walk leaves the medium)";
   } else if (field == "two_sided") {
     if (value != "on" && value != "off") return "expected on or off";
     m.flags = value == "on" ? (m.flags | kMaterialTwoSidedEmission)
@@ -757,6 +772,7 @@ json material_to_json(const Material& m) {
   }
   if (m.type == MaterialType::kDiffuseTransmission) j["transmittance"] = to_value(m.transmittance);
   if (m.type == MaterialType::kSubsurface) {
+    j["exit"] = (m.flags & kMaterialSmoothExit) ? "smooth" : "diffuse";
     j.erase("albedo");
     j["scattering"] = to_value(m.scattering);
     j["absorption"] = to_value(m.absorption);

@@ -55,11 +55,15 @@ enum class BackendChoice { kAuto, kCpu, kCuda };
 // denoised image, kBoth shows it and exports the raw image and the denoised one beside it.
 enum class DenoiseMode { kOff, kOn, kBoth };
 
+// What the workbench's viewport shows: the image, or one of the AOVs (integrator/aov.h).
+enum class ViewMode { kImage, kAlbedo, kNormal, kDepth, kId };
+
 // How the image is shown and exported as PNG (the accumulator is linear radiance).
 struct DisplaySettings {
   float exposure = 0.0f;  // stops
   ToneMap tone_map = ToneMap::kNone;
   DenoiseMode denoise = DenoiseMode::kOff;
+  ViewMode view = ViewMode::kImage;
   float scale() const { return std::exp2(exposure); }
 };
 
