@@ -97,6 +97,30 @@ TRACER_HD TRACER_INLINE void order_pair(float& da, uint32_t& ra, float& db, uint
   ra = r;
 }
 
+// The children of 4-wide node `node`: their entry distances (kInfinity where the ray misses
+// the box) and references, nearest first when kSorted (a five-comparator network; any-hit
+// queries leave them in slot order). Both levels of the BVH walk test their nodes with it.
+template <bool kSorted>
+TRACER_HD TRACER_INLINE void test_children(const BvhNode* nodes, uint32_t node, const Ray& ray,
+                                           vec3 inv_d, float tmax, float (&d)[kBvhWidth],
+                                           uint32_t (&r)[kBvhWidth]) {
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (int i = 0; i < kBvhWidth; ++i) {
+    const BvhSlot slot = load_slot(nodes, node, i);
+    d[i] = intersect_aabb(slot.lo, slot.hi, ray.o, inv_d, tmax);
+    r[i] = slot.ref;
+  }
+  if (kSorted) {
+    order_pair(d[0], r[0], d[1], r[1]);
+    order_pair(d[2], r[2], d[3], r[3]);
+    order_pair(d[0], r[0], d[2], r[2]);
+    order_pair(d[1], r[1], d[3], r[3]);
+    order_pair(d[1], r[1], d[2], r[2]);
+  }
+}
+
 // The ray against instance `i`'s mesh: the ray mapped into the mesh's space walks the mesh's
 // tree (a plain depth-first walk with its own stack, near child first for closest hits). Hits
 // update tmax and hit as intersect_leaf does; returns true when an any-hit query may stop. Not
@@ -125,18 +149,7 @@ bool intersect_instance(const TraceView& s, uint32_t i, const Ray& world_ray, ui
     if (!is_leaf_ref(next)) {
       float d[kBvhWidth];
       uint32_t r[kBvhWidth];
-      for (int k = 0; k < kBvhWidth; ++k) {
-        const BvhSlot slot = load_slot(s.inst_nodes, next, k);
-        d[k] = intersect_aabb(slot.lo, slot.hi, ray.o, inv_d, tmax);
-        r[k] = slot.ref;
-      }
-      if (!kAnyHit) {
-        order_pair(d[0], r[0], d[1], r[1]);
-        order_pair(d[2], r[2], d[3], r[3]);
-        order_pair(d[0], r[0], d[2], r[2]);
-        order_pair(d[1], r[1], d[3], r[3]);
-        order_pair(d[1], r[1], d[2], r[2]);
-      }
+      test_children<!kAnyHit>(s.inst_nodes, next, ray, inv_d, tmax, d, r);
       for (int k = kBvhWidth - 1; k > 0; --k)
         if (d[k] != kInfinity) stack[sp++] = r[k];
       if (d[0] != kInfinity) {
@@ -300,21 +313,7 @@ TRACER_HD TRACER_INLINE bool traverse_round(const TraceView& s, const Ray& ray, 
     {
       float d[kBvhWidth];
       uint32_t r[kBvhWidth];
-#if defined(__CUDACC__)
-#pragma unroll
-#endif
-      for (int i = 0; i < kBvhWidth; ++i) {
-        const BvhSlot slot = load_slot(s.nodes, c.next, i);
-        d[i] = intersect_aabb(slot.lo, slot.hi, ray.o, inv_d, tmax);
-        r[i] = slot.ref;
-      }
-      if (!kAnyHit) {
-        order_pair(d[0], r[0], d[1], r[1]);
-        order_pair(d[2], r[2], d[3], r[3]);
-        order_pair(d[0], r[0], d[2], r[2]);
-        order_pair(d[1], r[1], d[3], r[3]);
-        order_pair(d[1], r[1], d[2], r[2]);
-      }
+      test_children<!kAnyHit>(s.nodes, c.next, ray, inv_d, tmax, d, r);
       // Push the farther children that were hit, farthest first; go on with the nearest.
 #if defined(__CUDACC__)
 #pragma unroll
