@@ -196,7 +196,8 @@ int run_render(const RenderOptions& o) {
   run.aov_samples = renderer->aov_samples();
   tracer::ExportResult exported;
   try {
-    const tracer::AovImages aov_images = renderer->aov_images();
+    // The AOVs come back to the host only to be written; the denoiser reads them on the device.
+    const tracer::AovImages aov_images = aovs.any() ? renderer->aov_images() : tracer::AovImages();
     tracer::ImageRGB denoised;
     tracer::DenoiseInfo info;
     if (denoise) denoised = renderer->denoised_image(&info);  // on the GPU in device memory

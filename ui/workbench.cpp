@@ -470,8 +470,9 @@ bool Workbench::fetch_display(std::vector<uint32_t>& rgba, int& width, int& heig
     const bool fresh = try_denoise();
     if (denoised_reset_ == stats_.resets && denoised_.width == width &&
         denoised_.height == height) {
-      if (!fresh && !display_dirty_) return false;
-      display_dirty_ = false;
+      // Redrawn for a new denoised image or a display edit, not for every rendered frame.
+      if (!fresh && !view_dirty_) return false;
+      display_dirty_ = view_dirty_ = false;
       rgba.resize(size_t(width) * height);
       const float scale = scene_.display.scale();
       const std::vector<float>& d = denoised_.pixels;

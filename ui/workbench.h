@@ -189,7 +189,8 @@ class Workbench {
   std::string denoise_error_;
   std::chrono::steady_clock::time_point aov_view_at_{};  // when the AOV view was last drawn
   uint32_t aov_view_spp_ = 0;
-  bool view_dirty_ = true;  // a display edit or a restart since the AOV view was drawn
+  // A display edit or a restart since the AOV view or the denoised image was last drawn.
+  bool view_dirty_ = true;
   // The current image and its AOVs for the denoiser and the export.
   void current_image(tracer::ImageRGB* img, tracer::AovImages* aovs, uint32_t* spp);
   std::unique_ptr<tracer::ReferenceImage> reference_;

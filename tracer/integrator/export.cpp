@@ -7,22 +7,14 @@
 #include <stdexcept>
 
 #include "core/rng.h"
+#include "scene/loader_util.h"
 
 namespace tracer {
 namespace {
 
-std::string lower_ext(const std::string& path) {
-  const size_t dot = path.rfind('.');
-  const size_t slash = path.rfind('/');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-  std::string e = path.substr(dot);
-  for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return e;
-}
-
 std::string with_suffix(const std::string& path, const std::string& suffix,
                         const std::string& ext) {
-  const std::string e = lower_ext(path);
+  const std::string e = path_extension_lower(path);
   const std::string stem = e.empty() ? path : path.substr(0, path.size() - e.size());
   return stem + "." + suffix + ext;
 }
@@ -124,7 +116,7 @@ bool parse_aov_list(const std::string& list, AovRequest* out, std::string* probl
 }
 
 std::string denoised_path(const std::string& path) {
-  return with_suffix(path, "denoised", lower_ext(path));
+  return with_suffix(path, "denoised", path_extension_lower(path));
 }
 
 std::string aov_png_path(const std::string& path, const std::string& aov) {
@@ -172,7 +164,7 @@ ExportResult export_render(const std::string& path, const ImageRGB& color, const
   if (aovs && aovs->empty()) aovs = nullptr;
   if (request.any() && !aovs)
     throw std::runtime_error(path + ": the AOVs were not recorded (no sample with AOVs on)");
-  const bool exr = lower_ext(path) == ".exr";
+  const bool exr = path_extension_lower(path) == ".exr";
   // Everything that can fail without touching a file first: the denoiser.
   ImageRGB denoised;
   if (mode != DenoiseMode::kOff && given) {
