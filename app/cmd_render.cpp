@@ -194,6 +194,7 @@ int run_render(const RenderOptions& o) {
   run.features = tracer::describe_features(compiled.features());
   run.last = last_stats;
   run.aov_samples = renderer->aov_samples();
+  run.guide = renderer->guide_status();
   tracer::ExportResult exported;
   try {
     // The AOVs come back to the host only to be written; the denoiser reads them on the device.
@@ -253,6 +254,7 @@ int run_render(const RenderOptions& o) {
     for (const std::string& f : exported.files)
       if (f != o.out && f != o.out + ".json") std::cerr << "wrote " << f << "\n";
     if (!clamp_report.empty()) std::cerr << "note: " << clamp_report << "\n";
+    if (run.guide.on) std::cerr << "path guiding: " << run.guide.describe() << "\n";
   }
   if (rays.walk_capped)
     late_warnings.push_back(std::to_string(rays.walk_capped) +

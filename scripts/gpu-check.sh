@@ -41,7 +41,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit (the last seven not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit | guiding (the last eight not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -241,6 +241,30 @@ if [ "$MODE" = subsurface-exit ]; then
       --set materials.wax.exit=$exit --set materials.jade.exit=$exit --out $D/sss-$exit-8192.png
   done
   (cd $D && tar czf "$OUT/subsurface-exit.tgz" --exclude='*.exr' .)
+fi
+if [ "$MODE" = guiding ]; then
+  # Path guiding (issue 24): error against time, unguided and guided wavefront, on the caustic
+  # scenes (the lamp behind glass, glass spheres, rough materials, Bitterli's water caustic: copy it to
+  # .devbuild/bitterli/water-caustic and carry it) and the diffuse Cornell box; then the same-time
+  # pictures. Carry $DIST (and the Bitterli folder).
+  D=/tmp/guiding && rm -rf $D && mkdir -p $D
+  B=${BITTERLI:-.devbuild/bitterli}
+  T=${TIME_LIMIT:-10}
+  for sc in ${SCENES:-glass_lamp cornell_spheres rough_materials cornell_box $B/water-caustic/scene-v4.pbrt}; do
+    path=$sc; [ -f "$path" ] || path=$(scene $sc)
+    [ -f "$path" ] || { echo "skipped $sc: $path not found"; continue; }
+    name=$(basename "$(dirname "$path")"); [ "$name" = scenes ] && name=$sc
+    echo "==== bench --error $name"
+    $DIST/pathtracer bench "$path" --error --backend cuda --reference-spp ${REF_SPP:-16384} \
+      --configs ${CONFIGS:-wavefront,wavefront+guiding=on} --time-limit $T --out $D/$name 2>&1 |
+      grep -vE "^\s*$" | tail -10
+    for g in off on; do
+      $DIST/pathtracer render "$path" --backend cuda --guiding $g --time ${PIC_TIME:-2} \
+        --out $D/$name-guiding-$g.png 2>&1 | tail -1
+    done
+  done
+  $DIST/cuda_test --gtest_filter='*Guid*' 2>&1 | tail -15
+  (cd $D && tar czf "$OUT/guiding.tgz" --exclude='*.exr' .)
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction

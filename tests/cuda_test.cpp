@@ -903,4 +903,82 @@ TEST(Gpu, KernelAutoChoosesAndSaysWhich) {
       << t.wavefront_ms << " ms wavefront, " << t.megakernel_ms << " ms megakernel per sample";
 }
 
+// Path guiding on the GPU (integrator/guide.h): the wavefront trains the guide in its stages
+// (8 builds, the cells the CPU's guide learns), and guided renders keep the CPU's mean (batches of
+// independent seeds, each through training and beyond, against the CPU's unguided statistics)
+// with less noise where the light shines through glass (assets/scenes/glass_lamp.json: light
+// sampling reaches no light there). Every megakernel request runs the wavefront.
+TEST(Gpu, GuidingTrainsKeepsTheMeanAndLowersNoise) {
+  REQUIRE_GPU(gpu);
+  const Scene s = load_scene(source_dir() + "/assets/scenes/glass_lamp.json");
+  RenderSettings rs = s.settings;
+  rs.width = 64;
+  rs.height = 64;
+  rs.seed = 5;
+  const PixelStats cpu = render_pixel_stats(s, rs, 2048);
+  // The CPU's own guide, for the learned cells.
+  RenderSettings guided_rs = rs;
+  guided_rs.guiding = true;
+  const CompiledScene cs(s, rs.width, rs.height);
+  CpuRenderer cpu_r;
+  cpu_r.set_scene(cs, make_integrator_settings(guided_rs));
+  cpu_r.render(kGuideTrainSamples);
+  const GuideStatus cpu_guide = cpu_r.guide_status();
+  GpuOptions o;
+  o.kernel = KernelMode::kMegakernel;  // overridden: guiding runs the wavefront
+  for (int guided = 0; guided < 2; ++guided) {
+    std::vector<ImageRGB> batches;
+    FrameStats st;
+    for (uint32_t b = 0; b < 16; ++b) {
+      RenderSettings other = guided ? guided_rs : rs;
+      other.seed = 100 + b;
+      batches.push_back(render_gpu(*gpu, s, other, 384, GpuOptions(), &st));
+      if (guided && b == 0) {
+        const GuideStatus g = gpu->guide_status();
+        std::printf("GPU guide: %s; CPU guide: %s\n", g.describe().c_str(),
+                    cpu_guide.describe().c_str());
+        EXPECT_EQ(g.builds, 8u);
+        EXPECT_TRUE(g.frozen());
+        EXPECT_EQ(g.cells, cpu_guide.cells);
+        EXPECT_NEAR(double(g.learned_cells), double(cpu_guide.learned_cells),
+                    0.05 * cpu_guide.learned_cells + 5);
+        EXPECT_EQ(st.kernel, "wavefront");
+        EXPECT_NE(st.specialization.find("path guiding"), std::string::npos) << st.specialization;
+      }
+    }
+    if (guided) {  // a megakernel request renders guided in the wavefront too
+      FrameStats mst;
+      render_gpu(*gpu, s, guided_rs, 4, o, &mst);
+      EXPECT_EQ(mst.kernel, "wavefront");
+      ASSERT_TRUE(mst.gpu.has_value());
+      EXPECT_NE(mst.gpu->find("kernel"), nullptr);
+    }
+    const BlockZ z = block_z(batches, cpu);
+    std::printf("%s: independent chi2/dof %.3f (limit %.3f)\n", guided ? "guided" : "unguided",
+                z.chi2_per_dof, z.limit);
+    EXPECT_LT(z.chi2_per_dof, z.limit) << (guided ? "guided" : "unguided");
+  }
+  // Noise at 256 x 256 (enough pixels to fill the guide's 10 x 10 x 10 grid): the spread of 8
+  // batches' pixel values, guided against unguided, at 384 spp each.
+  double noise[2] = {0, 0};
+  for (int guided = 0; guided < 2; ++guided) {
+    RenderSettings big = guided ? guided_rs : rs;
+    big.width = big.height = 256;
+    std::vector<ImageRGB> batches;
+    for (uint32_t b = 0; b < 8; ++b) {
+      big.seed = 200 + b;
+      batches.push_back(render_gpu(*gpu, s, big, 384, GpuOptions()));
+    }
+    for (size_t i = 0; i < batches[0].pixels.size(); ++i) {
+      double m = 0, v = 0;
+      for (const ImageRGB& img : batches) m += img.pixels[i];
+      m /= batches.size();
+      for (const ImageRGB& img : batches) v += (img.pixels[i] - m) * (img.pixels[i] - m);
+      noise[guided] += v;
+    }
+  }
+  std::printf("variance, guided / unguided at 384 spp, 256 x 256: %.3f\n", noise[1] / noise[0]);
+  EXPECT_LT(noise[1], 0.85 * noise[0]);
+}
+
 }  // namespace

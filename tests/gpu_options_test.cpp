@@ -56,7 +56,7 @@ std::vector<GpuSceneTraits> all_scenes() {
                            kFeatureInstances};
   std::vector<GpuSceneTraits> out;
   for (uint32_t mask = 0; mask < 128; ++mask)
-    for (int other = 0; other < 16; ++other) {
+    for (int other = 0; other < 32; ++other) {
       GpuSceneTraits t;
       for (int i = 0; i < 7; ++i)
         if (mask & (1u << i)) t.features |= bits[i];
@@ -66,6 +66,7 @@ std::vector<GpuSceneTraits> all_scenes() {
       t.jitter = other & 2;
       t.depth_of_field = other & 4;
       t.bvh8_available = other & 8;
+      t.guiding = other & 16;
       out.push_back(t);
     }
   return out;
@@ -77,7 +78,8 @@ std::string describe_case(const GpuOptions& o, const GpuSceneTraits& t) {
          on_off(o.first_bounce_cache) + ", flat " + on_off(o.flat_list) + ", tail " +
          fraction_text(o.tail_fraction) + "; scene features 0x" + std::to_string(t.features) +
          ", flat list " + on_off(t.flat_available) + ", jitter " + on_off(t.jitter) + ", lens " +
-         on_off(t.depth_of_field) + ", 8-wide tree " + on_off(t.bvh8_available);
+         on_off(t.depth_of_field) + ", 8-wide tree " + on_off(t.bvh8_available) + ", guiding " +
+         on_off(t.guiding);
 }
 
 // The user's switches, by the names the overrides use, as text.
@@ -116,7 +118,8 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
   };
 
   // The user's switches.
-  expect(o.kernel == r.kernel, "the kernel is as requested (auto is decided by timing)");
+  expect(o.kernel == (t.guiding ? KernelMode::kWavefront : r.kernel),
+         "the kernel is as requested (auto is decided by timing); guiding: the wavefront");
   expect(o.sort_materials == r.sort_materials, "sorting is as requested");
   expect(o.compaction != Compaction::kAuto, "compaction auto is resolved");
   if (r.compaction == Compaction::kAuto)
@@ -124,8 +127,9 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
            "auto: CUB on textured scenes, the shade kernel's queues elsewhere");
   else
     expect(o.compaction == r.compaction, "an explicit compaction is kept");
-  expect(o.tail_fraction == (o.compaction == Compaction::kOff ? 0.0f : r.tail_fraction),
-         "a tail only with compaction (it takes its paths from a queue)");
+  expect(o.tail_fraction ==
+             (o.compaction == Compaction::kOff || t.guiding ? 0.0f : r.tail_fraction),
+         "a tail only with compaction (it takes its paths from a queue), never with guiding");
   expect(o.first_bounce_cache == (r.first_bounce_cache && !t.jitter && !t.depth_of_field),
          "the cache never with jitter or depth of field, else as requested");
   expect(o.flat_list == (r.flat_list && t.flat_available),
@@ -145,6 +149,8 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
          "the kernels compiled for the scene's features, or the general ones (with instances "
          "where the scene has some)");
   expect((spec_for_features(t.features) & ~e.spec) == 0, "the kernels cover the scene's features");
+  expect(e.shade_spec == (t.guiding ? kGuidedSpec : e.spec),
+         "the guided shade kernel with guiding, else the other stages' variant");
   expect(!(e.spec & kSpecLights) || (e.spec & kSpecSpecular),
          "the lights' kernels are among the specular ones (no diffuse-with-lights variant)");
   expect(*spec_label(e.spec) != '\0', "the kernels have a name");
@@ -225,7 +231,8 @@ TEST(GpuOptions, EveryCombinationObeysTheRules) {
   const std::vector<GpuOptions> requests = all_requests();
   const std::vector<GpuSceneTraits> scenes = all_scenes();
   ASSERT_EQ(requests.size(), 192u);
-  ASSERT_EQ(scenes.size(), 1536u);  // 64 x 16 without instances, 64 x 8 with (no flat list)
+  // 64 x 32 without instances, 64 x 16 with (no flat list)
+  ASSERT_EQ(scenes.size(), 3072u);
   size_t failed = 0, overridden = 0;
   for (const GpuSceneTraits& t : scenes)
     for (const GpuOptions& r : requests) {

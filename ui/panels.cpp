@@ -447,6 +447,7 @@ void render_panel(Workbench& wb, PanelState& ps) {
   setting_widget(wb, ps, "render.jitter", "pixel jitter");
   setting_widget(wb, ps, "render.sampler", "sampler");
   setting_widget(wb, ps, "render.light_sampler", "light sampler");
+  setting_widget(wb, ps, "render.guiding", "path guiding");
   setting_widget(wb, ps, "render.filter", "pixel filter");
   setting_widget(wb, ps, "render.filter_radius", "filter radius", 0.05f, "%.2f px (0: default)");
   setting_widget(wb, ps, "render.clamp", "clamp (0: off)", 0.1f, "%.2f");
@@ -529,6 +530,12 @@ void stats_panel(Workbench& wb, PanelState& ps) {
               ImGui::GetIO().Framerate);
   ImGui::Text("NaN/Inf samples rejected: %llu", (unsigned long long)s.nonfinite);
   ImGui::TextWrapped("%s", wb.shown_image().c_str());
+  if (s.guide.on) {
+    ImGui::TextWrapped("path guiding: %s", s.guide.describe().c_str());
+    if (!s.guide.frozen())
+      ImGui::ProgressBar(float(s.guide.trained_samples) / float(tracer::kGuideTrainSamples),
+                         ImVec2(-1, 0), "guide training");
+  }
   if (s.relmse_halves >= 0) {
     ImGui::Text("half-buffer relMSE: %.3g", s.relmse_halves);
     if (!tracer::independent_halves(wb.settings().sampler)) {

@@ -286,6 +286,7 @@ void Workbench::update() {
     worker_aovs_ = want_aovs;
     stats_.spp = worker_spp_;
     stats_.last = worker_stats_;
+    stats_.guide = worker_guide_;
     stats_.ms_per_frame = worker_stats_.ms;
     stats_.elapsed_s = worker_render_s_;
     stats_.samples_per_s = worker_render_s_ > 0 ? worker_spp_ / worker_render_s_ : 0.0;
@@ -320,6 +321,7 @@ void Workbench::update() {
   since_reset_s_ += s;
   stats_.spp = renderer_->samples_done();
   stats_.last = fs;
+  stats_.guide = renderer_->guide_status();
   stats_.ms_per_frame = s * 1e3;
   stats_.elapsed_s = since_reset_s_;
   stats_.samples_per_s = since_reset_s_ > 0 ? stats_.spp / since_reset_s_ : 0.0;
@@ -553,6 +555,7 @@ void Workbench::worker_loop() {
     lk.lock();
     if (generation != generation_ || fs.spp_added == 0) continue;  // an edit made it stale
     worker_stats_ = fs;
+    worker_guide_ = renderer_->guide_status();
     worker_render_s_ += fs.ms / 1e3;
     worker_spp_ = renderer_->samples_done();
     worker_nonfinite_ = renderer_->nonfinite_total();

@@ -49,6 +49,7 @@ struct WorkbenchStats {
   // the sample count and every estimate after it (the Stats panel draws it log-log).
   std::vector<tracer::Checkpoint> error_curve;
   uint64_t resets = 0;             // how many times the accumulator was cleared
+  tracer::GuideStatus guide;       // path guiding's training (off unless render.guiding)
 };
 
 class Workbench {
@@ -214,6 +215,7 @@ class Workbench {
   int published_w_ = 0, published_h_ = 0;
   bool published_new_ = false;
   tracer::FrameStats worker_stats_;
+  tracer::GuideStatus worker_guide_;
   uint32_t worker_spp_ = 0;
   double worker_relmse_ = -1.0;
   uint64_t worker_nonfinite_ = 0;

@@ -30,6 +30,10 @@ enum SceneFeature : uint32_t {
   kFeatureLightTree = 1u << 12,
   // Instances of meshes (the BVH's second level, bvh/instance.h).
   kFeatureInstances = 1u << 13,
+  // Not a scene feature: path guiding (integrator/guide.h), compiled into the CPU's code and
+  // the wavefront's guided shade kernel only (kSpecGuiding); live where IntegratorSettings::guide
+  // has a guide.
+  kFeatureGuiding = 1u << 14,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
@@ -54,22 +58,27 @@ constexpr uint32_t kFeatureLights = kFeatureInfiniteLights | kFeaturePointLights
 // (PERFORMANCE.md, row 94), and scenes of instances are large scenes that pay for the general
 // kernels' code little. 13 variants in all.
 constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4, kSpecLights = 8,
-                   kSpecInstances = 16;
+                   kSpecInstances = 16, kSpecGuiding = 32;
 constexpr uint32_t kGeneralSpec = 15;                      // every feature but instances
-constexpr uint32_t kInstancesSpec = kGeneralSpec | kSpecInstances;  // every feature
-constexpr uint32_t kSpecCount = 32;  // indices 0..31; 8..11 and 16..30 are never used
+constexpr uint32_t kInstancesSpec = kGeneralSpec | kSpecInstances;  // every scene feature
+// The guided shade kernel (path guiding): one variant for every scene, as guiding runs where
+// paths are long and the shading's cost is in its own sampling, not in unused features' code.
+constexpr uint32_t kGuidedSpec = kInstancesSpec | kSpecGuiding;
+constexpr uint32_t kSpecCount = 64;  // indices 0..63; only 0..7, 12..15, 31 and 63 are used
 
 template <uint32_t Spec>
 constexpr uint32_t features_of() {
   static_assert(!(Spec & kSpecLights) || (Spec & kSpecSpecular), "lights imply specular");
-  static_assert(!(Spec & kSpecInstances) || Spec == kInstancesSpec,
+  static_assert(!(Spec & kSpecInstances) || (Spec & ~kSpecGuiding) == kInstancesSpec,
                 "instances imply every other feature");
+  static_assert(!(Spec & kSpecGuiding) || Spec == kGuidedSpec, "guiding implies every feature");
   return kFeatureEmissiveMeshes | kFeatureShadingNormals |
          ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
          ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
          ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u) |
          ((Spec & kSpecLights) ? kFeatureLights : 0u) |
-         ((Spec & kSpecInstances) ? kFeatureInstances : 0u);
+         ((Spec & kSpecInstances) ? kFeatureInstances : 0u) |
+         ((Spec & kSpecGuiding) ? kFeatureGuiding : 0u);
 }
 
 // The smallest specialisation that covers a scene's features.
@@ -92,6 +101,7 @@ inline const char* spec_label(uint32_t spec) {
       "", "", "", "",
       "triangles, pinhole, specular, lights",  "spheres+triangles, pinhole, specular, lights",
       "triangles, thin lens, specular, lights", "general (all features)"};
+  if (spec & kSpecGuiding) return "general with path guiding (all features)";
   if (spec & kSpecInstances) return "general with instances (all features)";
   return (spec & kSpecLights) ? kWithLights[spec & 7] : kNames[spec & 7];
 }

@@ -29,9 +29,11 @@ void CpuRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings
 
 void CpuRenderer::set_settings(const IntegratorSettings& cfg) {
   cfg_ = cfg;
+  cfg_.guide = GuideView();
   const size_t n = size_t(cfg.width) * cfg.height * 3;
   for (auto* b : {&sum_even_, &sum_odd_, &pass_even_, &pass_odd_}) b->assign(n, 0.0);
   allocate_aovs();
+  setup_guide();
   samples_ = 0;
   nonfinite_ = 0;
 }
@@ -40,8 +42,17 @@ void CpuRenderer::reset() {
   std::fill(sum_even_.begin(), sum_even_.end(), 0.0);
   std::fill(sum_odd_.begin(), sum_odd_.end(), 0.0);
   allocate_aovs();
+  if (guide_.ready()) guide_.clear();
   samples_ = 0;
   nonfinite_ = 0;
+}
+
+void CpuRenderer::setup_guide() {
+  if (cfg_.guiding && scene_) {
+    guide_.setup(guide_grid(*scene_, cfg_.width * cfg_.height), cfg_.width * cfg_.height);
+  } else {
+    guide_ = HostGuide();
+  }
 }
 
 void CpuRenderer::allocate_aovs() {
@@ -93,7 +104,7 @@ TRACER_CPU_MULTIVERSION void render_rows(const Pass& p, ThreadTotals& out) {
       double acc[2][3] = {{0, 0, 0}, {0, 0, 0}};
       for (uint32_t s = 0; s < p.spp; ++s) {
         const uint32_t sample = p.first_sample + s;
-        vec3 L = trace_path(*p.view, cfg, pixel, sample, &rc);
+        vec3 L = trace_path(*p.view, cfg, pixel, sample, &rc);  // trains the guide, if any
         if (!is_finite(L)) {
           ++nonfinite;  // counted and reported, never added
           continue;
@@ -145,14 +156,49 @@ TRACER_CPU_MULTIVERSION void render_rows(const Pass& p, ThreadTotals& out) {
 
 FrameStats CpuRenderer::render(uint32_t spp) {
   if (!scene_) throw std::logic_error("CpuRenderer::render: no scene set");
+  if (!guide_.ready()) return render_pass(spp);
+  // Guiding: the guide is rebuilt at the end of each training pass, so a call that spans passes
+  // renders them one after another.
   const auto start = std::chrono::steady_clock::now();
+  FrameStats total;
+  for (uint32_t done = 0; done < spp;) {
+    const uint32_t first = samples_;
+    const uint32_t chunk =
+        guide_trains(first) ? std::min(spp - done, guide_pass_end(first) - first + 1) : spp - done;
+    FrameStats st = render_pass(chunk);
+    if (st.spp_added == 0) break;  // cancelled
+    if (guide_trains(samples_ - 1) && guide_builds_after(samples_ - 1)) guide_.build(threads_);
+    if (done == 0) {
+      total = st;
+    } else {
+      total.spp_added += st.spp_added;
+      total.rays.camera += st.rays.camera;
+      total.rays.extension += st.rays.extension;
+      total.rays.shadow += st.rays.shadow;
+      total.rays.walk_capped += st.rays.walk_capped;
+      total.rays.medium_leaks += st.rays.medium_leaks;
+      total.nonfinite += st.nonfinite;
+      total.clamped += st.clamped;
+      total.clamped_luminance += st.clamped_luminance;
+    }
+    done += chunk;
+  }
+  total.ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return total;
+}
+
+FrameStats CpuRenderer::render_pass(uint32_t spp) {
+  const auto start = std::chrono::steady_clock::now();
+  IntegratorSettings cfg = cfg_;
+  if (guide_.ready()) cfg.guide = guide_.view(samples_);
   SceneView view = scene_->view();
   if (!simd_traversal_) view.cpu_bvh = CpuBvhView();
   view.use_flat = flat_list_ && scene_->flat_list().enabled ? 1u : 0u;
   std::atomic<uint32_t> next_row{0};
   const bool aovs = aovs_on_ && !aov_even_.empty();
   const Pass pass{&view,
-                  &cfg_,
+                  &cfg,
                   samples_,
                   spp,
                   &next_row,

@@ -26,6 +26,7 @@ class CpuRenderer final : public Renderer {
   bool aovs() const override { return aovs_on_; }
   AovImages aov_images(int half = -1) const override;
   uint32_t aov_samples() const override { return aov_count_[0] + aov_count_[1]; }
+  GuideStatus guide_status() const override { return guide_.status(samples_); }
   int threads() const { return threads_; }
   // When set, render() checks the flag between rows and abandons the pass (adding nothing and
   // returning spp_added = 0) once it is true: edits in the workbench never wait for a pass.
@@ -51,6 +52,11 @@ class CpuRenderer final : public Renderer {
   std::vector<uint32_t> aov_ids_, pass_aov_ids_;
   uint32_t aov_count_[2] = {0, 0};  // AOV samples in each half
   void allocate_aovs();
+  // Path guiding (render.guiding): sized by set_settings, cleared by reset().
+  HostGuide guide_;
+  void setup_guide();
+  // Adds spp samples within one pass of the guide's schedule (all of them when not guiding).
+  FrameStats render_pass(uint32_t spp);
   const std::atomic<bool>* cancel_ = nullptr;
   uint32_t samples_ = 0;
   uint64_t nonfinite_ = 0;

@@ -159,6 +159,73 @@ struct CudaRenderer::Impl {
 
   std::vector<cudaEvent_t> events;
 
+  // Path guiding (render.guiding; integrator/guide.h): the guide's arrays in device memory.
+  const CompiledScene* compiled = nullptr;  // (set_scene: the caller keeps it alive)
+  GuideGrid grid;  // of the scene at the image's size
+  bool guiding = false;
+  DeviceBuffer<float> guide_hist, guide_cdf;
+  DeviceBuffer<uint32_t> guide_counts, guide_learned;
+  DeviceBuffer<GuideRecord> guide_records;
+  uint32_t guide_builds = 0, guide_learned_cells = 0;
+  bool kernel_forced = false;  // resolve() forced a kernel (guiding: the wavefront)
+  void allocate_guide() {
+    guiding = cfg.guiding != 0 && has_scene && compiled;
+    grid = guiding ? guide_grid(*compiled, n()) : GuideGrid();
+    const size_t cells = guiding ? grid.cells() : 0;
+    const size_t records = guiding ? size_t(n()) * kGuideRecords : 0;
+    if (guiding)
+      require_device_memory(cells * (2 * kGuideBins * sizeof(float) + sizeof(uint32_t)) +
+                                records * sizeof(GuideRecord),
+                            guide_hist.bytes() * 2 + guide_records.bytes(),
+                            "path guiding", "its grid of " + std::to_string(cells) +
+                                " cells and " + std::to_string(kGuideRecords) +
+                                " vertex records per pixel", prop.name);
+    guide_hist.resize(cells * kGuideBins);
+    guide_cdf.resize(cells * kGuideBins);
+    guide_counts.resize(cells);
+    guide_learned.resize(guiding ? 1 : 0);
+    guide_records.resize(records);
+    clear_guide();
+  }
+  void clear_guide() {
+    guide_builds = guide_learned_cells = 0;
+    if (!guiding) return;
+    TRACER_CUDA_CHECK(cudaMemsetAsync(guide_hist.get(), 0, guide_hist.bytes(), stream));
+    TRACER_CUDA_CHECK(cudaMemsetAsync(guide_cdf.get(), 0, guide_cdf.bytes(), stream));
+    TRACER_CUDA_CHECK(cudaMemsetAsync(guide_counts.get(), 0, guide_counts.bytes(), stream));
+    // Sample 0xffffffff: no record is of the render's samples yet.
+    TRACER_CUDA_CHECK(cudaMemsetAsync(guide_records.get(), 0xff, guide_records.bytes(), stream));
+  }
+  GuideView guide_view(uint32_t sample) {
+    GuideView g;
+    if (!guiding) return g;
+    g.lo = grid.lo;
+    g.inv_cell = grid.inv_cell;
+    g.nx = grid.nx;
+    g.ny = grid.ny;
+    g.nz = grid.nz;
+    if (guide_builds > 0) g.cdf = guide_cdf.get();
+    if (guide_trains(sample)) {
+      g.hist = guide_hist.get();
+      g.counts = guide_counts.get();
+      g.records = guide_records.get();
+    }
+    return g;
+  }
+  // After a wavefront sample: its paths train the guide, and a pass's end rebuilds it.
+  void guide_after_sample(uint32_t sample) {
+    if (!guiding || !guide_trains(sample)) return;
+    launch_guide_train(cfg.guide, radiance.get(), n(), sample, stream);
+    if (guide_builds_after(sample)) {
+      launch_guide_build(guide_hist.get(), guide_counts.get(), guide_cdf.get(), grid.cells(),
+                         guide_learned.get(), stream);
+      TRACER_CUDA_CHECK(cudaMemcpyAsync(&guide_learned_cells, guide_learned.get(),
+                                        sizeof(uint32_t), cudaMemcpyDeviceToHost, stream));
+      TRACER_CUDA_CHECK(cudaStreamSynchronize(stream));
+      ++guide_builds;
+    }
+  }
+
   ~Impl() {
     for (cudaEvent_t e : events) cudaEventDestroy(e);
     if (stream) cudaStreamDestroy(stream);
@@ -172,6 +239,16 @@ struct CudaRenderer::Impl {
     GpuSceneTraits traits = gpu_scene_traits(view, flat_available, cfg);
     traits.bvh8_available = nodes8.size() > 0;
     eff = resolve_gpu_options(opts, traits);
+    // A kernel the resolution forces (path guiding: the wavefront) runs; once no longer forced,
+    // the request runs again (--kernel auto times both designs anew).
+    const bool forced = eff.options.kernel != opts.kernel;
+    if (forced) {
+      chosen = eff.options.kernel;
+    } else if (kernel_forced) {
+      chosen = opts.kernel;
+      auto_step = 0;
+    }
+    kernel_forced = forced;
     view.use_flat = eff.options.flat_list ? 1u : 0u;
     view.nodes8 = eff.bvh8 ? nodes8.get() : nullptr;
     view.prim_indices8 = eff.bvh8 ? prim_indices8.get() : nullptr;
@@ -189,6 +266,7 @@ struct CudaRenderer::Impl {
     f.clamp = cfg.clamp;
     f.clamped_luminance = clamp_sum.get();
     f.clamped = counters.get() + kCounterClamped;
+    f.keep_radiance = guiding && guide_trains(sample);
     return f;
   }
 
@@ -384,7 +462,7 @@ struct CudaRenderer::Impl {
         c = w.sort_bins + 16;  // the live paths among the sorted slots
         mark(timed, kSort);
       }
-      launch_shade(sp, view, cfg, sample, b, w, q, c,
+      launch_shade(eff.shade_spec, view, cfg, sample, b, w, q, c,
                    queue_in_shade && b + 1 < iterations ? bounce_queue(b + 1) : nullptr, shadows,
                    stream);
       mark(timed, kShade);
@@ -546,6 +624,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.point_lights.upload(scene.point_lights());
   m.view.point_lights = scene.point_lights().empty() ? nullptr : m.point_lights.get();
   m.features = scene.features();
+  m.compiled = &scene;
   m.has_scene = true;
   set_settings(cfg);
 }
@@ -553,12 +632,14 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
 void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
   Impl& m = *impl_;
   m.cfg = cfg;
+  m.cfg.guide = GuideView();
   m.view.camera.width = cfg.width;
   m.view.camera.height = cfg.height;
   m.view.camera.aspect = float(cfg.width) / float(cfg.height);
   m.allocate();
+  m.allocate_guide();
   m.tail_estimate.clear();
-  m.resolve();  // (the first-bounce cache depends on the jitter)
+  m.resolve();  // (the first-bounce cache depends on the jitter, the kernel on guiding)
   reset();
 }
 
@@ -568,6 +649,19 @@ void CudaRenderer::reset() {
   impl_->nonfinite = 0;
   impl_->cache_valid = false;
   impl_->aov_count[0] = impl_->aov_count[1] = 0;
+  impl_->clear_guide();  // a new render learns anew
+}
+
+GuideStatus CudaRenderer::guide_status() const {
+  const Impl& m = *impl_;
+  GuideStatus s;
+  s.on = m.guiding;
+  if (!m.guiding) return s;
+  s.trained_samples = std::min(m.samples, kGuideTrainSamples);
+  s.builds = m.guide_builds;
+  s.learned_cells = m.guide_learned_cells;
+  s.cells = m.grid.cells();
+  return s;
 }
 
 void CudaRenderer::set_aovs(bool on) {
@@ -581,8 +675,9 @@ uint32_t CudaRenderer::aov_samples() const { return impl_->aov_count[0] + impl_-
 
 void CudaRenderer::set_gpu_options(const GpuOptions& o) {
   impl_->opts = o;
-  impl_->resolve();
   impl_->chosen = o.kernel;
+  impl_->kernel_forced = false;
+  impl_->resolve();  // (may force another kernel: path guiding runs the wavefront)
   impl_->auto_step = 0;
   impl_->auto_ms[0] = impl_->auto_ms[1] = 0.0;
   impl_->cache_valid = false;
@@ -635,6 +730,8 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   FrameStats st;
   st.spp_added = spp;
   st.specialization = std::string(spec_label(m.eff.spec)) + "; " + m.accel_name();
+  if (m.eff.shade_spec != m.eff.spec)
+    st.specialization += std::string("; shade kernel: ") + spec_label(m.eff.shade_spec);
   if (const GpuOverride* cache = m.eff.find("first_bounce_cache"))
     st.note = "first-bounce cache disabled: " + cache->reason;
   st.gpu = m.eff;
@@ -654,10 +751,12 @@ FrameStats CudaRenderer::render(uint32_t spp) {
     // Timed: the first sample of a call, and all of auto's four (its first wavefront sample's
     // alive counts give the second the estimate its tail needs).
     const bool timed = k == 0 || m.chosen == KernelMode::kAuto;
+    m.cfg.guide = m.guide_view(sample);
     if (mode == KernelMode::kMegakernel) {
       m.megakernel_wave(sample, first, timed);
     } else {
       m.wavefront_wave(sample, first, timed);
+      m.guide_after_sample(sample);
     }
     // The feature buffers after the sample's paths (outside its timed stages).
     if (m.aovs_on) {

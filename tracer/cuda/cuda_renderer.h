@@ -29,6 +29,7 @@ class CudaRenderer final : public Renderer {
   bool aovs() const override;
   AovImages aov_images(int half = -1) const override;
   uint32_t aov_samples() const override;
+  GuideStatus guide_status() const override;
   ImageRGB denoised_image(DenoiseInfo* info = nullptr) const override;
   void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const override;
   uint32_t width_times_height() const;

@@ -86,6 +86,9 @@ struct FilmView {
   float clamp = 0.0f;                          // the radiance clamp (0: off)
   double* clamped_luminance = nullptr;          // what the clamp removed
   unsigned long long* clamped = nullptr;        // how many samples it scaled
+  // The shadow stages store every path's final radiance back into WavefrontState::radiance (not
+  // only of the paths that go on), for path guiding's training after the sample.
+  bool keep_radiance = false;
 };
 
 // The feature buffers (integrator/aov.h) of the two halves: a = albedo rgb and depth, b = the
@@ -113,6 +116,15 @@ void launch_aov_resolve(const AovFilm& film, float w0, float w1, float* albedo, 
 void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat,
                        const IntegratorSettings& cfg, uint32_t sample, bool first, FilmView film,
                        unsigned long long* counters, uint32_t* next_pixel, cudaStream_t stream);
+
+// Path guiding (integrator/guide.h): after a training sample, each of the n paths adds its
+// recorded vertices to the guide's sums (radiance: the pool's final radiance per path id) ...
+void launch_guide_train(const GuideView& g, const float4* radiance, uint32_t n, uint32_t sample,
+                        cudaStream_t stream);
+// ... and after a training pass every cell's distribution is rebuilt; *learned (device) counts
+// the learned cells (zeroed first).
+void launch_guide_build(const float* hist, const uint32_t* counts, float* cdf, uint32_t cells,
+                        uint32_t* learned, cudaStream_t stream);
 
 // The wavefront's tail: the megakernel over the paths of a queue (count: its device length),
 // each taken from the pool's state and run to its end (its segments go to

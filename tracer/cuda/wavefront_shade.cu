@@ -212,6 +212,24 @@ __global__ void sort_scatter_kernel(WavefrontState w, const uint32_t* queue, con
   sorted[offsets[key] + base + rank] = id;
 }
 
+// Path guiding's training (integrator/guide.h): one thread per path, after its sample.
+__global__ void guide_train_kernel(GuideView g, const float4* radiance, uint32_t n,
+                                   uint32_t sample) {
+  const uint32_t id = blockIdx.x * blockDim.x + threadIdx.x;
+  if (id >= n) return;
+  const float4 r = radiance[id];
+  guide_train_path(g, id, sample, vec3(r.x, r.y, r.z));
+}
+
+// ... and the rebuild of every cell's distribution, one thread per cell.
+__global__ void guide_build_kernel(const float* hist, const uint32_t* counts, float* cdf,
+                                   uint32_t cells, uint32_t* learned) {
+  const uint32_t cell = blockIdx.x * blockDim.x + threadIdx.x;
+  const bool ok = cell < cells && guide_build_cell(hist, counts, cdf, cell);
+  const unsigned ballot = __ballot_sync(0xffffffffu, ok);
+  if ((threadIdx.x & 31) == 0 && ballot) atomicAdd(learned, uint32_t(__popc(ballot)));
+}
+
 struct IsAlive {
   const uint8_t* alive;
   __host__ __device__ bool operator()(uint32_t id) const { return alive[id] == kStatusAlive; }
@@ -248,7 +266,9 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   }                                                                                       \
   shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
                                                       next_queue, shadow_queue)
-  if (spec & kSpecInstances) {  // instances imply every other feature (features.h)
+  if (spec & kSpecGuiding) {  // path guiding: one variant for every scene
+    CALL(kGuidedSpec);
+  } else if (spec & kSpecInstances) {  // instances imply every other feature (features.h)
     CALL(kInstancesSpec);
   } else {
     switch (spec & (kSpecSpheres | kSpecSpecular | kSpecLights)) {
@@ -262,6 +282,19 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   }
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("shade_kernel");
+}
+
+void launch_guide_train(const GuideView& g, const float4* radiance, uint32_t n, uint32_t sample,
+                        cudaStream_t stream) {
+  guide_train_kernel<<<blocks(n), kBlock, 0, stream>>>(g, radiance, n, sample);
+  TRACER_CUDA_CHECK_LAUNCH("guide_train_kernel");
+}
+
+void launch_guide_build(const float* hist, const uint32_t* counts, float* cdf, uint32_t cells,
+                        uint32_t* learned, cudaStream_t stream) {
+  TRACER_CUDA_CHECK(cudaMemsetAsync(learned, 0, sizeof(uint32_t), stream));
+  guide_build_kernel<<<blocks(cells), kBlock, 0, stream>>>(hist, counts, cdf, cells, learned);
+  TRACER_CUDA_CHECK_LAUNCH("guide_build_kernel");
 }
 
 void launch_sort_by_material(const SceneView& s, const WavefrontState& w, const uint32_t* queue,

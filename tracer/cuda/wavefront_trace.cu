@@ -205,7 +205,7 @@ __global__ void __launch_bounds__(kBlock) shadow_kernel(SceneView view,
       r.x += c.x;
       r.y += c.y;
       r.z += c.z;
-      if (state == kStatusAlive) w.radiance[id] = r;
+      if (state == kStatusAlive || film.keep_radiance) w.radiance[id] = r;
     }
   }
   if (state == kStatusEnded)  // the path ended in this bounce: its sample is complete
@@ -251,7 +251,7 @@ __device__ __forceinline__ void shadow_queued_lane(const SceneView& s, const Wav
     r.x += c.x;
     r.y += c.y;
     r.z += c.z;
-    if (state == kStatusAlive) w.radiance[id] = r;
+    if (state == kStatusAlive || film.keep_radiance) w.radiance[id] = r;
   }
   if (state == kStatusEnded)
     finish_path(w, id, vec3(r.x, r.y, r.z), path_flags(w, id), first, film);

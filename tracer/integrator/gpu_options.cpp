@@ -100,6 +100,7 @@ GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,
   t.flat_available = flat_available;
   t.jitter = cfg.jitter != 0;
   t.depth_of_field = view.camera.lens_radius > 0.0f;
+  t.guiding = cfg.guiding != 0;
   return t;
 }
 
@@ -158,6 +159,18 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
             textured ? "auto on a textured scene: CUB's select (the shade kernel's queues wait "
                        "at the block's barrier after the long shading)"
                      : "auto on an untextured scene: the shade kernel's queues");
+  }
+  // Path guiding trains from the stages' paths (guide_train_kernel after each sample) and
+  // guides in the guided shade kernel: the megakernel and the tail (a megakernel) have neither.
+  if (scene.guiding && o.kernel != KernelMode::kWavefront) {
+    changed("kernel", kernel_mode_name(o.kernel), "wavefront",
+            "path guiding trains and guides in the wavefront's stages");
+    o.kernel = KernelMode::kWavefront;
+  }
+  if (scene.guiding && o.tail_fraction != 0.0f) {
+    changed("tail_fraction", fraction_text(o.tail_fraction), "0",
+            "path guiding: the tail is a megakernel, which neither guides nor trains");
+    o.tail_fraction = 0.0f;
   }
   if (o.compaction == Compaction::kOff && o.tail_fraction != 0.0f) {
     changed("tail_fraction", fraction_text(o.tail_fraction), "0",
@@ -232,6 +245,7 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
   e.spec = e.specialize                              ? spec_for_features(scene.features)
            : (scene.features & kFeatureInstances) ? kInstancesSpec
                                                    : kGeneralSpec;
+  e.shade_spec = scene.guiding ? kGuidedSpec : e.spec;
   return e;
 }
 

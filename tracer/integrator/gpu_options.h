@@ -51,6 +51,7 @@ struct GpuSceneTraits {
   bool jitter = true;           // the camera jitters samples within pixels
   bool depth_of_field = false;  // the camera's lens radius is above zero
   bool bvh8_available = false;  // the compiled scene has an 8-wide tree (CompiledScene::bvh8)
+  bool guiding = false;         // path guiding is asked for (IntegratorSettings::guiding)
 };
 // From a scene's view (its features and camera) and whether it has a flat list, or from the
 // compiled scene itself.
@@ -93,6 +94,8 @@ struct EffectiveGpuOptions {
   // Kernels compiled for the scene's features only (spec), or the general ones (kGeneralSpec).
   bool specialize = false;
   uint32_t spec = 7;
+  // The shade kernel's variant: spec, or kGuidedSpec with path guiding.
+  uint32_t shade_spec = 7;
   std::string build_variant;  // gpu_build_variant()
   // One entry per changed switch and per path that is off, each with its reason.
   std::vector<GpuOverride> overrides;

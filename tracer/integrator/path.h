@@ -7,6 +7,7 @@
 #include "camera/filter.h"
 #include "core/rng.h"
 #include "core/sobol.h"
+#include "integrator/guide.h"
 #include "integrator/lights.h"
 #include "integrator/medium.h"
 
@@ -28,14 +29,25 @@ struct IntegratorSettings {
   // How next-event estimation chooses a light: kLightSamplerUniform, kLightSamplerPower or
   // kLightSamplerBvh (scene/light_tree_view.h, integrator/lights.h).
   uint32_t light_sampler = kLightSamplerBvh;
+  // Path guiding (render.guiding): asked for. The renderer fills `guide` with its guide's state
+  // for each sample (integrator/guide.h); only code compiled with kFeatureGuiding reads it.
+  uint32_t guiding = 0;
+  GuideView guide;
 };
 
 // The dimension pairs of the Sobol sampler: each draw of a vertex has its own (a 1D draw takes
 // the first coordinate of its pair). The camera vertex is bounce 0, surface vertex k bounce k.
 enum CameraDims : uint32_t { kDimJitter = 0, kDimLens = 1 };
-// (Pair 0 of a surface vertex is unused: the light point's first coordinate also chooses the
-// light, see sample_light_2d.)
-enum VertexDims : uint32_t { kDimLightPoint = 1, kDimBsdf = 2, kDimLobe = 3, kDimRoulette = 4 };
+// (Pair 0 of a surface vertex is unused by the light: its point's first coordinate also chooses
+// the light, see sample_light_2d. Path guiding takes pair 0 for its direction and pair 5.)
+enum VertexDims : uint32_t {
+  kDimGuideDir = 0,  // path guiding only (integrator/guide.h)
+  kDimLightPoint = 1,
+  kDimBsdf = 2,
+  kDimLobe = 3,
+  kDimRoulette = 4,
+  kDimGuideChoice = 5,  // path guiding only
+};
 
 // The random numbers of one surface vertex, from either sampler. The random sampler draws them
 // all at once, in this order, from the vertex's PCG32 stream; the Sobol sampler computes each
@@ -64,7 +76,37 @@ struct VertexSampler {
   TRACER_HD vec2 bsdf() const { return sobol ? q.get_2d(kDimBsdf) : pcg_bsdf; }
   TRACER_HD float lobe() const { return sobol ? q.get_1d(kDimLobe) : pcg_lobe; }
   TRACER_HD float rr() const { return sobol ? q.get_1d(kDimRoulette) : pcg_rr; }
+  // Path guiding's numbers (guide or BSDF, and the guide's direction), drawn only where a vertex
+  // is guided: with PCG32 from a stream of their own (the "bounce" 0xfff00000 + depth lies beyond
+  // every random-walk step's), so that the other draws keep their places.
+  TRACER_HD void guide(const IntegratorSettings& cfg, uint32_t pixel, uint32_t sample,
+                       uint32_t bounce, float* choice, vec2* dir) const {
+    if (sobol) {
+      *choice = q.get_1d(kDimGuideChoice);
+      *dir = q.get_2d(kDimGuideDir);
+    } else {
+      Pcg32 rng = make_path_rng(pixel, sample, 0xfff00000u + bounce, cfg.seed);
+      *choice = rng.next_float();
+      *dir = rng.next_2d();
+    }
+  }
 };
+
+// Whether path guiding samples at a vertex of this BSDF: lobes wide enough for a histogram of
+// 0.05 sr bins to help (diffuse ones, rough ones from kGuideMinRoughness up). A narrow glossy lobe
+// is sampled better by itself: the guide's directions would mostly miss it, and the BSDF's would
+// be weighed by twice their density's inverse.
+TRACER_HD TRACER_INLINE bool guide_wide_bsdf(const Material& m, MaterialType type) {
+  switch (type) {
+    case MaterialType::kDiffuse:
+    case MaterialType::kCoatedDiffuse:
+    case MaterialType::kDiffuseTransmission: return true;
+    case MaterialType::kConductor:
+      return glm::min(m.roughness, m.roughness_v) >= kGuideMinRoughness;
+    case MaterialType::kDielectric: return m.roughness >= kGuideMinRoughness;
+    default: return false;
+  }
+}
 
 // The optional radiance clamp: a sample brighter than `clamp` in any channel is scaled down to
 // it. This trades fireflies for bias, so the luminance it removes is returned for reporting.
@@ -313,6 +355,14 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
   const uint32_t normal_code = light_tree ? pack_light_normal(ng_viewer) : 0u;
 
+  // Path guiding at this vertex (integrator/guide.h): the cell, whether it guides (learned, and
+  // a BSDF with a non-delta lobe), whether it records for training.
+  const GuideView& gv = cfg.guide;
+  const bool guide_here = (F & kFeatureGuiding) && (gv.cdf || gv.records) &&
+                          !bsdf_is_delta(m, type) && !diffuse_exit;
+  const uint32_t gcell = guide_here ? guide_cell(gv, sh.p) : 0u;
+  const bool guided = guide_here && guide_wide_bsdf(m, type) && guide_learned(gv, gcell);
+
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
     const LightContext ctx = light_tree ? vertex_light_context(sh.p, ng_viewer, normal_code)
                                         : LightContext{sh.p, ng_viewer};
@@ -332,8 +382,16 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
         const vec3 f = bsdf_eval<F>(m, wo, wi);
         if (!is_black(f)) {
           const bool delta = (F & (kFeatureInfiniteLights | kFeaturePointLights)) && ls.delta;
-          const float w =
-              cfg.mis && !delta ? power_heuristic(ls.pdf, bsdf_pdf<F>(m, wo, wi)) : 1.0f;
+          // MIS weighs light sampling against the density that samples directions here: the
+          // BSDF's, or with a guide the mixture's.
+          float scatter_pdf = 0.0f;
+          if (cfg.mis && !delta) {
+            scatter_pdf = bsdf_pdf<F>(m, wo, wi);
+            if (guided)
+              scatter_pdf = kGuideMix * guide_pdf(gv, gcell, wi_world) +
+                            (1.0f - kGuideMix) * scatter_pdf;
+          }
+          const float w = cfg.mis && !delta ? power_heuristic(ls.pdf, scatter_pdf) : 1.0f;
           shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * fast_div(w, ls.pdf);
           shadow.ray = at_infinity ? spawn_ray(sh.p, sh.ng, wi_world)
                                    : spawn_ray_to(sh.p, geo > 0.0f ? sh.ng : -sh.ng, ls.p, ls.n);
@@ -347,7 +405,34 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   }
 
   // Only materials with several lobes draw the number that chooses one.
-  const BsdfSample bs = bsdf_sample<F>(m, wo, u.bsdf(), bsdf_chooses_lobe(type) ? u.lobe() : 0.5f);
+  BsdfSample bs;
+  float guide_choice = 1.0f;
+  vec2 guide_u(0.0f);
+  if (guided) u.guide(cfg, st.pixel, st.sample, st.depth, &guide_choice, &guide_u);
+  if (guided && guide_choice < kGuideMix) {
+    // One-sample MIS of guide and BSDF: a direction from the guide, weighed by the mixture.
+    float pg;
+    const vec3 d = guide_sample(gv, gcell, guide_u, &pg);
+    bs.wi = frame.to_local(d);
+    bs.specular = false;
+    const float pdf = kGuideMix * pg + (1.0f - kGuideMix) * bsdf_pdf<F>(m, wo, bs.wi);
+    bs.valid = pdf > 0.0f;
+    bs.pdf = pdf;
+    bs.weight = bs.valid ? bsdf_eval<F>(m, wo, bs.wi) * (glm::abs(bs.wi.z) / pdf) : vec3(0.0f);
+  } else {
+    bs = bsdf_sample<F>(m, wo, u.bsdf(), bsdf_chooses_lobe(type) ? u.lobe() : 0.5f);
+    if (guided && bs.valid) {
+      if (bs.specular) {  // a delta lobe, which the guide cannot sample: chosen with 1 - mix
+        bs.weight *= 1.0f / (1.0f - kGuideMix);
+      } else {
+        const float pdf =
+            kGuideMix * guide_pdf(gv, gcell, fast_normalize(frame.to_world(bs.wi))) +
+            (1.0f - kGuideMix) * bsdf_pdf<F>(m, wo, bs.wi);
+        bs.weight = bsdf_eval<F>(m, wo, bs.wi) * (glm::abs(bs.wi.z) / pdf);
+        bs.pdf = pdf;
+      }
+    }
+  }
   if (!bs.valid) return false;
   const vec3 wi_world = fast_normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wi_world, sh.ng);
@@ -386,6 +471,11 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     if (u.rr() >= q) return false;
     st.throughput *= fast_rcp(q);  // q in (0, 1]
   }
+  // Training: the vertex's direction, density and throughput, and what the path had gathered
+  // before it, counting this vertex's shadow ray as if it arrives (it is not along wi).
+  if ((F & kFeatureGuiding) && guide_here && gv.records && !bs.specular)
+    guide_record(gv, st.pixel, st.sample, st.depth, gcell, wi_world, bs.pdf, st.throughput,
+                 luminance(st.radiance) + (shadow.valid ? luminance(shadow.contribution) : 0.0f));
   st.depth += 1;
   return !is_black(st.throughput);
 }
@@ -421,6 +511,7 @@ TRACER_HD inline vec3 trace_path(const SceneView& s, const IntegratorSettings& c
     if (!go_on) break;
   }
   count_path_end(st, counts);
+  if (F & kFeatureGuiding) guide_train_path(cfg.guide, pixel, sample, st.radiance);
   return st.radiance;
 }
 

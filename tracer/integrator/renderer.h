@@ -10,6 +10,7 @@
 #include "image/denoise.h"
 #include "image/image.h"
 #include "integrator/gpu_options.h"
+#include "integrator/guide_host.h"
 #include "integrator/path.h"
 #include "scene/compiled_scene.h"
 
@@ -120,6 +121,8 @@ class Renderer {
   virtual ImageRGB denoised_image(DenoiseInfo* info = nullptr) const;
   // The display image, exposure and tone map applied, as RGBA8 rows top first.
   virtual void display_rgba8(std::vector<uint32_t>& out, float exposure_scale, ToneMap op) const;
+  // Path guiding's progress (render.guiding; off when not asked for).
+  virtual GuideStatus guide_status() const { return {}; }
   // GPU-only switches; the CPU backend ignores them.
   virtual void set_gpu_options(const GpuOptions&) {}
 

@@ -82,6 +82,12 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
   }
   j["features"] = run.features;
   if (!run.aovs.empty()) j["aovs"] = {{"layers", run.aovs}, {"samples", run.aov_samples}};
+  if (run.guide.on)
+    j["guiding"] = {{"status", run.guide.describe()},
+                    {"trained_samples", run.guide.trained_samples},
+                    {"builds", run.guide.builds},
+                    {"learned_cells", run.guide.learned_cells},
+                    {"cells", run.guide.cells}};
   if (!run.denoise.denoiser.empty()) {
     // The denoised image is biased: the sidecar says what made it from what.
     j["denoise"] = {{"denoiser", run.denoise.denoiser},

@@ -30,6 +30,7 @@ struct SidecarRun {
   FrameStats last;                 // the last frame: kernel, specialization, note
   std::vector<std::string> aovs;   // the feature layers written with the image (EXR) or beside it
   uint32_t aov_samples = 0;        // the samples the AOVs averaged
+  GuideStatus guide;               // path guiding's training (render.guiding)
   // The denoiser, when display.denoise was on: what ran and where its image went.
   DenoiseInfo denoise;
   std::string denoised_output;

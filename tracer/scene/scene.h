@@ -49,6 +49,7 @@ struct RenderSettings {
   // How next-event estimation chooses a light: kLightSamplerUniform, kLightSamplerPower or
   // kLightSamplerBvh (the light tree; scene/light_tree_view.h)
   uint32_t light_sampler = kLightSamplerBvh;
+  bool guiding = false;  // path guiding (integrator/guide.h)
 };
 
 // "random" / "sobol" / "sobol-pairs", as the scene format, the CLI and the workbench spell

@@ -204,6 +204,12 @@ std::vector<Setting> make_table() {
       "proportion to its power) or bvh (a light tree: by power, distance and orientation as seen "
       "from the shading point; lights at infinity by power).",
       E::kImage, [](Scene& s) -> uint32_t& { return s.settings.light_sampler; }));
+  t.push_back(field("render.guiding", "--guiding", T::kBool, 0, 0, "",
+                    "Path guiding: learn where light comes from while rendering (a grid of "
+                    "directional histograms, trained over the first 255 samples in passes of "
+                    "doubling length, then frozen) and sample directions from it and the BSDF by "
+                    "one-sample MIS. Unbiased; pays off where light sampling fails (caustics).",
+                    E::kImage, [](Scene& s) -> bool& { return s.settings.guiding; }));
   t.push_back(choice<PixelFilter>(
       "render.filter", "--filter", {"box", "tent", "gaussian", "blackman-harris"},
       {PixelFilter::kBox, PixelFilter::kTent, PixelFilter::kGaussian,
