@@ -172,11 +172,7 @@ FrameStats CpuRenderer::render(uint32_t spp) {
       total = st;
     } else {
       total.spp_added += st.spp_added;
-      total.rays.camera += st.rays.camera;
-      total.rays.extension += st.rays.extension;
-      total.rays.shadow += st.rays.shadow;
-      total.rays.walk_capped += st.rays.walk_capped;
-      total.rays.medium_leaks += st.rays.medium_leaks;
+      total.rays += st.rays;
       total.nonfinite += st.nonfinite;
       total.clamped += st.clamped;
       total.clamped_luminance += st.clamped_luminance;
@@ -237,11 +233,7 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
   }
   st.spp_added = spp;
   for (const ThreadTotals& t : totals) {
-    st.rays.camera += t.rays.camera;
-    st.rays.extension += t.rays.extension;
-    st.rays.shadow += t.rays.shadow;
-    st.rays.walk_capped += t.rays.walk_capped;
-    st.rays.medium_leaks += t.rays.medium_leaks;
+    st.rays += t.rays;
     st.nonfinite += t.nonfinite;
     st.clamped += t.clamped;
     st.clamped_luminance += t.removed;

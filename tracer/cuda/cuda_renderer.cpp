@@ -197,13 +197,8 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaMemsetAsync(guide_records.get(), 0xff, guide_records.bytes(), stream));
   }
   GuideView guide_view(uint32_t sample) {
-    GuideView g;
-    if (!guiding) return g;
-    g.lo = grid.lo;
-    g.inv_cell = grid.inv_cell;
-    g.nx = grid.nx;
-    g.ny = grid.ny;
-    g.nz = grid.nz;
+    if (!guiding) return GuideView();
+    GuideView g = guide_view_of(grid);
     if (guide_builds > 0) g.cdf = guide_cdf.get();
     if (guide_trains(sample)) {
       g.hist = guide_hist.get();

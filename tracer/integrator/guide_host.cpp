@@ -52,6 +52,16 @@ GuideGrid guide_grid(const CompiledScene& scene, uint32_t pixels) {
   return guide_grid(box.lo, box.hi, guide_grid_side(pixels));
 }
 
+GuideView guide_view_of(const GuideGrid& grid) {
+  GuideView v;
+  v.lo = grid.lo;
+  v.inv_cell = grid.inv_cell;
+  v.nx = grid.nx;
+  v.ny = grid.ny;
+  v.nz = grid.nz;
+  return v;
+}
+
 std::string GuideStatus::describe() const {
   if (!on) return "off";
   auto grouped = [](uint32_t v) {
@@ -98,12 +108,7 @@ void HostGuide::clear() {
 }
 
 GuideView HostGuide::view(uint32_t first_sample) {
-  GuideView v;
-  v.lo = grid_.lo;
-  v.inv_cell = grid_.inv_cell;
-  v.nx = grid_.nx;
-  v.ny = grid_.ny;
-  v.nz = grid_.nz;
+  GuideView v = guide_view_of(grid_);
   if (builds_ > 0) v.cdf = cdf_.data();
   if (guide_trains(first_sample)) {
     v.hist = hist_.data();

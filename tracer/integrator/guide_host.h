@@ -26,6 +26,8 @@ struct GuideGrid {
 GuideGrid guide_grid(vec3 lo, vec3 hi, uint32_t side = kGuideMaxSide);
 uint32_t guide_grid_side(uint32_t pixels);
 GuideGrid guide_grid(const CompiledScene& scene, uint32_t pixels);
+// The grid's part of a GuideView (no arrays).
+GuideView guide_view_of(const GuideGrid& grid);
 
 // What a renderer's guide has done, for the Stats panel, the bench and the sidecar.
 struct GuideStatus {

@@ -484,6 +484,14 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
 struct RayCounts {
   uint64_t camera = 0, extension = 0, shadow = 0;
   uint64_t walk_capped = 0, medium_leaks = 0;  // paths ended by a random walk's safety limits
+  TRACER_HD RayCounts& operator+=(const RayCounts& o) {
+    camera += o.camera;
+    extension += o.extension;
+    shadow += o.shadow;
+    walk_capped += o.walk_capped;
+    medium_leaks += o.medium_leaks;
+    return *this;
+  }
 };
 
 TRACER_HD TRACER_INLINE void count_path_end(const PathState& st, RayCounts* counts) {
