@@ -198,14 +198,9 @@ struct CudaRenderer::Impl {
   }
   GuideView guide_view(uint32_t sample) {
     if (!guiding) return GuideView();
-    GuideView g = guide_view_of(grid);
-    if (guide_builds > 0) g.cdf = guide_cdf.get();
-    if (guide_trains(sample)) {
-      g.hist = guide_hist.get();
-      g.counts = guide_counts.get();
-      g.records = guide_records.get();
-    }
-    return g;
+    return guide_view_for(
+        grid, {guide_cdf.get(), guide_hist.get(), guide_counts.get(), guide_records.get()},
+        guide_builds, sample);
   }
   // After a wavefront sample: its paths train the guide, and a pass's end rebuilds it.
   void guide_after_sample(uint32_t sample) {
@@ -649,14 +644,8 @@ void CudaRenderer::reset() {
 
 GuideStatus CudaRenderer::guide_status() const {
   const Impl& m = *impl_;
-  GuideStatus s;
-  s.on = m.guiding;
-  if (!m.guiding) return s;
-  s.trained_samples = std::min(m.samples, kGuideTrainSamples);
-  s.builds = m.guide_builds;
-  s.learned_cells = m.guide_learned_cells;
-  s.cells = m.grid.cells();
-  return s;
+  return m.guiding ? GuideStatus::of(m.grid, m.samples, m.guide_builds, m.guide_learned_cells)
+                   : GuideStatus();
 }
 
 void CudaRenderer::set_aovs(bool on) {

@@ -52,14 +52,32 @@ GuideGrid guide_grid(const CompiledScene& scene, uint32_t pixels) {
   return guide_grid(box.lo, box.hi, guide_grid_side(pixels));
 }
 
-GuideView guide_view_of(const GuideGrid& grid) {
+GuideView guide_view_for(const GuideGrid& grid, const GuideArrays& arrays, uint32_t builds,
+                         uint32_t sample) {
   GuideView v;
   v.lo = grid.lo;
   v.inv_cell = grid.inv_cell;
   v.nx = grid.nx;
   v.ny = grid.ny;
   v.nz = grid.nz;
+  if (builds > 0) v.cdf = arrays.cdf;
+  if (guide_trains(sample)) {
+    v.hist = arrays.hist;
+    v.counts = arrays.counts;
+    v.records = arrays.records;
+  }
   return v;
+}
+
+GuideStatus GuideStatus::of(const GuideGrid& grid, uint32_t samples, uint32_t builds,
+                            uint32_t learned) {
+  GuideStatus s;
+  s.on = true;
+  s.trained_samples = std::min(samples, kGuideTrainSamples);
+  s.builds = builds;
+  s.learned_cells = learned;
+  s.cells = grid.cells();
+  return s;
 }
 
 std::string GuideStatus::describe() const {
@@ -108,14 +126,8 @@ void HostGuide::clear() {
 }
 
 GuideView HostGuide::view(uint32_t first_sample) {
-  GuideView v = guide_view_of(grid_);
-  if (builds_ > 0) v.cdf = cdf_.data();
-  if (guide_trains(first_sample)) {
-    v.hist = hist_.data();
-    v.counts = counts_.data();
-    v.records = records_.data();
-  }
-  return v;
+  return guide_view_for(grid_, {cdf_.data(), hist_.data(), counts_.data(), records_.data()},
+                        builds_, first_sample);
 }
 
 void HostGuide::build(int threads) {
@@ -137,13 +149,7 @@ void HostGuide::build(int threads) {
 }
 
 GuideStatus HostGuide::status(uint32_t samples) const {
-  GuideStatus s;
-  s.on = !cdf_.empty();
-  s.trained_samples = std::min(samples, kGuideTrainSamples);
-  s.builds = builds_;
-  s.learned_cells = learned_;
-  s.cells = grid_.cells();
-  return s;
+  return ready() ? GuideStatus::of(grid_, samples, builds_, learned_) : GuideStatus();
 }
 
 }  // namespace tracer

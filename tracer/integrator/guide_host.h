@@ -26,8 +26,17 @@ struct GuideGrid {
 GuideGrid guide_grid(vec3 lo, vec3 hi, uint32_t side = kGuideMaxSide);
 uint32_t guide_grid_side(uint32_t pixels);
 GuideGrid guide_grid(const CompiledScene& scene, uint32_t pixels);
-// The grid's part of a GuideView (no arrays).
-GuideView guide_view_of(const GuideGrid& grid);
+// A guide's arrays, wherever they live (host or device memory).
+struct GuideArrays {
+  float* cdf = nullptr;
+  float* hist = nullptr;
+  uint32_t* counts = nullptr;
+  GuideRecord* records = nullptr;
+};
+// The view for a sample, by the schedule: the distribution once `builds` > 0, the training
+// arrays while the sample trains (guide_trains). Both backends' guides hand theirs out so.
+GuideView guide_view_for(const GuideGrid& grid, const GuideArrays& arrays, uint32_t builds,
+                         uint32_t sample);
 
 // What a renderer's guide has done, for the Stats panel, the bench and the sidecar.
 struct GuideStatus {
@@ -36,6 +45,9 @@ struct GuideStatus {
   uint32_t builds = 0;           // distributions built so far (the passes done)
   uint32_t learned_cells = 0, cells = 0;  // at the last build
   bool frozen() const { return trained_samples >= kGuideTrainSamples; }
+  // The status of a guide on `grid` after `samples` samples, `builds` builds, `learned` cells.
+  static GuideStatus of(const GuideGrid& grid, uint32_t samples, uint32_t builds,
+                        uint32_t learned);
   // e.g. "training: pass 4 of 8, 1,234 of 13,824 cells learned" or "frozen after 255 spp, ...".
   std::string describe() const;
 };
