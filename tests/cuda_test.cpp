@@ -19,7 +19,7 @@ namespace {
 using namespace test;
 
 std::unique_ptr<Renderer> gpu_or_skip_reason(std::string* why) {
-  return make_cuda_renderer(why);
+  return make_cuda_renderer(why, 0);
 }
 
 #define REQUIRE_GPU(r)                                                   \

@@ -13,10 +13,11 @@
 
 namespace tracer {
 
-std::unique_ptr<Renderer> make_renderer(BackendChoice choice, int cpu_threads, std::string* note) {
+std::unique_ptr<Renderer> make_renderer(BackendChoice choice, int cpu_threads, std::string* note,
+                                        int device) {
   if (choice == BackendChoice::kCpu) return std::make_unique<CpuRenderer>(cpu_threads);
   std::string why;
-  if (auto r = make_cuda_renderer(&why)) return r;
+  if (auto r = make_cuda_renderer(&why, device)) return r;
   if (choice == BackendChoice::kCuda) throw std::runtime_error("--backend cuda: " + why);
   if (note) *note = "using the CPU backend: " + why;
   return std::make_unique<CpuRenderer>(cpu_threads);
@@ -44,10 +45,12 @@ constexpr const char* kNoCuda =
     "this build has no CUDA backend (nvcc was not found at configure time)";
 }  // namespace
 
-std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not) {
+std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not, int) {
   if (why_not) *why_not = kNoCuda;
   return nullptr;
 }
+
+int cuda_device_count() { return 0; }
 
 double measure_copy_bandwidth_gbs() {
   throw std::logic_error(std::string("measure_copy_bandwidth_gbs: ") + kNoCuda);

@@ -11,11 +11,16 @@
 namespace tracer {
 
 // kAuto: CUDA when built with it and a device exists, else the CPU (with `note` saying why).
-// kCuda without a usable device throws std::runtime_error with the reason.
-std::unique_ptr<Renderer> make_renderer(BackendChoice choice, int cpu_threads, std::string* note);
+// kCuda without a usable device throws std::runtime_error with the reason. `device` picks the
+// CUDA device (0 .. cuda_device_count() - 1).
+std::unique_ptr<Renderer> make_renderer(BackendChoice choice, int cpu_threads, std::string* note,
+                                        int device = 0);
 
-// The CUDA backend, or nullptr with the reason when this build has none or no device answers.
-std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not);
+// The CUDA backend on `device`, or nullptr with the reason when this build has none or the
+// device does not answer.
+std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not, int device = 0);
+// CUDA devices that answer (0 in a build without CUDA or on a machine without a GPU).
+int cuda_device_count();
 
 // Device-to-device copy bandwidth in GB/s (bytes read + bytes written): the ceiling the
 // wavefront's memory traffic is measured against. Needs the CUDA backend and a device.

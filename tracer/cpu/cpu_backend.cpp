@@ -34,7 +34,7 @@ void CpuRenderer::set_settings(const IntegratorSettings& cfg) {
   for (auto* b : {&sum_even_, &sum_odd_, &pass_even_, &pass_odd_}) b->assign(n, 0.0);
   allocate_aovs();
   setup_guide();
-  samples_ = 0;
+  samples_ = next_ = half_count_[0] = half_count_[1] = 0;
   nonfinite_ = 0;
 }
 
@@ -43,8 +43,16 @@ void CpuRenderer::reset() {
   std::fill(sum_odd_.begin(), sum_odd_.end(), 0.0);
   allocate_aovs();
   if (guide_.ready()) guide_.clear();
-  samples_ = 0;
+  samples_ = next_ = half_count_[0] = half_count_[1] = 0;
   nonfinite_ = 0;
+}
+
+void CpuRenderer::set_next_sample(uint32_t index) {
+  if (guide_.ready() && index != next_)
+    throw std::logic_error("CpuRenderer::set_next_sample: path guiding trains on the samples in "
+                           "their order from 0 (sample " + std::to_string(index) +
+                           " asked for, " + std::to_string(next_) + " next)");
+  next_ = index;
 }
 
 void CpuRenderer::setup_guide() {
@@ -162,12 +170,12 @@ FrameStats CpuRenderer::render(uint32_t spp) {
   const auto start = std::chrono::steady_clock::now();
   FrameStats total;
   for (uint32_t done = 0; done < spp;) {
-    const uint32_t first = samples_;
+    const uint32_t first = next_;
     const uint32_t chunk =
         guide_trains(first) ? std::min(spp - done, guide_pass_end(first) - first + 1) : spp - done;
     FrameStats st = render_pass(chunk);
     if (st.spp_added == 0) break;  // cancelled
-    if (guide_trains(samples_ - 1) && guide_builds_after(samples_ - 1)) guide_.build(threads_);
+    if (guide_trains(next_ - 1) && guide_builds_after(next_ - 1)) guide_.build(threads_);
     if (done == 0) {
       total = st;
     } else {
@@ -187,7 +195,7 @@ FrameStats CpuRenderer::render(uint32_t spp) {
 FrameStats CpuRenderer::render_pass(uint32_t spp) {
   const auto start = std::chrono::steady_clock::now();
   IntegratorSettings cfg = cfg_;
-  if (guide_.ready()) cfg.guide = guide_.view(samples_);
+  if (guide_.ready()) cfg.guide = guide_.view(next_);
   SceneView view = scene_->view();
   if (!simd_traversal_) view.cpu_bvh = CpuBvhView();
   view.use_flat = flat_list_ && scene_->flat_list().enabled ? 1u : 0u;
@@ -195,7 +203,7 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
   const bool aovs = aovs_on_ && !aov_even_.empty();
   const Pass pass{&view,
                   &cfg,
-                  samples_,
+                  next_,
                   spp,
                   &next_row,
                   pass_even_.data(),
@@ -229,8 +237,9 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
       aov_odd_[i] += pass_aov_odd_[i];
     }
     if (aov_count_[0] + aov_count_[1] == 0) aov_ids_ = pass_aov_ids_;
-    for (uint32_t k = 0; k < spp; ++k) ++aov_count_[(samples_ + k) & 1];
+    for (uint32_t k = 0; k < spp; ++k) ++aov_count_[(next_ + k) & 1];
   }
+  for (uint32_t k = 0; k < spp; ++k) ++half_count_[(next_ + k) & 1];
   st.spp_added = spp;
   for (const ThreadTotals& t : totals) {
     st.rays += t.rays;
@@ -239,6 +248,7 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
     st.clamped_luminance += t.removed;
   }
   samples_ += spp;
+  next_ += spp;
   nonfinite_ += st.nonfinite;
   st.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return st;
@@ -256,10 +266,9 @@ ImageRGB CpuRenderer::image() const {
 }
 
 void CpuRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
-  const uint32_t n_even = (samples_ + 1) / 2, n_odd = samples_ / 2;
   const std::vector<double>* sums[2] = {&sum_even_, &sum_odd_};
   ImageRGB* outs[2] = {even, odd};
-  const uint32_t counts[2] = {n_even, n_odd};
+  const uint32_t* counts = half_count_;
   for (int k = 0; k < 2; ++k) {
     if (!outs[k]) continue;
     ImageRGB& img = *outs[k];

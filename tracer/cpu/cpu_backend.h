@@ -19,6 +19,9 @@ class CpuRenderer final : public Renderer {
   void reset() override;
   FrameStats render(uint32_t spp) override;
   uint32_t samples_done() const override { return samples_; }
+  void set_next_sample(uint32_t index) override;
+  uint32_t next_sample() const override { return next_; }
+  uint32_t half_samples(int half) const override { return half_count_[half & 1]; }
   uint64_t nonfinite_total() const override { return nonfinite_; }
   ImageRGB image() const override;
   void half_images(ImageRGB* even, ImageRGB* odd) const override;
@@ -26,7 +29,7 @@ class CpuRenderer final : public Renderer {
   bool aovs() const override { return aovs_on_; }
   AovImages aov_images(int half = -1) const override;
   uint32_t aov_samples() const override { return aov_count_[0] + aov_count_[1]; }
-  GuideStatus guide_status() const override { return guide_.status(samples_); }
+  GuideStatus guide_status() const override { return guide_.status(next_); }
   int threads() const { return threads_; }
   // When set, render() checks the flag between rows and abandons the pass (adding nothing and
   // returning spp_added = 0) once it is true: edits in the workbench never wait for a pass.
@@ -58,7 +61,9 @@ class CpuRenderer final : public Renderer {
   // Adds spp samples within one pass of the guide's schedule (all of them when not guiding).
   FrameStats render_pass(uint32_t spp);
   const std::atomic<bool>* cancel_ = nullptr;
-  uint32_t samples_ = 0;
+  uint32_t samples_ = 0;            // added
+  uint32_t next_ = 0;               // the next sample's number
+  uint32_t half_count_[2] = {0, 0};  // added, of even and of odd numbers
   uint64_t nonfinite_ = 0;
   bool simd_traversal_ = true;
   bool flat_list_ = false;

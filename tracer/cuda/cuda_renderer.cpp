@@ -127,8 +127,23 @@ struct CudaRenderer::Impl {
     return f;
   }
   DeviceBuffer<unsigned long long> counters;  // [kCounterCount], indexed by Counter
-  uint32_t samples = 0;
+  uint32_t samples = 0;                // added
+  uint32_t next_sample = 0;            // the next sample's number
+  uint32_t film_count[2] = {0, 0};     // samples in each film (of even and of odd numbers)
   uint64_t nonfinite = 0;
+  // The films holding the mean's samples: both, or the one that holds any (the other holds
+  // stale memory until its first sample overwrites it).
+  struct MeanFilms {
+    const float4* a;
+    const float4* b;
+    bool both;
+  };
+  MeanFilms mean_films() const {
+    if (film_count[0] > 0 && film_count[1] > 0) return {film[0].get(), film[1].get(), true};
+    const int h = film_count[0] > 0 ? 0 : 1;
+    return {film[h].get(), film[h].get(), false};
+  }
+  void clear_counts() { samples = next_sample = film_count[0] = film_count[1] = 0; }
 
   // Wavefront pool.
   DeviceBuffer<float4> ray_o, ray_d, throughput, radiance, hit, shadow_o, shadow_d, shadow_c;
@@ -319,7 +334,7 @@ struct CudaRenderer::Impl {
     clamp_sum.resize(1);
     cached_hits.resize(0);
     cache_valid = false;
-    samples = 0;
+    clear_counts();
     nonfinite = 0;
   }
 
@@ -635,7 +650,7 @@ void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
 
 void CudaRenderer::reset() {
   // O(1): the next sample overwrites the accumulator instead of adding to it.
-  impl_->samples = 0;
+  impl_->clear_counts();
   impl_->nonfinite = 0;
   impl_->cache_valid = false;
   impl_->aov_count[0] = impl_->aov_count[1] = 0;
@@ -644,7 +659,7 @@ void CudaRenderer::reset() {
 
 GuideStatus CudaRenderer::guide_status() const {
   const Impl& m = *impl_;
-  return m.guiding ? GuideStatus::of(m.grid, m.samples, m.guide_builds, m.guide_learned_cells)
+  return m.guiding ? GuideStatus::of(m.grid, m.next_sample, m.guide_builds, m.guide_learned_cells)
                    : GuideStatus();
 }
 
@@ -669,6 +684,16 @@ void CudaRenderer::set_gpu_options(const GpuOptions& o) {
 }
 
 uint32_t CudaRenderer::samples_done() const { return impl_->samples; }
+uint32_t CudaRenderer::next_sample() const { return impl_->next_sample; }
+uint32_t CudaRenderer::half_samples(int half) const { return impl_->film_count[half & 1]; }
+void CudaRenderer::set_next_sample(uint32_t index) {
+  Impl& m = *impl_;
+  if (m.guiding && index != m.next_sample)
+    throw std::logic_error("CudaRenderer::set_next_sample: path guiding trains on the samples in "
+                           "their order from 0 (sample " + std::to_string(index) +
+                           " asked for, " + std::to_string(m.next_sample) + " next)");
+  m.next_sample = index;
+}
 uint32_t CudaRenderer::width_times_height() const { return impl_->n(); }
 uint64_t CudaRenderer::nonfinite_total() const { return impl_->nonfinite; }
 
@@ -723,8 +748,8 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   m.clamp_sum.zero_async(m.stream);
   uint32_t wavefront_samples = 0;
   for (uint32_t k = 0; k < spp; ++k) {
-    const uint32_t sample = m.samples + k;
-    const bool first = sample < 2;  // the first sample of each of the two films
+    const uint32_t sample = m.next_sample + k;
+    const bool first = m.film_count[sample & 1] == 0;  // it overwrites its film
     KernelMode mode = m.chosen;
     bool calibrating = false;
     if (mode == KernelMode::kAuto) {
@@ -781,6 +806,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
     // The wavefront's extension rays (every path alive after a bounce traces one more segment)
     // are summed on the device (kCounterExtension), so samples run back to back without a wait.
     if (mode == KernelMode::kWavefront) ++wavefront_samples;
+    ++m.film_count[sample & 1];
     if (m.chosen == KernelMode::kAuto && ++m.auto_step == 4) {
       m.chosen = m.auto_ms[0] <= m.auto_ms[1] ? KernelMode::kWavefront : KernelMode::kMegakernel;
     }
@@ -807,6 +833,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
   st.rays.medium_leaks = c[kCounterMediumLeak];
   m.nonfinite += c[kCounterNonfinite];
   m.samples += spp;
+  m.next_sample += spp;
   if (m.chosen != KernelMode::kAuto && m.opts.kernel == KernelMode::kAuto) {
     st.note += std::string(st.note.empty() ? "" : "; ") + "kernel auto chose " + chosen_kernel() +
                " (" + std::to_string(m.auto_ms[0]) + " ms wavefront vs " +
@@ -825,9 +852,8 @@ ImageRGB CudaRenderer::image() const {
   if (m.samples == 0) return img;
   DeviceBuffer<float> rgb(size_t(m.n()) * 3);
   const float inv = 1.0f / float(m.samples);
-  // Before the second sample the odd film holds stale memory: read film 0 twice instead.
-  const float4* b = m.samples > 1 ? m.film[1].get() : m.film[0].get();
-  launch_resolve(m.film[0].get(), inv, b, m.samples > 1 ? inv : 0.0f, m.n(), rgb.get(), m.stream);
+  const Impl::MeanFilms f = m.mean_films();
+  launch_resolve(f.a, inv, f.b, f.both ? inv : 0.0f, m.n(), rgb.get(), m.stream);
   TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
   std::vector<float> host;
   rgb.download(host);
@@ -860,7 +886,7 @@ double measure_copy_bandwidth_gbs() {
 
 void CudaRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
   Impl& m = *impl_;
-  const uint32_t counts[2] = {(m.samples + 1) / 2, m.samples / 2};
+  const uint32_t* counts = m.film_count;
   ImageRGB* outs[2] = {even, odd};
   DeviceBuffer<float> rgb(size_t(m.n()) * 3);
   for (int k = 0; k < 2; ++k) {
@@ -922,9 +948,8 @@ ImageRGB CudaRenderer::denoised_image(DenoiseInfo* info) const {
   const size_t n3 = size_t(m.n()) * 3;
   for (auto* b : {&m.dn_color, &m.dn_out}) b->resize(n3);
   const float inv = 1.0f / float(m.samples);
-  const float4* b = m.samples > 1 ? m.film[1].get() : m.film[0].get();
-  launch_resolve(m.film[0].get(), inv, b, m.samples > 1 ? inv : 0.0f, m.n(), m.dn_color.get(),
-                 m.stream);
+  const Impl::MeanFilms f = m.mean_films();
+  launch_resolve(f.a, inv, f.b, f.both ? inv : 0.0f, m.n(), m.dn_color.get(), m.stream);
   const uint32_t aovs = m.aovs_on ? m.aov_count[0] + m.aov_count[1] : 0;
   if (aovs > 0) {
     for (auto* b : {&m.dn_albedo, &m.dn_normal}) b->resize(n3);
@@ -950,15 +975,10 @@ ImageRGB CudaRenderer::denoised_image(DenoiseInfo* info) const {
 void CudaRenderer::display_to_device(void* rgba8, float exposure_scale, ToneMap op) const {
   Impl& m = *impl_;
   const float inv = m.samples > 0 ? 1.0f / float(m.samples) : 0.0f;
-  // With one sample the odd film holds stale data; weight it out by pointing both at film 0.
-  const float4* b = m.samples > 1 ? m.film[1].get() : nullptr;
-  if (!b) {
-    launch_display(m.film[0].get(), m.film[0].get(), 0.5f * inv, m.n(), exposure_scale, int(op),
-                   static_cast<uint32_t*>(rgba8), m.stream);
-  } else {
-    launch_display(m.film[0].get(), b, inv, m.n(), exposure_scale, int(op),
-                   static_cast<uint32_t*>(rgba8), m.stream);
-  }
+  // With one film holding samples, read it twice at half the weight.
+  const Impl::MeanFilms f = m.mean_films();
+  launch_display(f.a, f.b, f.both ? inv : 0.5f * inv, m.n(), exposure_scale, int(op),
+                 static_cast<uint32_t*>(rgba8), m.stream);
   TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
 }
 
@@ -970,7 +990,16 @@ void CudaRenderer::display_rgba8(std::vector<uint32_t>& out, float exposure_scal
   dev.download(out);
 }
 
-std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not) {
+int cuda_device_count() {
+  int count = 0;
+  if (cudaGetDeviceCount(&count) != cudaSuccess) {
+    cudaGetLastError();  // clear the sticky error of the failed query
+    return 0;
+  }
+  return count;
+}
+
+std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not, int device) {
   int count = 0;
   const cudaError_t err = cudaGetDeviceCount(&count);
   if (err != cudaSuccess || count == 0) {
@@ -982,7 +1011,13 @@ std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not) {
     return nullptr;
   }
   try {
-    return std::make_unique<CudaRenderer>(0);
+    if (device < 0 || device >= count) {
+      if (why_not)
+        *why_not = "CUDA device " + std::to_string(device) + " asked for; this machine has " +
+                   std::to_string(count);
+      return nullptr;
+    }
+    return std::make_unique<CudaRenderer>(device);
   } catch (const std::exception& e) {
     if (why_not) *why_not = e.what();
     return nullptr;

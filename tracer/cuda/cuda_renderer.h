@@ -21,6 +21,9 @@ class CudaRenderer final : public Renderer {
   void reset() override;
   FrameStats render(uint32_t spp) override;
   uint32_t samples_done() const override;
+  void set_next_sample(uint32_t index) override;
+  uint32_t next_sample() const override;
+  uint32_t half_samples(int half) const override;
   uint64_t nonfinite_total() const override;
   ImageRGB image() const override;
   void set_gpu_options(const GpuOptions& o) override;
@@ -53,6 +56,7 @@ class CudaRenderer final : public Renderer {
 double measure_copy_bandwidth_gbs();
 
 // nullptr with the reason when no usable device exists.
-std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not);
+std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not, int device);
+int cuda_device_count();
 
 }  // namespace tracer

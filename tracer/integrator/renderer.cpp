@@ -48,10 +48,7 @@ ImageRGB Renderer::denoised_image(DenoiseInfo* info) const {
                        info);
 }
 
-double half_buffer_relmse(const Renderer& r) {
-  if (r.samples_done() < 2) return -1.0;
-  ImageRGB a, b;
-  r.half_images(&a, &b);
+double half_images_relmse(const ImageRGB& a, const ImageRGB& b) {
   double sum = 0.0;
   for (size_t i = 0; i < a.pixels.size(); ++i) {
     const double d = double(a.pixels[i]) - b.pixels[i];
@@ -59,6 +56,13 @@ double half_buffer_relmse(const Renderer& r) {
     if (d == d) sum += d * d / (m * m);
   }
   return a.pixels.empty() ? -1.0 : sum / double(a.pixels.size());
+}
+
+double half_buffer_relmse(const Renderer& r) {
+  if (r.samples_done() < 2) return -1.0;
+  ImageRGB a, b;
+  r.half_images(&a, &b);
+  return half_images_relmse(a, b);
 }
 
 }  // namespace tracer

@@ -95,9 +95,20 @@ class Renderer {
   virtual void set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) = 0;
   virtual void set_settings(const IntegratorSettings& cfg) = 0;  // clears the accumulator
   virtual void reset() = 0;                                        // O(1) on the GPU
-  // Adds `spp` samples per pixel; blocks until done.
+  // Adds `spp` samples per pixel; blocks until done. They are the samples numbered from the
+  // next sample index on (0 after set_scene, set_settings and reset; each call moves it on).
   virtual FrameStats render(uint32_t spp) = 0;
+  // The samples added so far (whichever their numbers).
   virtual uint32_t samples_done() const = 0;
+  // Makes the next render() start at sample `index`. A sample's number alone seeds its paths, so
+  // processes that render disjoint ranges of numbers add up to the image one process renders
+  // with all of them (distributed rendering: integrator/distributed.h). Path guiding trains by
+  // the numbers from 0 on: with a guide, only the next index itself is accepted (throws
+  // std::logic_error otherwise).
+  virtual void set_next_sample(uint32_t index) = 0;
+  virtual uint32_t next_sample() const = 0;
+  // The samples of even (half 0) and of odd numbers (half 1) added: what half_images() average.
+  virtual uint32_t half_samples(int half) const = 0;
   virtual uint64_t nonfinite_total() const = 0;
   // The mean radiance per pixel so far.
   virtual ImageRGB image() const = 0;
@@ -144,5 +155,7 @@ IntegratorSettings make_integrator_settings(const RenderSettings& rs);
 
 // relMSE (pbrt's MRSE) between the two half-buffer estimates; their mean's error is about half.
 double half_buffer_relmse(const Renderer& r);
+// The same between two half images (pbrt's MRSE with 0.01 added to the denominator's mean).
+double half_images_relmse(const ImageRGB& even, const ImageRGB& odd);
 
 }  // namespace tracer

@@ -1,0 +1,191 @@
+#include "integrator/distributed.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+namespace tracer {
+
+BatchScheduler::BatchScheduler(uint32_t spp, double time_limit_s, int ranks, double batch_s)
+    : spp_(spp),
+      time_limit_s_(time_limit_s),
+      batch_s_(batch_s),
+      rate_(size_t(std::max(1, ranks)), 0.0),
+      batches_(size_t(std::max(1, ranks)), 0),
+      samples_(size_t(std::max(1, ranks)), 0) {}
+
+SampleRange BatchScheduler::next(int rank, double ms_per_spp, double now_s) {
+  SampleRange r;
+  r.first = next_;
+  if (stopped_ || rank < 0 || rank >= ranks()) return r;
+  if (ms_per_spp > 0.0) rate_[size_t(rank)] = 1.0 / ms_per_spp;
+  const double rate = rate_[size_t(rank)];
+  double budget_s = batch_s_;
+  uint64_t limit = 1u << 16;
+  if (spp_ > 0) {
+    if (next_ >= spp_) return r;
+    const uint32_t remaining = spp_ - next_;
+    limit = remaining;
+    if (rate > 0.0) {
+      // At most half of this rank's share of what remains, by the measured speeds (ranks not
+      // measured yet count as fast as this one).
+      double total = 0.0;
+      for (double x : rate_) total += x > 0.0 ? x : rate;
+      const double share = double(remaining) * rate / total;
+      limit = std::min<uint64_t>(limit, uint64_t(std::max(1.0, std::ceil(0.5 * share))));
+    }
+  } else {
+    const double left = time_limit_s_ - now_s;
+    if (left <= 0.0) return r;
+    budget_s = std::min(budget_s, left);
+  }
+  uint64_t n = 1;  // the first batch measures the rank's speed
+  if (rate > 0.0) n = uint64_t(std::max(1.0, std::floor(budget_s * 1000.0 * rate)));
+  n = std::min(n, limit);
+  n = std::min<uint64_t>(n, uint64_t(UINT32_MAX - next_));
+  r.count = uint32_t(n);
+  next_ += r.count;
+  ++batches_[size_t(rank)];
+  samples_[size_t(rank)] += r.count;
+  return r;
+}
+
+void Accumulation::add(const Accumulation& o) {
+  if (width == 0 && height == 0) {
+    *this = o;
+    return;
+  }
+  for (int h = 0; h < 2; ++h) {
+    for (size_t i = 0; i < sum[h].size() && i < o.sum[h].size(); ++i) sum[h][i] += o.sum[h][i];
+    count[h] += o.count[h];
+  }
+  if (aov_sum.empty()) aov_sum.assign(o.aov_sum.size(), 0.0f);
+  for (size_t i = 0; i < aov_sum.size() && i < o.aov_sum.size(); ++i) aov_sum[i] += o.aov_sum[i];
+  aov_count += o.aov_count;
+  if (aov_ids.empty()) aov_ids = o.aov_ids;
+  rays += o.rays;
+  nonfinite += o.nonfinite;
+  clamped += o.clamped;
+  clamped_luminance += o.clamped_luminance;
+}
+
+ImageRGB Accumulation::image() const {
+  ImageRGB img = make_image(width, height);
+  const uint32_t n = samples();
+  if (n == 0) return img;
+  const double inv = 1.0 / n;
+  for (size_t i = 0; i < img.pixels.size(); ++i)
+    img.pixels[i] = float((double(sum[0][i]) + double(sum[1][i])) * inv);
+  return img;
+}
+
+void Accumulation::half_images(ImageRGB* even, ImageRGB* odd) const {
+  ImageRGB* outs[2] = {even, odd};
+  for (int h = 0; h < 2; ++h) {
+    if (!outs[h]) continue;
+    *outs[h] = make_image(width, height);
+    if (count[h] == 0) continue;
+    const double inv = 1.0 / count[h];
+    for (size_t i = 0; i < outs[h]->pixels.size(); ++i)
+      outs[h]->pixels[i] = float(double(sum[h][i]) * inv);
+  }
+}
+
+AovImages Accumulation::aov_images() const {
+  AovImages out;
+  if (aov_count == 0 || aov_sum.empty()) return out;
+  const size_t n = size_t(width) * size_t(height);
+  out.albedo = make_image(width, height);
+  out.normal = make_image(width, height);
+  out.depth.assign(n, 0.0f);
+  out.material.assign(n, 0);
+  out.prim.assign(n, 0);
+  const double inv = 1.0 / aov_count;
+  for (size_t i = 0; i < n; ++i) {
+    const float* v = &aov_sum[i * kAccumulationAovFloats];
+    for (int c = 0; c < 3; ++c) {
+      out.albedo.pixels[3 * i + c] = float(v[c] * inv);
+      out.normal.pixels[3 * i + c] = float(v[3 + c] * inv);
+    }
+    out.depth[i] = float(v[6] * inv);
+    if (aov_ids.size() >= 2 * n) {
+      out.material[i] = aov_ids[2 * i];
+      out.prim[i] = aov_ids[2 * i + 1];
+    }
+  }
+  return out;
+}
+
+double Accumulation::half_relmse() const {
+  if (count[0] == 0 || count[1] == 0) return -1.0;
+  ImageRGB a, b;
+  half_images(&a, &b);
+  return half_images_relmse(a, b);
+}
+
+Accumulation accumulation_of(const Renderer& r) {
+  Accumulation acc;
+  ImageRGB halves[2];
+  r.half_images(&halves[0], &halves[1]);
+  acc.width = halves[0].width;
+  acc.height = halves[0].height;
+  for (int h = 0; h < 2; ++h) {
+    acc.count[h] = r.half_samples(h);
+    acc.sum[h] = std::move(halves[h].pixels);
+    for (float& v : acc.sum[h]) v *= float(acc.count[h]);
+  }
+  const AovImages a = r.aov_images();
+  if (!a.empty()) {
+    const size_t n = size_t(acc.width) * size_t(acc.height);
+    acc.aov_count = r.aov_samples();
+    const float w = float(acc.aov_count);
+    acc.aov_sum.resize(n * kAccumulationAovFloats);
+    acc.aov_ids.resize(2 * n);
+    for (size_t i = 0; i < n; ++i) {
+      float* v = &acc.aov_sum[i * kAccumulationAovFloats];
+      for (int c = 0; c < 3; ++c) {
+        v[c] = a.albedo.pixels[3 * i + c] * w;
+        v[3 + c] = a.normal.pixels[3 * i + c] * w;
+      }
+      v[6] = a.depth[i] * w;
+      acc.aov_ids[2 * i] = a.material[i];
+      acc.aov_ids[2 * i + 1] = a.prim[i];
+    }
+  }
+  return acc;
+}
+
+bool parse_frame_range(const std::string& text, int* first, int* last, std::string* problem) {
+  auto number = [](const std::string& s, int* out) {
+    if (s.empty() || s.size() > 9 || s.find_first_not_of("0123456789") != std::string::npos)
+      return false;
+    *out = std::atoi(s.c_str());
+    return true;
+  };
+  const size_t dots = text.find("..");
+  const std::string a = dots == std::string::npos ? text : text.substr(0, dots);
+  const std::string b = dots == std::string::npos ? text : text.substr(dots + 2);
+  if (!number(a, first) || !number(b, last)) {
+    *problem = "--frames " + text + ": expected A..B or A (frame numbers >= 0), e.g. 1..24";
+    return false;
+  }
+  if (*first > *last) {
+    *problem = "--frames " + text + ": the first frame is after the last";
+    return false;
+  }
+  return true;
+}
+
+bool has_frame_field(const std::string& pattern) { return pattern.find('#') != std::string::npos; }
+
+std::string frame_path(const std::string& pattern, int frame) {
+  const size_t at = pattern.find('#');
+  if (at == std::string::npos) return pattern;
+  size_t end = at;
+  while (end < pattern.size() && pattern[end] == '#') ++end;
+  std::string digits = std::to_string(frame);
+  if (digits.size() < end - at) digits.insert(0, end - at - digits.size(), '0');
+  return pattern.substr(0, at) + digits + pattern.substr(end);
+}
+
+}  // namespace tracer
