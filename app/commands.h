@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <iostream>
 #include <string>
 
 #include "scene/scene.h"
@@ -20,10 +21,11 @@ Runner add_gui_command(CLI::App& app);
 
 // Loads `path`, or the built-in Cornell box when it is empty. On bad input prints the message
 // (path:line: problem; what was done) and returns false.
-bool load_scene_or_report(const std::string& path, tracer::Scene* scene);
+bool load_scene_or_report(const std::string& path, tracer::Scene* scene,
+                          std::ostream& err = std::cerr);
 // Prints the scene's warnings (and, unless `quiet`, its notes) on stderr, each once. Returns
 // false, after saying so, when render.strict makes the warnings errors.
-bool report_scene_messages(const tracer::Scene& scene, bool quiet);
+bool report_scene_messages(const tracer::Scene& scene, bool quiet, std::ostream& err = std::cerr);
 
 // Exit codes: 0 success, 1 bad input or failed render, 2 bad command line.
 constexpr int kExitInputError = 1;

@@ -10,25 +10,25 @@
 #include "scene/loader.h"
 
 namespace app {
-bool load_scene_or_report(const std::string& path, tracer::Scene* scene) {
+bool load_scene_or_report(const std::string& path, tracer::Scene* scene, std::ostream& err) {
   try {
     *scene = path.empty() ? tracer::builtin_default_scene() : tracer::load_scene(path);
     tracer::flatten_small_instances(*scene);
   } catch (const tracer::InputError& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    err << "error: " << e.what() << "\n";
     return false;
   }
   return true;
 }
 
-bool report_scene_messages(const tracer::Scene& scene, bool quiet) {
+bool report_scene_messages(const tracer::Scene& scene, bool quiet, std::ostream& err) {
   const std::vector<std::string>& warnings = scene.diagnostics.warnings;
   for (const std::string& w : warnings)
-    std::cerr << (scene.settings.strict ? "error: " : "warning: ") << w << "\n";
+    err << (scene.settings.strict ? "error: " : "warning: ") << w << "\n";
   if (!quiet)
-    for (const std::string& n : scene.diagnostics.notes) std::cerr << "note: " << n << "\n";
+    for (const std::string& n : scene.diagnostics.notes) err << "note: " << n << "\n";
   if (!scene.settings.strict || warnings.empty()) return true;
-  std::cerr << "error: --strict (render.strict): " << warnings.size()
+  err << "error: --strict (render.strict): " << warnings.size()
             << (warnings.size() == 1 ? " warning" : " warnings")
             << " about the input; nothing was rendered\n";
   return false;

@@ -11,6 +11,7 @@ PACKAGES=(
   libimgui-dev libglfw3-dev xvfb xauth
   glmark2-data assimp-testmodels python3-tinyobjloader
   libopenexr-dev blender-data
+  libopenmpi-dev openmpi-bin
 )
 
 scripts/install-packages.sh setup "${PACKAGES[@]}"

@@ -178,3 +178,33 @@ TEST(Distributed, FramePatternsAndRanges) {
 }
 
 }  // namespace
+
+namespace {
+using namespace tracer;
+
+TEST(Distributed, RanksTakeOneGpuEachAndTheRestShareTheCores) {
+  // 3 ranks on a host with 1 GPU and 16 cores, --backend auto: one GPU rank, two CPU ranks
+  // of 8 threads.
+  RankPlacement p = place_rank(BackendChoice::kAuto, 0, 0, 3, 1, 16);
+  EXPECT_EQ(p.backend, BackendChoice::kAuto);
+  EXPECT_EQ(p.device, 0);
+  for (int r : {1, 2}) {
+    p = place_rank(BackendChoice::kAuto, 0, r, 3, 1, 16);
+    EXPECT_EQ(p.backend, BackendChoice::kCpu);
+    EXPECT_EQ(p.threads, 8);
+    EXPECT_NE(p.note.find("CPU rank"), std::string::npos);
+  }
+  // 8 ranks, 8 GPUs: rank i on device i.
+  for (int r = 0; r < 8; ++r) EXPECT_EQ(place_rank(BackendChoice::kAuto, 0, r, 8, 8, 128).device, r);
+  // No GPU: every rank on the CPU, the cores divided; an explicit thread count is kept.
+  EXPECT_EQ(place_rank(BackendChoice::kAuto, 0, 1, 2, 0, 2).threads, 1);
+  EXPECT_EQ(place_rank(BackendChoice::kAuto, 0, 1, 2, 0, 2).note, "");
+  EXPECT_EQ(place_rank(BackendChoice::kAuto, 6, 1, 2, 0, 2).threads, 6);
+  EXPECT_EQ(place_rank(BackendChoice::kCpu, 0, 0, 4, 8, 64).threads, 16);
+  // --backend cuda: round robin, saying that GPUs are shared.
+  p = place_rank(BackendChoice::kCuda, 0, 5, 6, 4, 64);
+  EXPECT_EQ(p.device, 1);
+  EXPECT_NE(p.note.find("share"), std::string::npos);
+}
+
+}  // namespace

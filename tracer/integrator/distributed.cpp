@@ -155,6 +155,39 @@ Accumulation accumulation_of(const Renderer& r) {
   return acc;
 }
 
+RankPlacement place_rank(BackendChoice asked, int threads_asked, int local_rank, int local_size,
+                         int gpus, int hw_threads) {
+  RankPlacement p;
+  p.backend = asked;
+  local_size = std::max(1, local_size);
+  hw_threads = std::max(1, hw_threads);
+  auto share_cores = [&](int ranks) {
+    return threads_asked > 0 ? threads_asked : std::max(1, hw_threads / std::max(1, ranks));
+  };
+  if (asked == BackendChoice::kCpu) {
+    p.threads = share_cores(local_size);
+    return p;
+  }
+  if (asked == BackendChoice::kCuda) {
+    p.device = gpus > 0 ? local_rank % gpus : 0;
+    if (gpus > 0 && local_size > gpus)
+      p.note = std::to_string(local_size) + " ranks on this host share its " +
+               std::to_string(gpus) + (gpus == 1 ? " GPU" : " GPUs") + " (--backend cuda)";
+    return p;
+  }
+  if (local_rank < gpus) {
+    p.device = local_rank;
+    return p;
+  }
+  p.backend = BackendChoice::kCpu;
+  p.threads = share_cores(local_size - std::min(gpus, local_size));
+  if (gpus > 0)
+    p.note = "a CPU rank: this host's " + std::to_string(gpus) +
+             (gpus == 1 ? " GPU is" : " GPUs are") + " taken by its first " +
+             std::to_string(gpus) + (gpus == 1 ? " rank" : " ranks");
+  return p;
+}
+
 bool parse_frame_range(const std::string& text, int* first, int* last, std::string* problem) {
   auto number = [](const std::string& s, int* out) {
     if (s.empty() || s.size() > 9 || s.find_first_not_of("0123456789") != std::string::npos)

@@ -87,6 +87,30 @@ inline constexpr size_t kAccumulationAovFloats = 7;
 // The counters are the caller's (Renderer keeps no totals of rays): `rays` etc. are left zero.
 Accumulation accumulation_of(const Renderer& r);
 
+// Where one rank of a distributed render runs, from its place among the ranks of its host:
+// with --backend auto, node-local rank i takes CUDA device i while there are devices and the
+// others run on the CPU, sharing the host's cores (render.threads 0: hw_threads divided among
+// the host's CPU ranks); --backend cuda shares the devices round robin (several ranks per GPU);
+// --backend cpu divides the cores among all the host's ranks.
+struct RankPlacement {
+  BackendChoice backend = BackendChoice::kAuto;
+  int device = 0;   // the CUDA device (when backend is not kCpu)
+  int threads = 0;  // CPU threads (when it runs on the CPU)
+  std::string note;  // how it was placed, when that is worth saying
+};
+RankPlacement place_rank(BackendChoice asked, int threads_asked, int local_rank, int local_size,
+                         int gpus, int hw_threads);
+
+// What one rank did, for rank 0's report and the sidecar.
+struct RankShare {
+  int rank = 0;
+  std::string host, backend, device;
+  uint32_t samples = 0, batches = 0;
+  double render_s = 0.0;    // time spent in its batches
+  double ms_per_spp = 0.0;  // its speed over them
+  double idle_s = 0.0;      // from its last batch's end until every rank had ended
+};
+
 // --- frame sequences -----------------------------------------------------------------------
 
 // Parses "A..B" (A <= B, both >= 0) or a single "A"; false with a message otherwise.

@@ -81,6 +81,21 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
     if (run.last.gpu) j["gpu_run"].update(effective_gpu_json(*run.last.gpu));
   }
   j["features"] = run.features;
+  if (!run.ranks.empty()) {
+    nlohmann::json ranks = nlohmann::json::array();
+    for (const RankShare& r : run.ranks)
+      ranks.push_back({{"rank", r.rank},
+                       {"host", r.host},
+                       {"backend", r.backend},
+                       {"device", r.device},
+                       {"samples", r.samples},
+                       {"batches", r.batches},
+                       {"render_s", r.render_s},
+                       {"ms_per_spp", r.ms_per_spp},
+                       {"idle_s", r.idle_s}});
+    j["mpi"] = {{"ranks", ranks}, {"reduce_s", run.reduce_s}};
+  }
+  if (run.relmse_halves >= 0) j["relmse_halves"] = run.relmse_halves;
   if (!run.aovs.empty()) j["aovs"] = {{"layers", run.aovs}, {"samples", run.aov_samples}};
   if (run.guide.on)
     j["guiding"] = {{"status", run.guide.describe()},

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "image/denoise.h"
+#include "integrator/distributed.h"
 #include "integrator/gpu_options.h"
 #include "integrator/renderer.h"
 #include "scene/scene.h"
@@ -34,6 +35,11 @@ struct SidecarRun {
   // The denoiser, when display.denoise was on: what ran and where its image went.
   DenoiseInfo denoise;
   std::string denoised_output;
+  // A distributed render (MPI): every rank's share, and the reduction of the accumulators to
+  // rank 0 (seconds; < 0: none). The image's half-buffer relMSE is recorded when >= 0.
+  std::vector<RankShare> ranks;
+  double reduce_s = -1.0;
+  double relmse_halves = -1.0;
 };
 
 // What the GPU ran for a request (resolve_gpu_options()): the effective switches, the wavefront's
