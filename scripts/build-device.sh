@@ -59,3 +59,52 @@ if [ -n "${OIDN_DIST:-}" ]; then
     "$L/libOpenImageDenoise_device_cuda.so.2.5.1" .devbuild/oidn/lib/
   du -sh .devbuild/oidn
 fi
+# Open MPI for the device (MPI_DIST=1; gpu-check.sh mpi): the device has no Debian packages, so
+# mpirun (orterun), its components and help files and the libraries they need travel in
+# .devbuild/dist-mpi beside pathtracer, its libraries and the bunny (no cuda_test: the 64 MiB
+# carry limit). Components for network fabrics (UCX, OFI, verbs, PSM) stay behind: one host's
+# ranks talk through shared memory (btl vader). dist-mpi/mpirun sets the variables that move
+# Open MPI's install directories there.
+if [ -n "${MPI_DIST:-}" ]; then
+  M=.devbuild/dist-mpi
+  rm -rf "$M" && mkdir -p "$M/ompi/bin" "$M/ompi/lib/openmpi3" "$M/ompi/lib/pmix" "$M/ompi/share" \
+    "$M/ompi/etc"
+  cp -r "$DIST/pathtracer" "$DIST/lib" "$DIST/bunny.obj" "$M/"
+  cp -L /usr/bin/orterun "$M/ompi/bin/"
+  P=/usr/lib/x86_64-linux-gnu/openmpi/lib/openmpi3
+  for so in "$P"/*.so; do
+    # Leave out components that need a fabric library (and Java, OpenSHMEM's, the monitoring).
+    if ldd "$so" | grep -qE "libucp|libucs|libuct|libfabric|libibverbs|libpsm|librdmacm|libjvm"; then
+      continue
+    fi
+    case "$(basename "$so")" in mca_sshmem*|mca_spml*|mca_atomic*|mca_scoll*|mca_memheap*) continue ;; esac
+    cp "$so" "$M/ompi/lib/openmpi3/"
+  done
+  cp /usr/lib/x86_64-linux-gnu/pmix2/lib/pmix/*.so "$M/ompi/lib/pmix/"
+  cp -r /usr/share/openmpi "$M/ompi/share/openmpi"
+  cp -r /usr/lib/x86_64-linux-gnu/pmix2/share/pmix "$M/ompi/share/pmix"
+  cp /etc/openmpi/openmpi-mca-params.conf "$M/ompi/etc/"
+  for f in "$M/ompi/bin/orterun" "$M/ompi/lib/openmpi3/"*.so "$M/ompi/lib/pmix/"*.so; do
+    ldd "$f" | awk '/=> \//{print $3}' | while read -r lib; do
+      case "$(basename "$lib")" in
+        libc.so*|libm.so*|libstdc++.so*|libgcc_s.so*|libpthread.so*|libdl.so*|librt.so*|ld-linux*) ;;
+        *) [ -e "$M/lib/$(basename "$lib")" ] || cp -L "$lib" "$M/lib/" ;;
+      esac
+    done
+  done
+  cat > "$M/mpirun" <<'WRAP'
+#!/usr/bin/env bash
+# Open MPI's mpirun from this folder (gathered by scripts/build-device.sh MPI_DIST=1).
+H=$(cd "$(dirname "$0")" && pwd)
+export OPAL_PREFIX=$H/ompi OPAL_EXEC_PREFIX=$H/ompi OPAL_BINDIR=$H/ompi/bin
+export OPAL_LIBDIR=$H/lib OPAL_PKGLIBDIR=$H/ompi/lib/openmpi3 OPAL_DATADIR=$H/ompi/share
+export OPAL_DATAROOTDIR=$H/ompi/share OPAL_PKGDATADIR=$H/ompi/share/openmpi
+export OPAL_SYSCONFDIR=$H/ompi/etc
+export PMIX_MCA_mca_base_component_path=$H/ompi/lib/pmix PMIX_INSTALL_PREFIX=$H/ompi
+export LD_LIBRARY_PATH=$H/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
+export OMPI_MCA_btl=self,vader OMPI_MCA_pml=ob1 OMPI_MCA_mca_base_component_show_load_errors=0
+exec "$H/ompi/bin/orterun" --allow-run-as-root "$@"
+WRAP
+  chmod +x "$M/mpirun"
+  du -sh "$M"
+fi

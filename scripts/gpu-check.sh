@@ -41,7 +41,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit | guiding (the last eight not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit | guiding | mpi (the last nine not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -265,6 +265,67 @@ if [ "$MODE" = guiding ]; then
   done
   $DIST/cuda_test --gtest_filter='*Guid*' 2>&1 | tail -15
   (cd $D && tar czf "$OUT/guiding.tgz" --exclude='*.exr' .)
+fi
+if [ "$MODE" = mpi ]; then
+  # Distributed rendering (issue 25) with the Open MPI carried in .devbuild/dist-mpi
+  # (MPI_DIST=1 scripts/build-device.sh; run with DIST=.devbuild/dist-mpi, carry it alone):
+  # 1. one GPU rank beside two CPU ranks against one process on the GPU (the same samples);
+  # 2. scaling over 1, 2, 4, 8 GPUs (as many as the machine has) of a 3840x2160 render of the
+  #    Cornell box and the bunny box at SPP (4096) samples: efficiency = T1 / (N TN), and the
+  #    reduction's share. Figures: $OUT/mpi-scaling.txt.
+  MPIRUN=$DIST/mpirun
+  D=/tmp/mpi && rm -rf $D && mkdir -p $D
+  GPUS=$(nvidia-smi -L | wc -l)
+  echo "== mpi: $GPUS GPUs; $($MPIRUN --version 2>&1 | head -1)"
+  echo "==== one GPU rank and two CPU ranks (256x256, 256 spp) against one process on the GPU"
+  $MPIRUN -np 3 --oversubscribe $DIST/pathtracer render "$(scene cornell_box)" --width 256 \
+    --height 256 --spp 256 --out $D/mixed.exr 2>&1 | tail -4
+  $DIST/pathtracer render "$(scene cornell_box)" --backend cuda --width 256 --height 256 \
+    --spp 256 -q --out $D/single.exr
+  $DIST/pathtracer compare $D/mixed.exr $D/single.exr 2>&1 | head -6
+  python3 - $D/mixed.exr.json <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+for r in d["mpi"]["ranks"]:
+    print(f'  rank {r["rank"]}: {r["backend"]:4} {r["device"]:28} {r["samples"]:5} spp '
+          f'{r["batches"]:3} batches {r["ms_per_spp"]:8.3f} ms/spp idle {r["idle_s"]:.3f} s')
+PY
+  for sc in ${SCENES:-cornell_box cornell_bunnies}; do
+    for n in 1 2 4 8; do
+      [ $n -le $GPUS ] || continue
+      echo "==== $sc: $n GPUs, 3840x2160, ${SPP:-4096} spp"
+      t0=$(date +%s.%N)
+      $MPIRUN -np $n $DIST/pathtracer render "$(scene $sc)" --backend cuda --width 3840 \
+        --height 2160 --spp ${SPP:-4096} --out $D/$sc-$n.exr 2>&1 | grep -E "^mpi|wrote|error"
+      t1=$(date +%s.%N)
+      echo "$sc $n $(python3 -c "print($t1 - $t0)")" >> $D/wall.txt
+    done
+  done
+  python3 - $D <<'PY' | tee "$OUT/mpi-scaling.txt"
+import json, os, sys
+d = sys.argv[1]
+wall = {}
+for line in open(os.path.join(d, "wall.txt")):
+    sc, n, t = line.split()
+    wall[(sc, int(n))] = float(t)
+print("scene            GPUs  render s  reduce s  reduce %  command s  speed-up  efficiency  max idle s")
+base = {}
+for (sc, n) in sorted(wall):
+    j = json.load(open(os.path.join(d, f"{sc}-{n}.exr.json")))
+    t = j["wall_time_s"] + j["mpi"]["reduce_s"]
+    if n == 1:
+        base[sc] = t
+    s = base.get(sc, t) / t
+    idle = max(r["idle_s"] for r in j["mpi"]["ranks"])
+    print(f'{sc:16} {n:5} {j["wall_time_s"]:9.2f} {j["mpi"]["reduce_s"]:9.3f} '
+          f'{100 * j["mpi"]["reduce_s"] / j["wall_time_s"]:8.2f} {wall[(sc, n)]:10.2f} '
+          f'{s:9.2f} {s / n:11.3f} {idle:11.3f}')
+PY
+  for sc in ${SCENES:-cornell_box cornell_bunnies}; do
+    [ -f $D/$sc-1.exr ] && [ -f $D/$sc-$GPUS.exr ] &&
+      $DIST/pathtracer compare $D/$sc-$GPUS.exr $D/$sc-1.exr 2>&1 | grep -E "relmse|mean"
+  done
+  (cd $D && tar czf "$OUT/mpi.tgz" --exclude='*.exr' .)
 fi
 if [ "$MODE" = sanitize ]; then
   # compute-sanitizer on small renders through every wavefront path: shade-kernel compaction
