@@ -69,23 +69,31 @@ struct Work {
 struct MpiSession {
   int rank = 0, size = 1;
   HostSlot slot;
+  MPI_Comm node = MPI_COMM_NULL;     // this host's ranks (world rank 0 is its host's first)
+  MPI_Comm leaders = MPI_COMM_NULL;  // every host's first rank (null elsewhere)
+  int hosts = 1;
   std::string host;
   MpiSession() {
     int provided = 0;
     MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
-    MPI_Comm node;
     MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank, MPI_INFO_NULL, &node);
     MPI_Comm_rank(node, &slot.local_rank);
     MPI_Comm_size(node, &slot.local_size);
-    MPI_Comm_free(&node);
+    MPI_Comm_split(MPI_COMM_WORLD, slot.local_rank == 0 ? 0 : MPI_UNDEFINED, rank, &leaders);
+    int leader = slot.local_rank == 0 ? 1 : 0;
+    MPI_Allreduce(&leader, &hosts, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
     char name[MPI_MAX_PROCESSOR_NAME];
     int len = 0;
     MPI_Get_processor_name(name, &len);
     host.assign(name, size_t(len));
   }
-  ~MpiSession() { MPI_Finalize(); }
+  ~MpiSession() {
+    if (leaders != MPI_COMM_NULL) MPI_Comm_free(&leaders);
+    MPI_Comm_free(&node);
+    MPI_Finalize();
+  }
   MpiSession(const MpiSession&) = delete;
   MpiSession& operator=(const MpiSession&) = delete;
 };
@@ -114,6 +122,72 @@ int broadcast_int(int v) {
   MPI_Bcast(&v, 1, MPI_INT, 0, MPI_COMM_WORLD);
   return v;
 }
+
+// The accumulators of one host's ranks in one shared-memory window (MPI-3), a segment per rank:
+// each rank writes its sums into its own, then reduce() adds them into the first rank's, every
+// rank adding one slice of the pixels (so the host's cores share the work and nothing is
+// copied), and the hosts' first ranks add their hosts' sums into world rank 0's over MPI.
+class HostSums {
+ public:
+  HostSums(const MpiSession& mpi, size_t floats) : mpi_(mpi), floats_(floats) {
+    MPI_Info info;
+    MPI_Info_create(&info);
+    MPI_Info_set(info, "alloc_shared_noncontig", "true");  // each segment near its rank
+    void* base = nullptr;
+    MPI_Win_allocate_shared(MPI_Aint(floats * sizeof(float)), sizeof(float), info, mpi.node,
+                            &base, &win_);
+    MPI_Info_free(&info);
+    MPI_Win_lock_all(MPI_MODE_NOCHECK, win_);
+    mine_ = static_cast<float*>(base);
+    std::fill(mine_, mine_ + floats, 0.0f);  // its pages now, not in the timed reduction
+    for (int r = 0; r < mpi.slot.local_size; ++r) {
+      MPI_Aint size = 0;
+      int unit = 0;
+      void* p = nullptr;
+      MPI_Win_shared_query(win_, r, &size, &unit, &p);
+      segments_.push_back(static_cast<float*>(p));
+    }
+  }
+  ~HostSums() {
+    MPI_Win_unlock_all(win_);
+    MPI_Win_free(&win_);
+  }
+  HostSums(const HostSums&) = delete;
+  HostSums& operator=(const HostSums&) = delete;
+  float* mine() { return mine_; }
+  void reduce(const MpiSession& mpi) {
+    auto sync = [&] {
+      MPI_Win_sync(win_);
+      MPI_Barrier(mpi.node);
+      MPI_Win_sync(win_);
+    };
+    sync();  // every segment written
+    const size_t ranks = segments_.size();
+    const size_t lr = size_t(mpi.slot.local_rank);
+    const size_t begin = floats_ * lr / ranks, end = floats_ * (lr + 1) / ranks;
+    float* dst = segments_[0];
+    for (size_t k = 1; k < ranks; ++k) {
+      const float* src = segments_[k];
+      for (size_t i = begin; i < end; ++i) dst[i] += src[i];
+    }
+    sync();  // the host's sum complete in the first segment
+    if (mpi.leaders != MPI_COMM_NULL && mpi.hosts > 1) {
+      constexpr size_t kChunk = size_t(1) << 28;  // MPI counts are ints
+      for (size_t at = 0; at < floats_; at += kChunk) {
+        const int n = int(std::min(kChunk, floats_ - at));
+        MPI_Reduce(mpi.rank == 0 ? MPI_IN_PLACE : dst + at, dst + at, n, MPI_FLOAT, MPI_SUM, 0,
+                   mpi.leaders);
+      }
+    }
+  }
+
+ private:
+  const MpiSession& mpi_;
+  size_t floats_;
+  MPI_Win win_;
+  float* mine_ = nullptr;
+  std::vector<float*> segments_;
+};
 
 // Prints every line of a rank's messages on rank 0's stderr, naming the rank.
 void print_from_rank(int rank, const std::string& host, const std::string& text) {
@@ -250,6 +324,11 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
     std::cerr << "\n";
   }
 
+  // The host's shared window for the sums, made (and its pages touched) before the render.
+  const size_t floats_per_rank = size_t(job.scene.settings.width) * job.scene.settings.height *
+                                 (job.renderer->aovs() ? 13 : 6);
+  HostSums sums(mpi, floats_per_rank);
+
   // 2. Batches. Rank 0 schedules; every rank renders what it is handed.
   const tracer::RenderSettings& rs = job.scene.settings;
   const bool timed = rs.time_limit_s > 0.0;
@@ -334,44 +413,62 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   if (broadcast_int(failed)) return kExitInputError;
   const int ids_rank = broadcast_int(first_rank);
 
-  // 4. The accumulators, summed on rank 0 (timed after a barrier: the reduction alone).
+  // 4. The accumulators, summed on rank 0 (timed after a barrier: the reduction alone). Each
+  // rank writes its sums into its segment of the host's shared window, the host's ranks add
+  // the segments slice by slice, and the hosts' first ranks add the hosts' sums over MPI.
   MPI_Barrier(MPI_COMM_WORLD);
   mine.idle_s = seconds_since(work_end);
   mine.ms_per_spp = mine.samples ? mine.render_s * 1000.0 / mine.samples : 0.0;
   const auto reduce_start = clock_type::now();
-  tracer::Accumulation acc = tracer::accumulation_of(*job.renderer);
   const size_t pixels = size_t(rs.width) * rs.height;
   const bool aovs = job.renderer->aovs();
-  if (aovs && acc.aov_sum.empty()) {  // a rank with no AOV sample adds zeros
-    acc.aov_sum.assign(pixels * tracer::kAccumulationAovFloats, 0.0f);
-    acc.aov_ids.assign(2 * pixels, 0);
+  float* seg = sums.mine();
+  job.renderer->half_sums(seg, seg + 3 * pixels);
+  tracer::Accumulation acc;  // this rank's AOV sums and ids (the colour is in the window)
+  if (aovs) {
+    acc = tracer::accumulation_of_aovs(*job.renderer, rs.width, rs.height);
+    if (acc.aov_sum.empty()) acc.aov_sum.assign(pixels * tracer::kAccumulationAovFloats, 0.0f);
+    std::copy(acc.aov_sum.begin(), acc.aov_sum.end(), seg + 6 * pixels);
   }
-  tracer::Accumulation total = acc;
-  auto reduce_floats = [&](std::vector<float>& mine_v, std::vector<float>& out) {
-    MPI_Reduce(mpi.rank == 0 ? MPI_IN_PLACE : mine_v.data(), out.data(), int(out.size()),
-               MPI_FLOAT, MPI_SUM, 0, MPI_COMM_WORLD);
-  };
-  for (int h = 0; h < 2; ++h) reduce_floats(acc.sum[h], total.sum[h]);
-  if (aovs) reduce_floats(acc.aov_sum, total.aov_sum);
-  const uint64_t my_counters[10] = {acc.count[0],         acc.count[1],
-                                    acc.aov_count,        run.rays.camera,
-                                    run.rays.extension,   run.rays.shadow,
-                                    run.rays.walk_capped, run.rays.medium_leaks,
-                                    run.clamped,          job.renderer->nonfinite_total()};
+  sums.reduce(mpi);
+  const uint64_t my_counters[10] = {job.renderer->half_samples(0),
+                                    job.renderer->half_samples(1),
+                                    job.renderer->aov_samples(),
+                                    run.rays.camera,
+                                    run.rays.extension,
+                                    run.rays.shadow,
+                                    run.rays.walk_capped,
+                                    run.rays.medium_leaks,
+                                    run.clamped,
+                                    job.renderer->nonfinite_total()};
   uint64_t counters[10] = {};
   MPI_Reduce(my_counters, counters, 10, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
   double clamped_luminance = 0.0;
   MPI_Reduce(&run.clamped_luminance, &clamped_luminance, 1, MPI_DOUBLE, MPI_SUM, 0,
              MPI_COMM_WORLD);
-  if (aovs && ids_rank > 0) {  // the material and primitive ids of each pixel's sample 0
-    if (mpi.rank == ids_rank)
+  tracer::Accumulation total;
+  if (aovs && ids_rank >= 0) {  // the material and primitive ids of each pixel's sample 0
+    if (mpi.rank == ids_rank && ids_rank != 0)
       MPI_Send(acc.aov_ids.data(), int(acc.aov_ids.size()), MPI_UINT32_T, 0, kTagIds,
                MPI_COMM_WORLD);
-    else if (mpi.rank == 0)
-      MPI_Recv(total.aov_ids.data(), int(total.aov_ids.size()), MPI_UINT32_T, ids_rank, kTagIds,
-               MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    if (mpi.rank == 0) {
+      total.aov_ids.assign(2 * pixels, 0);
+      if (ids_rank == 0)
+        total.aov_ids = acc.aov_ids;
+      else
+        MPI_Recv(total.aov_ids.data(), int(total.aov_ids.size()), MPI_UINT32_T, ids_rank,
+                 kTagIds, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    }
   }
   const double reduce_s = seconds_since(reduce_start);
+  if (mpi.rank == 0) {  // the sums out of the window, before it is freed
+    total.width = rs.width;
+    total.height = rs.height;
+    total.sum[0].assign(seg, seg + 3 * pixels);
+    total.sum[1].assign(seg + 3 * pixels, seg + 6 * pixels);
+    if (aovs) total.aov_sum.assign(seg + 6 * pixels, seg + 13 * pixels);
+  }
+  MPI_Barrier(MPI_COMM_WORLD);
   nlohmann::json share = {{"samples", mine.samples},   {"batches", mine.batches},
                           {"render_s", mine.render_s}, {"ms_per_spp", mine.ms_per_spp},
                           {"idle_s", mine.idle_s},     {"host", mine.host},

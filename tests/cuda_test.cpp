@@ -742,7 +742,7 @@ TEST(Gpu, SampleRangesInAnyOrderAddUpToOneRender) {
     cpu.set_scene(cs, make_integrator_settings(rs));
     cpu.set_next_sample(7);
     cpu.render(1);
-    const Accumulation acc = accumulation_of(*gpu);
+    const Accumulation acc = accumulation_of(*gpu, rs.width, rs.height);
     EXPECT_EQ(acc.count[1], 1u);
     EXPECT_GT(identical_fraction(only, cpu.image()), 0.9) << "CPU and GPU trace sample 7 apart";
   }

@@ -71,8 +71,8 @@ TEST(Distributed, SampleRangesInAnyOrderAddUpToOneRender) {
   a.render(4);
   b.set_next_sample(5);
   b.render(4);
-  Accumulation sum = accumulation_of(a);
-  sum.add(accumulation_of(b));
+  Accumulation sum = accumulation_of(a, rs.width, rs.height);
+  sum.add(accumulation_of(b, rs.width, rs.height));
   EXPECT_EQ(sum.samples(), 9u);
   EXPECT_EQ(sum.count[0], 5u);
   expect_close(sum.image(), whole.image(), 1e-5f, "two ranks");

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 
 #include "image/image.h"
@@ -86,6 +87,20 @@ TEST_F(Mpi, TwoRanksMakeTheImageOfOneProcess) {
   EXPECT_EQ(total, 24u);
   EXPECT_EQ(s2["aovs"]["samples"], 24);
   EXPECT_GE(s2["mpi"]["reduce_s"].get<double>(), 0.0);
+  // The AOVs too (3 ranks, PNGs beside a PNG): byte for byte, the ids of each pixel's sample 0.
+  ASSERT_EQ(run_command(mpirun(3) + pathtracer_exe() + " render " + kScene + kSmall +
+                            "--spp 24 --aov all -q --out " + path("three.png"), &out), 0) << out;
+  ASSERT_EQ(run_command(pathtracer_exe() + " render " + kScene + kSmall +
+                            "--spp 24 --aov all -q --out " + path("single.png"), &out), 0) << out;
+  auto bytes = [](const std::string& f) {
+    std::ifstream in(f, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  for (const char* aov : {"albedo", "normal", "depth", "id"}) {
+    const std::string a = bytes(path(std::string("single.") + aov + ".png"));
+    EXPECT_FALSE(a.empty()) << aov;
+    EXPECT_EQ(bytes(path(std::string("three.") + aov + ".png")), a) << aov << " differs";
+  }
 }
 
 TEST_F(Mpi, BatchesKeepEveryRankBusyUnderATimeBudget) {

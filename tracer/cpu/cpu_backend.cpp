@@ -280,6 +280,13 @@ void CpuRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
   }
 }
 
+void CpuRenderer::half_sums(float* even, float* odd) const {
+  for (size_t i = 0; i < sum_even_.size(); ++i) {
+    even[i] = float(sum_even_[i]);
+    odd[i] = float(sum_odd_[i]);
+  }
+}
+
 AovImages CpuRenderer::aov_images(int half) const {
   AovImages out;
   const uint32_t count = half < 0 ? aov_count_[0] + aov_count_[1] : aov_count_[half & 1];

@@ -25,6 +25,7 @@ class CpuRenderer final : public Renderer {
   uint64_t nonfinite_total() const override { return nonfinite_; }
   ImageRGB image() const override;
   void half_images(ImageRGB* even, ImageRGB* odd) const override;
+  void half_sums(float* even, float* odd) const override;
   void set_aovs(bool on) override;
   bool aovs() const override { return aovs_on_; }
   AovImages aov_images(int half = -1) const override;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -899,6 +900,22 @@ void CudaRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
                    rgb.get(), m.stream);
     TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
     rgb.download(outs[k]->pixels);
+  }
+}
+
+void CudaRenderer::half_sums(float* even, float* odd) const {
+  Impl& m = *impl_;
+  float* outs[2] = {even, odd};
+  const size_t bytes = size_t(m.n()) * 3 * sizeof(float);
+  DeviceBuffer<float> rgb(size_t(m.n()) * 3);
+  for (int h = 0; h < 2; ++h) {
+    if (m.film_count[h] == 0) {  // the film holds stale memory
+      std::memset(outs[h], 0, bytes);
+      continue;
+    }
+    launch_resolve(m.film[h].get(), 1.0f, m.film[h].get(), 0.0f, m.n(), rgb.get(), m.stream);
+    TRACER_CUDA_CHECK(cudaMemcpyAsync(outs[h], rgb.get(), bytes, cudaMemcpyDeviceToHost, m.stream));
+    TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
   }
 }
 

@@ -28,6 +28,7 @@ class CudaRenderer final : public Renderer {
   ImageRGB image() const override;
   void set_gpu_options(const GpuOptions& o) override;
   void half_images(ImageRGB* even, ImageRGB* odd) const override;
+  void half_sums(float* even, float* odd) const override;
   void set_aovs(bool on) override;
   bool aovs() const override;
   AovImages aov_images(int half = -1) const override;

@@ -123,35 +123,37 @@ double Accumulation::half_relmse() const {
   return half_images_relmse(a, b);
 }
 
-Accumulation accumulation_of(const Renderer& r) {
+Accumulation accumulation_of_aovs(const Renderer& r, int width, int height) {
   Accumulation acc;
-  ImageRGB halves[2];
-  r.half_images(&halves[0], &halves[1]);
-  acc.width = halves[0].width;
-  acc.height = halves[0].height;
+  acc.width = width;
+  acc.height = height;
+  const AovImages a = r.aov_images();
+  if (a.empty()) return acc;
+  const size_t n = size_t(width) * size_t(height);
+  acc.aov_count = r.aov_samples();
+  const float w = float(acc.aov_count);
+  acc.aov_sum.resize(n * kAccumulationAovFloats);
+  acc.aov_ids.resize(2 * n);
+  for (size_t i = 0; i < n; ++i) {
+    float* v = &acc.aov_sum[i * kAccumulationAovFloats];
+    for (int c = 0; c < 3; ++c) {
+      v[c] = a.albedo.pixels[3 * i + c] * w;
+      v[3 + c] = a.normal.pixels[3 * i + c] * w;
+    }
+    v[6] = a.depth[i] * w;
+    acc.aov_ids[2 * i] = a.material[i];
+    acc.aov_ids[2 * i + 1] = a.prim[i];
+  }
+  return acc;
+}
+
+Accumulation accumulation_of(const Renderer& r, int width, int height) {
+  Accumulation acc = accumulation_of_aovs(r, width, height);
   for (int h = 0; h < 2; ++h) {
     acc.count[h] = r.half_samples(h);
-    acc.sum[h] = std::move(halves[h].pixels);
-    for (float& v : acc.sum[h]) v *= float(acc.count[h]);
+    acc.sum[h].resize(size_t(width) * size_t(height) * 3);
   }
-  const AovImages a = r.aov_images();
-  if (!a.empty()) {
-    const size_t n = size_t(acc.width) * size_t(acc.height);
-    acc.aov_count = r.aov_samples();
-    const float w = float(acc.aov_count);
-    acc.aov_sum.resize(n * kAccumulationAovFloats);
-    acc.aov_ids.resize(2 * n);
-    for (size_t i = 0; i < n; ++i) {
-      float* v = &acc.aov_sum[i * kAccumulationAovFloats];
-      for (int c = 0; c < 3; ++c) {
-        v[c] = a.albedo.pixels[3 * i + c] * w;
-        v[3 + c] = a.normal.pixels[3 * i + c] * w;
-      }
-      v[6] = a.depth[i] * w;
-      acc.aov_ids[2 * i] = a.material[i];
-      acc.aov_ids[2 * i + 1] = a.prim[i];
-    }
-  }
+  r.half_sums(acc.sum[0].data(), acc.sum[1].data());
   return acc;
 }
 

@@ -83,9 +83,12 @@ struct Accumulation {
 };
 inline constexpr size_t kAccumulationAovFloats = 7;
 
-// A renderer's accumulators (its sums rebuilt from its means; floats, as the GPU keeps them).
-// The counters are the caller's (Renderer keeps no totals of rays): `rays` etc. are left zero.
-Accumulation accumulation_of(const Renderer& r);
+// A renderer's accumulators (Renderer::half_sums; floats, as the GPU keeps them) for an image of
+// width x height. The counters are the caller's (Renderer keeps no totals of rays): `rays` etc.
+// are left zero.
+Accumulation accumulation_of(const Renderer& r, int width, int height);
+// Its AOV part alone (aov_sum, aov_count, aov_ids; empty while the AOVs are off or have none).
+Accumulation accumulation_of_aovs(const Renderer& r, int width, int height);
 
 // Where one rank of a distributed render runs, from its place among the ranks of its host:
 // with --backend auto, node-local rank i takes CUDA device i while there are devices and the

@@ -48,6 +48,16 @@ ImageRGB Renderer::denoised_image(DenoiseInfo* info) const {
                        info);
 }
 
+void Renderer::half_sums(float* even, float* odd) const {
+  ImageRGB halves[2];
+  half_images(&halves[0], &halves[1]);
+  float* outs[2] = {even, odd};
+  for (int h = 0; h < 2; ++h) {
+    const float n = float(half_samples(h));
+    for (size_t i = 0; i < halves[h].pixels.size(); ++i) outs[h][i] = halves[h].pixels[i] * n;
+  }
+}
+
 double half_images_relmse(const ImageRGB& a, const ImageRGB& b) {
   double sum = 0.0;
   for (size_t i = 0; i < a.pixels.size(); ++i) {

@@ -115,6 +115,9 @@ class Renderer {
   // Means of the even-numbered and of the odd-numbered samples: two independent estimates whose
   // difference measures the remaining noise (relMSE between half buffers).
   virtual void half_images(ImageRGB* even, ImageRGB* odd) const = 0;
+  // The halves' sums (not means; 3 floats per pixel each, zero where a half has no sample) into
+  // the caller's memory, e.g. a window shared with other processes: what distributed ranks add.
+  virtual void half_sums(float* even, float* odd) const;
   // The feature buffers (integrator/aov.h: one more camera ray, and the specular chain behind
   // it, per sample). Off by default. Turning them on does not clear the colour: they start with
   // the next sample (so a viewer can switch a denoiser on without restarting the render);
