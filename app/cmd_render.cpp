@@ -23,7 +23,6 @@
 #include "scene/loader.h"
 
 namespace app {
-namespace {
 
 std::string fmt_seconds(double s) {
   char buf[32];
@@ -31,8 +30,6 @@ std::string fmt_seconds(double s) {
   else snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
   return buf;
 }
-
-}  // namespace
 
 int prepare_render(const RenderOptions& o, const std::string& scene_path, const std::string& out,
                    const HostSlot* slot, bool quiet, std::ostream& err, RenderJob* job) {

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "render_job.h"
 #include "scene/loader.h"
 
 namespace app {
@@ -63,6 +64,16 @@ int main(int argc, char** argv) {
   }
   // Last resort: a failure no command caught (a CUDA error mid-run, a failed thread start) is
   // reported as a message and exit 1, never as std::terminate.
+  // Under mpirun only `render` distributes; N copies of another command would race each other.
+  if (!*render && app::mpi_environment()) {
+    const char* n = std::getenv("OMPI_COMM_WORLD_SIZE");
+    if (!n) n = std::getenv("PMI_SIZE");
+    if (n && std::atoi(n) > 1) {
+      std::cerr << "error: started by mpirun with " << n << " ranks: only `pathtracer render` "
+                   "distributes its work; run other commands without mpirun\n";
+      return app::kExitUsage;
+    }
+  }
   try {
     if (*render) return run_render();
     if (*info) return run_info();

@@ -74,6 +74,11 @@ struct MpiSession {
   int hosts = 1;
   std::string host;
   MpiSession() {
+    // Shared memory between a host's ranks without the kernel's cross-memory attach, which
+    // containers often forbid (Docker without CAP_SYS_PTRACE fails large messages with
+    // "Read -1, expected ..."); the big sums travel through the shared window anyway. A value
+    // set by the user wins.
+    setenv("OMPI_MCA_btl_vader_single_copy_mechanism", "none", 0);
     int provided = 0;
     MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
@@ -265,13 +270,6 @@ void run_workers(const MpiSession& mpi, WorkServer* server,
   });
   server->serve(local_done, tick);
   local.join();
-}
-
-std::string fmt_seconds(double s) {
-  char buf[32];
-  if (s < 60) snprintf(buf, sizeof buf, "%.1f s", s);
-  else snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
-  return buf;
 }
 
 // --- one image over all ranks -------------------------------------------------------------

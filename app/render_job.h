@@ -66,6 +66,9 @@ int finish_render(RenderJob& job, const tracer::ImageRGB& img, const tracer::Aov
 int render_one(const RenderOptions& o, const std::string& scene_path, const std::string& out,
                const HostSlot* slot, bool quiet, std::ostream& err);
 
+// "4.2 s" or "3m07s", for progress lines.
+std::string fmt_seconds(double s);
+
 // Whether this process was started by an MPI launcher (mpirun, srun: its environment says so).
 bool mpi_environment();
 // The render (or --frames sequence) spread over the MPI job's ranks (mpi_render.cpp). In a

@@ -22,15 +22,21 @@ cmake --build "$BUILD" --target pathtracer cuda_test
 rm -rf "$DIST"
 mkdir -p "$DIST/lib"
 cp "$BUILD/pathtracer" "$BUILD/tests/cuda_test" "$DIST/"
-# Ship every library that is not part of the C/C++ runtime every Linux has.
-for bin in "$DIST/pathtracer" "$DIST/cuda_test"; do
-  ldd "$bin" | awk '/=> \//{print $3}' | while read -r lib; do
-    case "$(basename "$lib")" in
-      libc.so*|libm.so*|libstdc++.so*|libgcc_s.so*|libpthread.so*|libdl.so*|librt.so*|ld-linux*) ;;
-      *) [ -e "$DIST/lib/$(basename "$lib")" ] || cp -L "$lib" "$DIST/lib/" ;;
-    esac
+# Copies into DIR every library FILE... needs that is not part of the C/C++ runtime every Linux
+# has.
+ship_libs() {
+  local dir=$1
+  shift
+  for bin in "$@"; do
+    ldd "$bin" | awk '/=> \//{print $3}' | while read -r lib; do
+      case "$(basename "$lib")" in
+        libc.so*|libm.so*|libstdc++.so*|libgcc_s.so*|libpthread.so*|libdl.so*|librt.so*|ld-linux*) ;;
+        *) [ -e "$dir/$(basename "$lib")" ] || cp -L "$lib" "$dir/" ;;
+      esac
+    done
   done
-done
+}
+ship_libs "$DIST/lib" "$DIST/pathtracer" "$DIST/cuda_test"
 # ImGui's OpenGL loader dlopens libGL.so.1 (glvnd), which needs libGLX.so.0.
 for lib in libGL.so.1 libGLX.so.0; do cp -L "/usr/lib/x86_64-linux-gnu/$lib" "$DIST/lib/"; done
 cp /usr/share/glmark2/models/bunny.obj "$DIST/"  # for assets/scenes/cornell_bunnies.json
@@ -84,14 +90,7 @@ if [ -n "${MPI_DIST:-}" ]; then
   cp -r /usr/share/openmpi "$M/ompi/share/openmpi"
   cp -r /usr/lib/x86_64-linux-gnu/pmix2/share/pmix "$M/ompi/share/pmix"
   cp /etc/openmpi/openmpi-mca-params.conf "$M/ompi/etc/"
-  for f in "$M/ompi/bin/orterun" "$M/ompi/lib/openmpi3/"*.so "$M/ompi/lib/pmix/"*.so; do
-    ldd "$f" | awk '/=> \//{print $3}' | while read -r lib; do
-      case "$(basename "$lib")" in
-        libc.so*|libm.so*|libstdc++.so*|libgcc_s.so*|libpthread.so*|libdl.so*|librt.so*|ld-linux*) ;;
-        *) [ -e "$M/lib/$(basename "$lib")" ] || cp -L "$lib" "$M/lib/" ;;
-      esac
-    done
-  done
+  ship_libs "$M/lib" "$M/ompi/bin/orterun" "$M/ompi/lib/openmpi3/"*.so "$M/ompi/lib/pmix/"*.so
   cat > "$M/mpirun" <<'WRAP'
 #!/usr/bin/env bash
 # Open MPI's mpirun from this folder (gathered by scripts/build-device.sh MPI_DIST=1).

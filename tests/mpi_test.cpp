@@ -144,6 +144,9 @@ TEST_F(Mpi, ARankThatCannotStartFailsTheRunOnRankZero) {
                             "--spp 4 --guiding on --out " + img, &out), 2) << out;
   EXPECT_NE(out.find("render.guiding with 2 MPI ranks"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(img));
+  // Only render distributes: another command under mpirun would run twice.
+  EXPECT_EQ(run_command(mpirun(2) + pathtracer_exe() + " info " + kScene, &out), 2) << out;
+  EXPECT_NE(out.find("only `pathtracer render` distributes"), std::string::npos) << out;
 }
 
 TEST_F(Mpi, FramesAreSpreadOverRanksAndAFailedFrameIsReported) {
