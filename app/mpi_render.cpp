@@ -275,17 +275,18 @@ void run_workers(const MpiSession& mpi, WorkServer* server,
 // --- one image over all ranks -------------------------------------------------------------
 
 int render_image(const MpiSession& mpi, const RenderOptions& o) {
-  // 1. Every rank sets up; rank 0 prints its own messages, the others' come to it on failure.
+  // 1. Every rank sets up; rank 0 prints its own messages, the others' come to it on failure
+  // (each once where they repeat rank 0's).
   RenderJob job;
   std::ostringstream log;
-  std::ostream& err = mpi.rank == 0 ? std::cerr : log;
-  int rc = prepare_render(o, o.scene, o.out, &mpi.slot, o.quiet || mpi.rank != 0, err, &job);
+  int rc = prepare_render(o, o.scene, o.out, &mpi.slot, o.quiet || mpi.rank != 0, log, &job);
   if (rc == 0 && mpi.size > 1 && job.scene.settings.guiding) {
-    err << "error: render.guiding with " << mpi.size
+    log << "error: render.guiding with " << mpi.size
         << " MPI ranks: the guide trains on the samples in their order on one renderer, so it "
            "does not distribute; render guided with one rank or turn guiding off\n";
     rc = kExitUsage;
   }
+  if (mpi.rank == 0) std::cerr << log.str() << std::flush;
   nlohmann::json status = {{"rc", rc}, {"log", log.str()}, {"host", mpi.host}};
   if (rc == 0)
     status.update({{"backend", job.renderer->backend_name()},
@@ -301,7 +302,8 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
       if (!first_rc) first_rc = rrc;
       if (r == 0) continue;
       const std::string host = ranks.back()["host"];
-      if (ranks.back()["log"] == ranks.front()["log"]) {  // rank 0 said it already
+      const std::string said = ranks.back()["log"], said_by_0 = ranks.front()["log"];
+      if (!said.empty() && said_by_0.find(said) != std::string::npos) {  // rank 0 said it
         std::cerr << "error: rank " << r << " (" << host << ") could not start either\n";
         continue;
       }

@@ -99,6 +99,10 @@ struct CudaRenderer::Impl {
   GpuOptions opts;          // as requested
   EffectiveGpuOptions eff;  // as they run on this scene (resolve())
   bool has_scene = false;
+  // The CUDA device is current per thread: every entry point that touches the device makes this
+  // renderer's current first, so it may be driven from any thread (distributed rendering's rank
+  // 0 renders on a thread of its own).
+  void use_device() const { TRACER_CUDA_CHECK(cudaSetDevice(device)); }
 
   // Films for the even and the odd samples, and counters.
   DeviceBuffer<float4> film[2];
@@ -528,6 +532,7 @@ std::string CudaRenderer::device_name() const {
 
 void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) {
   Impl& m = *impl_;
+  m.use_device();
   {
     const size_t bvh = bytes_of(scene.nodes()) + bytes_of(scene.prim_indices()) +
                        bytes_of(scene.bvh8().nodes) + bytes_of(scene.bvh8().prim_indices) +
@@ -637,6 +642,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
 
 void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
   Impl& m = *impl_;
+  m.use_device();
   m.cfg = cfg;
   m.cfg.guide = GuideView();
   m.view.camera.width = cfg.width;
@@ -650,6 +656,7 @@ void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
 }
 
 void CudaRenderer::reset() {
+  impl_->use_device();
   // O(1): the next sample overwrites the accumulator instead of adding to it.
   impl_->clear_counts();
   impl_->nonfinite = 0;
@@ -666,6 +673,7 @@ GuideStatus CudaRenderer::guide_status() const {
 
 void CudaRenderer::set_aovs(bool on) {
   Impl& m = *impl_;
+  m.use_device();
   if (on == m.aovs_on) return;
   m.aovs_on = on;
   if (m.has_scene) m.allocate_aovs();
@@ -735,6 +743,7 @@ size_t CudaRenderer::scene_bytes() const {
 
 FrameStats CudaRenderer::render(uint32_t spp) {
   Impl& m = *impl_;
+  m.use_device();
   if (!m.has_scene) throw std::logic_error("CudaRenderer::render: no scene set");
   const auto start = std::chrono::steady_clock::now();
   FrameStats st;
@@ -846,6 +855,7 @@ FrameStats CudaRenderer::render(uint32_t spp) {
 
 ImageRGB CudaRenderer::image() const {
   Impl& m = *impl_;
+  m.use_device();
   ImageRGB img;
   img.width = int(m.cfg.width);
   img.height = int(m.cfg.height);
@@ -887,6 +897,7 @@ double measure_copy_bandwidth_gbs() {
 
 void CudaRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
   Impl& m = *impl_;
+  m.use_device();
   const uint32_t* counts = m.film_count;
   ImageRGB* outs[2] = {even, odd};
   DeviceBuffer<float> rgb(size_t(m.n()) * 3);
@@ -905,6 +916,7 @@ void CudaRenderer::half_images(ImageRGB* even, ImageRGB* odd) const {
 
 void CudaRenderer::half_sums(float* even, float* odd) const {
   Impl& m = *impl_;
+  m.use_device();
   float* outs[2] = {even, odd};
   const size_t bytes = size_t(m.n()) * 3 * sizeof(float);
   DeviceBuffer<float> rgb(size_t(m.n()) * 3);
@@ -921,6 +933,7 @@ void CudaRenderer::half_sums(float* even, float* odd) const {
 
 AovImages CudaRenderer::aov_images(int half) const {
   Impl& m = *impl_;
+  m.use_device();
   AovImages out;
   const uint32_t* counts = m.aov_count;
   if (!m.aovs_on || counts[0] + counts[1] == 0) return out;
@@ -960,6 +973,7 @@ AovImages CudaRenderer::aov_images(int half) const {
 
 ImageRGB CudaRenderer::denoised_image(DenoiseInfo* info) const {
   Impl& m = *impl_;
+  m.use_device();
   if (m.samples == 0) return Renderer::denoised_image(info);
   const auto start = std::chrono::steady_clock::now();
   const size_t n3 = size_t(m.n()) * 3;
@@ -991,6 +1005,7 @@ ImageRGB CudaRenderer::denoised_image(DenoiseInfo* info) const {
 
 void CudaRenderer::display_to_device(void* rgba8, float exposure_scale, ToneMap op) const {
   Impl& m = *impl_;
+  m.use_device();
   const float inv = m.samples > 0 ? 1.0f / float(m.samples) : 0.0f;
   // With one film holding samples, read it twice at half the weight.
   const Impl::MeanFilms f = m.mean_films();
