@@ -17,6 +17,7 @@
 #include <sstream>
 #include <thread>
 
+#include "backends/backend_select.h"
 #include "commands.h"
 #include "render_job.h"
 
@@ -134,7 +135,8 @@ int broadcast_int(int v) {
 // copied), and the hosts' first ranks add their hosts' sums into world rank 0's over MPI.
 class HostSums {
  public:
-  HostSums(const MpiSession& mpi, size_t floats) : mpi_(mpi), floats_(floats) {
+  // pin: page-lock this rank's segment (a GPU rank: its sums come over the bus into it).
+  HostSums(const MpiSession& mpi, size_t floats, bool pin) : mpi_(mpi), floats_(floats) {
     MPI_Info info;
     MPI_Info_create(&info);
     MPI_Info_set(info, "alloc_shared_noncontig", "true");  // each segment near its rank
@@ -145,6 +147,7 @@ class HostSums {
     MPI_Win_lock_all(MPI_MODE_NOCHECK, win_);
     mine_ = static_cast<float*>(base);
     std::fill(mine_, mine_ + floats, 0.0f);  // its pages now, not in the timed reduction
+    if (pin) pin_ = std::make_unique<tracer::PinnedHostMemory>(mine_, floats * sizeof(float));
     for (int r = 0; r < mpi.slot.local_size; ++r) {
       MPI_Aint size = 0;
       int unit = 0;
@@ -154,6 +157,7 @@ class HostSums {
     }
   }
   ~HostSums() {
+    pin_.reset();
     MPI_Win_unlock_all(win_);
     MPI_Win_free(&win_);
   }
@@ -171,10 +175,21 @@ class HostSums {
     const size_t lr = size_t(mpi.slot.local_rank);
     const size_t begin = floats_ * lr / ranks, end = floats_ * (lr + 1) / ranks;
     float* dst = segments_[0];
-    for (size_t k = 1; k < ranks; ++k) {
-      const float* src = segments_[k];
-      for (size_t i = begin; i < end; ++i) dst[i] += src[i];
-    }
+    // The slice over this rank's share of the host's cores (its renderer is idle now).
+    const size_t threads = std::max<size_t>(
+        1, std::min<size_t>(8, std::thread::hardware_concurrency() / ranks));
+    auto add = [&](size_t from, size_t to) {
+      for (size_t k = 1; k < ranks; ++k) {
+        const float* src = segments_[k];
+        for (size_t i = from; i < to; ++i) dst[i] += src[i];
+      }
+    };
+    std::vector<std::thread> pool;
+    for (size_t t = 1; t < threads; ++t)
+      pool.emplace_back(add, begin + (end - begin) * t / threads,
+                        begin + (end - begin) * (t + 1) / threads);
+    add(begin, begin + (end - begin) / threads);
+    for (std::thread& th : pool) th.join();
     sync();  // the host's sum complete in the first segment
     if (mpi.leaders != MPI_COMM_NULL && mpi.hosts > 1) {
       constexpr size_t kChunk = size_t(1) << 28;  // MPI counts are ints
@@ -192,6 +207,7 @@ class HostSums {
   MPI_Win win_;
   float* mine_ = nullptr;
   std::vector<float*> segments_;
+  std::unique_ptr<tracer::PinnedHostMemory> pin_;
 };
 
 // Prints every line of a rank's messages on rank 0's stderr, naming the rank.
@@ -327,7 +343,7 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   // The host's shared window for the sums, made (and its pages touched) before the render.
   const size_t floats_per_rank = size_t(job.scene.settings.width) * job.scene.settings.height *
                                  (job.renderer->aovs() ? 13 : 6);
-  HostSums sums(mpi, floats_per_rank);
+  HostSums sums(mpi, floats_per_rank, job.renderer->backend_name() == "cuda");
 
   // 2. Batches. Rank 0 schedules; every rank renders what it is handed.
   const tracer::RenderSettings& rs = job.scene.settings;

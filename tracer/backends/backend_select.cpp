@@ -25,6 +25,13 @@ std::unique_ptr<Renderer> make_renderer(BackendChoice choice, int cpu_threads, s
 
 #if defined(TRACER_CUDA_BACKEND)
 
+PinnedHostMemory::PinnedHostMemory(void* ptr, size_t bytes) : ptr_(ptr) {
+  pinned_ = ptr && bytes > 0 && cuda_device_count() > 0 && cuda_pin_host(ptr, bytes);
+}
+PinnedHostMemory::~PinnedHostMemory() {
+  if (pinned_) cuda_unpin_host(ptr_);
+}
+
 struct GlDisplayBuffer::Impl {
   GlInteropBuffer interop;
   explicit Impl(unsigned int pbo) : interop(pbo) {}
@@ -51,6 +58,9 @@ std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not, int) {
 }
 
 int cuda_device_count() { return 0; }
+
+PinnedHostMemory::PinnedHostMemory(void* ptr, size_t) : ptr_(ptr) {}
+PinnedHostMemory::~PinnedHostMemory() = default;
 
 double measure_copy_bandwidth_gbs() {
   throw std::logic_error(std::string("measure_copy_bandwidth_gbs: ") + kNoCuda);

@@ -26,6 +26,23 @@ int cuda_device_count();
 // wavefront's memory traffic is measured against. Needs the CUDA backend and a device.
 double measure_copy_bandwidth_gbs();
 
+// Host memory page-locked while this lives (cudaHostRegister), so that copies from the GPU into
+// it run at the bus's speed (distributed rendering's shared window). Best effort: in a build
+// without CUDA, on a machine without a GPU or where the driver refuses, pinned() is false and
+// the memory works as before.
+class PinnedHostMemory {
+ public:
+  PinnedHostMemory(void* ptr, size_t bytes);
+  ~PinnedHostMemory();
+  PinnedHostMemory(const PinnedHostMemory&) = delete;
+  PinnedHostMemory& operator=(const PinnedHostMemory&) = delete;
+  bool pinned() const { return pinned_; }
+
+ private:
+  void* ptr_;
+  bool pinned_ = false;
+};
+
 // An OpenGL pixel buffer that the CUDA backend writes its display image into on the device
 // (CUDA/GL interop, cuda/gl_interop.h), so the image skips host memory: registered with CUDA by
 // the constructor, unregistered by the destructor.

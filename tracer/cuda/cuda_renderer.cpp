@@ -1022,6 +1022,15 @@ void CudaRenderer::display_rgba8(std::vector<uint32_t>& out, float exposure_scal
   dev.download(out);
 }
 
+bool cuda_pin_host(void* ptr, size_t bytes) {
+  if (cudaHostRegister(ptr, bytes, cudaHostRegisterPortable) == cudaSuccess) return true;
+  cudaGetLastError();
+  return false;
+}
+void cuda_unpin_host(void* ptr) {
+  if (cudaHostUnregister(ptr) != cudaSuccess) cudaGetLastError();
+}
+
 int cuda_device_count() {
   int count = 0;
   if (cudaGetDeviceCount(&count) != cudaSuccess) {

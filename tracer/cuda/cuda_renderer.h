@@ -59,5 +59,8 @@ double measure_copy_bandwidth_gbs();
 // nullptr with the reason when no usable device exists.
 std::unique_ptr<Renderer> make_cuda_renderer(std::string* why_not, int device);
 int cuda_device_count();
+// cudaHostRegister / cudaHostUnregister, false (and the error cleared) where the driver refuses.
+bool cuda_pin_host(void* ptr, size_t bytes);
+void cuda_unpin_host(void* ptr);
 
 }  // namespace tracer
