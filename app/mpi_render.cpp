@@ -306,7 +306,8 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   nlohmann::json status = {{"rc", rc}, {"log", log.str()}, {"host", mpi.host}};
   if (rc == 0)
     status.update({{"backend", job.renderer->backend_name()},
-                   {"device", job.renderer->device_name()}});
+                   {"device", job.renderer->device_name()},
+                   {"scene", std::to_string(tracer::scene_fingerprint(job.scene))}});
   const std::vector<std::string> statuses = gather_strings(mpi, status.dump());
   std::vector<nlohmann::json> ranks;
   int first_rc = 0;
@@ -314,6 +315,14 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
     for (int r = 0; r < mpi.size; ++r) {
       ranks.push_back(nlohmann::json::parse(statuses[size_t(r)]));
       const int rrc = ranks.back()["rc"].get<int>();
+      if (rrc == 0 && r > 0 && ranks.front()["rc"] == 0 &&
+          ranks.back()["scene"] != ranks.front()["scene"]) {
+        std::cerr << "error: rank " << r << " (" << ranks.back()["host"].get<std::string>()
+                  << ") loaded a different scene than rank 0 (its file, a setting that shapes "
+                     "the image or the mesh data differ): the ranks' samples would not add up\n";
+        if (!first_rc) first_rc = kExitInputError;
+        continue;
+      }
       if (rrc == 0) continue;
       if (!first_rc) first_rc = rrc;
       if (r == 0) continue;

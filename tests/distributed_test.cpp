@@ -208,3 +208,29 @@ TEST(Distributed, RanksTakeOneGpuEachAndTheRestShareTheCores) {
 }
 
 }  // namespace
+
+namespace {
+using namespace tracer;
+
+TEST(Distributed, SceneFingerprintSeesWhatShapesTheImage) {
+  const std::string path = test::source_dir() + "/assets/scenes/cornell_spheres.json";
+  const Scene a = load_scene(path), b = load_scene(path);
+  EXPECT_EQ(scene_fingerprint(a), scene_fingerprint(b));
+  Scene c = b;
+  c.settings.threads = 3;
+  c.settings.spp = 7;
+  c.display.exposure = 2.0f;
+  c.gpu.kernel = KernelMode::kMegakernel;
+  EXPECT_EQ(scene_fingerprint(c), scene_fingerprint(a)) << "these do not change the samples";
+  for (int k = 0; k < 5; ++k) {
+    Scene d = b;
+    if (k == 0) d.settings.seed = 9;
+    if (k == 1) d.settings.width += 1;
+    if (k == 2) d.mesh.positions[0].x += 1e-3f;
+    if (k == 3) d.spheres[0].radius *= 1.01f;
+    if (k == 4) d.materials[0].material.albedo *= 0.5f;
+    EXPECT_NE(scene_fingerprint(d), scene_fingerprint(a)) << "change " << k;
+  }
+}
+
+}  // namespace

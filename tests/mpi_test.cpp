@@ -144,6 +144,18 @@ TEST_F(Mpi, ARankThatCannotStartFailsTheRunOnRankZero) {
                             "--spp 4 --guiding on --out " + img, &out), 2) << out;
   EXPECT_NE(out.find("render.guiding with 2 MPI ranks"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(img));
+  // A rank whose scene or settings differ (here its seed) would add other samples: refused.
+  const std::string mpmd = std::string(TRACER_MPIEXEC) + " --allow-run-as-root --oversubscribe " +
+                           "-np 1 " + pathtracer_exe() + " render " + kScene + args +
+                           " : -np 1 " + pathtracer_exe() + " render " + kScene + args;
+  EXPECT_NE(run_command(mpmd + " --seed 9", &out), 0) << out;
+  EXPECT_NE(out.find("rank 1 (") , std::string::npos) << out;
+  EXPECT_NE(out.find("loaded a different scene than rank 0"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(img));
+  // ... while settings that do not shape the image may differ.
+  EXPECT_EQ(run_command(mpmd + " --threads 1 --exposure 2", &out), 0) << out;
+  EXPECT_TRUE(fs::exists(img));
+  fs::remove(img);
   // Only render distributes: another command under mpirun would run twice.
   EXPECT_EQ(run_command(mpirun(2) + pathtracer_exe() + " info " + kScene, &out), 2) << out;
   EXPECT_NE(out.find("only `pathtracer render` distributes"), std::string::npos) << out;

@@ -3,6 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <nlohmann/json.hpp>
+
+#include "scene/environment.h"
+#include "scene/point_lights.h"
+#include "scene/settings.h"
 
 namespace tracer {
 
@@ -188,6 +193,59 @@ RankPlacement place_rank(BackendChoice asked, int threads_asked, int local_rank,
              (gpus == 1 ? " GPU is" : " GPUs are") + " taken by its first " +
              std::to_string(gpus) + (gpus == 1 ? " rank" : " ranks");
   return p;
+}
+
+namespace {
+struct Fnv {
+  uint64_t h = 1469598103934665603ull;
+  void bytes(const void* p, size_t n) {
+    const unsigned char* c = static_cast<const unsigned char*>(p);
+    for (size_t i = 0; i < n; ++i) h = (h ^ c[i]) * 1099511628211ull;
+  }
+  template <class T>
+  void vec(const std::vector<T>& v) {
+    const uint64_t n = v.size();
+    bytes(&n, sizeof n);
+    if (!v.empty()) bytes(v.data(), v.size() * sizeof(T));
+  }
+  void text(const std::string& s) { bytes(s.data(), s.size()); }
+};
+}  // namespace
+
+uint64_t scene_fingerprint(const Scene& scene) {
+  nlohmann::json j = settings_to_json(scene);
+  j.erase("gpu");      // the GPU's switches never change the image
+  j.erase("display");  // applied by rank 0 alone, after the sum
+  for (const char* k : {"threads", "backend", "spp", "time_limit_s", "strict", "samples_per_frame"})
+    j["render"].erase(k);
+  nlohmann::json mats = nlohmann::json::object();
+  for (const auto& m : scene.materials) mats[m.name] = material_to_json(m.material);
+  j["materials"] = mats;
+  j["lights"] = lights_to_json(scene.distant_lights, scene.point_lights);
+  Fnv f;
+  f.text(j.dump());
+  f.vec(scene.mesh.positions);
+  f.vec(scene.mesh.normals);
+  f.vec(scene.mesh.uvs);
+  f.vec(scene.mesh.indices);
+  f.vec(scene.mesh.materials);
+  for (const SphereDesc& s : scene.spheres) {  // field by field: no padding bytes hashed
+    f.bytes(&s.center, sizeof s.center);
+    f.bytes(&s.radius, sizeof s.radius);
+    f.bytes(&s.material, sizeof s.material);
+  }
+  for (const TextureImage& t : scene.textures) f.vec(t.rgba8);
+  for (const auto& m : scene.instanced_meshes) {
+    f.vec(m.mesh.positions);
+    f.vec(m.mesh.indices);
+    f.vec(m.mesh.materials);
+  }
+  for (const MeshInstance& i : scene.instances) {
+    f.bytes(&i.mesh, sizeof i.mesh);
+    f.bytes(&i.world_from_object, sizeof i.world_from_object);
+  }
+  if (scene.environment_image) f.vec(scene.environment_image->rgba);
+  return f.h;
 }
 
 bool parse_frame_range(const std::string& text, int* first, int* last, std::string* problem) {

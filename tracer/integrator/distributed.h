@@ -114,6 +114,12 @@ struct RankShare {
   double idle_s = 0.0;      // from its last batch's end until every rank had ended
 };
 
+// A hash of everything that decides a rank's samples: the camera, the render settings that shape
+// the image (not threads, backend, spp, time limit or strictness), the environment, materials,
+// lights and the geometry's data (meshes, spheres, instances, textures). Ranks that would sum
+// different images (another version of the scene file on one host, another --seed) differ here.
+uint64_t scene_fingerprint(const Scene& scene);
+
 // --- frame sequences -----------------------------------------------------------------------
 
 // Parses "A..B" (A <= B, both >= 0) or a single "A"; false with a message otherwise.
