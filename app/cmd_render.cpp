@@ -32,7 +32,8 @@ std::string fmt_seconds(double s) {
 }
 
 int prepare_render(const RenderOptions& o, const std::string& scene_path, const std::string& out,
-                   const HostSlot* slot, bool quiet, std::ostream& err, RenderJob* job) {
+                   const HostSlot* slot, bool writes, bool quiet, std::ostream& err,
+                   RenderJob* job) {
   using clock = std::chrono::steady_clock;
   const auto t_start = clock::now();
   job->scene_path = scene_path;
@@ -72,7 +73,7 @@ int prepare_render(const RenderOptions& o, const std::string& scene_path, const 
       return kExitUsage;
     }
     try {  // and an output it cannot create (a missing or unwritable folder)
-      tracer::check_writable(out);
+      if (writes) tracer::check_writable(out);
     } catch (const std::exception& e) {
       err << "error: " << e.what() << "\n";
       return kExitInputError;
@@ -89,7 +90,7 @@ int prepare_render(const RenderOptions& o, const std::string& scene_path, const 
     return kExitUsage;
   }
   job->denoise = scene.display.denoise != tracer::DenoiseMode::kOff;
-  if (job->denoise && !tracer::denoiser_available()) {
+  if (writes && job->denoise && !tracer::denoiser_available()) {
     err << "error: display.denoise is on but the denoiser is absent: "
         << tracer::denoiser_status() << "\nnothing was rendered\n";
     return kExitInputError;
@@ -273,7 +274,7 @@ int finish_render(RenderJob& job, const tracer::ImageRGB& img, const tracer::Aov
 int render_one(const RenderOptions& o, const std::string& scene_path, const std::string& out,
                const HostSlot* slot, bool quiet, std::ostream& err) {
   RenderJob job;
-  if (const int rc = prepare_render(o, scene_path, out, slot, quiet, err, &job)) return rc;
+  if (const int rc = prepare_render(o, scene_path, out, slot, true, quiet, err, &job)) return rc;
   tracer::SidecarRun run;
   render_progressive(job, quiet, &run);
   tracer::Renderer& r = *job.renderer;
@@ -310,28 +311,25 @@ int render_frames(const RenderOptions& o) {
     std::cerr << "error: " << problem << "\n";
     return kExitUsage;
   }
-  int rc = 0, failed = 0;
+  int failed = 0;
   for (int f = first; f <= last; ++f) {
     const std::string scene = tracer::frame_path(o.scene, f), out = tracer::frame_path(o.out, f);
     if (!o.quiet) std::cerr << "frame " << f << " (" << f - first + 1 << " of " << last - first + 1
                             << "): " << scene << " -> " << out << "\n";
-    if (const int r = render_one(o, scene, out, nullptr, o.quiet, std::cerr)) {
+    if (render_one(o, scene, out, nullptr, o.quiet, std::cerr)) {
       std::cerr << "error: frame " << f << " (" << scene << ") failed\n";
-      rc = rc ? rc : r;
       ++failed;
     }
   }
   if (failed)
     std::cerr << "error: " << failed << " of " << last - first + 1 << " frames failed\n";
-  return rc;
+  return failed ? kExitInputError : 0;
 }
 
 int run_render(const RenderOptions& o) {
-  if (!o.frames.empty() || tracer::has_frame_field(o.scene) || tracer::has_frame_field(o.out)) {
+  if (!o.frames.empty()) {  // (without --frames a '#' is an ordinary character of a path)
     std::string problem;
-    if (o.frames.empty())
-      problem = "a '#' in the scene or output path is a frame number's place: give --frames A..B";
-    else if (!tracer::has_frame_field(o.out))
+    if (!tracer::has_frame_field(o.out))
       problem = "--frames needs a run of '#' in --out for the frame number (e.g. out/f_####.png)";
     else if (!tracer::has_frame_field(o.scene))
       problem = "--frames needs a run of '#' in the scene path for the frame number (e.g. "

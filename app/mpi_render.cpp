@@ -5,11 +5,16 @@
 //
 // Rank 0 renders too: its renderer runs on a thread of its own while its main thread answers the
 // other ranks (MPI is called from the main thread only: MPI_THREAD_FUNNELED).
+#include <sys/statvfs.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <stdexcept>
 #include <iomanip>
 #include <iostream>
 #include <mutex>
@@ -55,11 +60,14 @@ struct Request {
   uint32_t finished = 0;    // samples (or a frame: 1) just finished
   uint32_t item = 0;        // the frame just finished
   uint32_t status = kOk;    // kRankFailed: the rank stops; kItemFailed: that frame failed
-  char message[4096] = {};  // why it failed, or the frame's warnings
-  void say(const std::string& s) {
-    const size_t n = std::min(s.size(), sizeof message - 1);
-    std::memcpy(message, s.data(), n);
-    message[n] = '\0';
+  char message[3968] = {};  // why it failed, or the frame's warnings (under 4 KiB in all: sent eagerly)
+  void say(std::string s) {
+    if (s.size() >= sizeof message) {
+      const std::string cut = "\n... (" + std::to_string(s.size()) + " bytes in all; the rest cut)\n";
+      s = s.substr(0, sizeof message - 1 - cut.size()) + cut;
+    }
+    std::memcpy(message, s.data(), s.size());
+    message[s.size()] = '\0';
   }
 };
 struct Work {
@@ -96,6 +104,7 @@ struct MpiSession {
     host.assign(name, size_t(len));
   }
   ~MpiSession() {
+    if (std::uncaught_exceptions() > 0) return;  // run_render_mpi aborts the job
     if (leaders != MPI_COMM_NULL) MPI_Comm_free(&leaders);
     MPI_Comm_free(&node);
     MPI_Finalize();
@@ -129,6 +138,27 @@ int broadcast_int(int v) {
   return v;
 }
 
+// Why this host's shared memory cannot hold its ranks' sums (empty: it can). Open MPI backs the
+// window with a file in /dev/shm (or OMPI_MCA_osc_sm_backing_directory); Docker's default is
+// 64 MB, which a 1080p render on two ranks already passes.
+std::string shared_memory_problem(const MpiSession& mpi, size_t floats_per_rank) {
+  const char* dir = std::getenv("OMPI_MCA_osc_sm_backing_directory");
+  const std::string where = dir && *dir ? dir : "/dev/shm";
+  struct statvfs fs;
+  if (statvfs(where.c_str(), &fs) != 0) return "";  // Open MPI will say what it finds
+  const double need = double(floats_per_rank) * sizeof(float) * mpi.slot.local_size * 1.02 + 1e6;
+  const double free = double(fs.f_bavail) * double(fs.f_frsize);
+  if (free >= need) return "";
+  char text[512];
+  std::snprintf(text, sizeof text,
+                "%s: %s has %.0f MB free, and this host's %d ranks need %.0f MB of shared memory "
+                "for their sums: give it more (docker run --shm-size=%.0fm) or put the window "
+                "elsewhere (mpirun -x OMPI_MCA_osc_sm_backing_directory=/tmp)",
+                mpi.host.c_str(), where.c_str(), free / 1e6, mpi.slot.local_size, need / 1e6,
+                std::ceil(need / 1e6 * 1.25));
+  return text;
+}
+
 // The accumulators of one host's ranks in one shared-memory window (MPI-3), a segment per rank:
 // each rank writes its sums into its own, then reduce() adds them into the first rank's, every
 // rank adding one slice of the pixels (so the host's cores share the work and nothing is
@@ -141,9 +171,18 @@ class HostSums {
     MPI_Info_create(&info);
     MPI_Info_set(info, "alloc_shared_noncontig", "true");  // each segment near its rank
     void* base = nullptr;
-    MPI_Win_allocate_shared(MPI_Aint(floats * sizeof(float)), sizeof(float), info, mpi.node,
-                            &base, &win_);
+    MPI_Comm_set_errhandler(mpi.node, MPI_ERRORS_RETURN);
+    const int err = MPI_Win_allocate_shared(MPI_Aint(floats * sizeof(float)), sizeof(float), info,
+                                            mpi.node, &base, &win_);
     MPI_Info_free(&info);
+    if (err != MPI_SUCCESS) {
+      char text[MPI_MAX_ERROR_STRING];
+      int len = 0;
+      MPI_Error_string(err, text, &len);
+      throw std::runtime_error("could not make the host's shared window for the sums (" +
+                               std::to_string(floats * sizeof(float) >> 20) +
+                               " MB a rank): " + std::string(text, size_t(len)));
+    }
     MPI_Win_lock_all(MPI_MODE_NOCHECK, win_);
     mine_ = static_cast<float*>(base);
     std::fill(mine_, mine_ + floats, 0.0f);  // its pages now, not in the timed reduction
@@ -158,6 +197,9 @@ class HostSums {
   }
   ~HostSums() {
     pin_.reset();
+    // Freeing is collective: a rank that throws must not wait for the others here (its error
+    // aborts the job: run_render_mpi).
+    if (std::uncaught_exceptions() > 0) return;
     MPI_Win_unlock_all(win_);
     MPI_Win_free(&win_);
   }
@@ -295,7 +337,8 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   // (each once where they repeat rank 0's).
   RenderJob job;
   std::ostringstream log;
-  int rc = prepare_render(o, o.scene, o.out, &mpi.slot, o.quiet || mpi.rank != 0, log, &job);
+  int rc = prepare_render(o, o.scene, o.out, &mpi.slot, mpi.rank == 0, o.quiet || mpi.rank != 0,
+                          log, &job);
   if (rc == 0 && mpi.size > 1 && job.scene.settings.guiding) {
     log << "error: render.guiding with " << mpi.size
         << " MPI ranks: the guide trains on the samples in their order on one renderer, so it "
@@ -308,7 +351,7 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
     status.update({{"backend", job.renderer->backend_name()},
                    {"device", job.renderer->device_name()},
                    {"scene", std::to_string(tracer::scene_fingerprint(job.scene))}});
-  const std::vector<std::string> statuses = gather_strings(mpi, status.dump());
+  const std::vector<std::string> statuses = gather_strings(mpi, status.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   std::vector<nlohmann::json> ranks;
   int first_rc = 0;
   if (mpi.rank == 0) {
@@ -349,9 +392,26 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
     std::cerr << "\n";
   }
 
-  // The host's shared window for the sums, made (and its pages touched) before the render.
+  // Rank 0 writes the AOVs (and denoises): every rank renders them when it asks.
+  job.renderer->set_aovs(broadcast_int(job.renderer->aovs() ? 1 : 0) != 0);
+  // The host's shared window for the sums, made (and its pages touched) before the render, in
+  // shared memory (/dev/shm), which containers keep small: checked first, with what to do.
   const size_t floats_per_rank = size_t(job.scene.settings.width) * job.scene.settings.height *
                                  (job.renderer->aovs() ? 13 : 6);
+  {
+    std::string problem;
+    if (mpi.slot.local_rank == 0) problem = shared_memory_problem(mpi, floats_per_rank);
+    const std::vector<std::string> problems = gather_strings(mpi, problem);
+    int bad = 0;
+    if (mpi.rank == 0)
+      for (const std::string& p : problems)
+        if (!p.empty()) {
+          std::cerr << "error: " << p << "\n";
+          bad = kExitInputError;
+        }
+    if (mpi.rank == 0 && bad) std::cerr << "error: nothing was rendered\n";
+    if (const int abort_rc = broadcast_int(bad)) return abort_rc;
+  }
   HostSums sums(mpi, floats_per_rank, job.renderer->backend_name() == "cuda");
 
   // 2. Batches. Rank 0 schedules; every rank renders what it is handed.
@@ -395,6 +455,7 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   mine.backend = job.renderer->backend_name();
   mine.device = job.renderer->device_name();
   tracer::SidecarRun run;  // this rank's counters
+  std::vector<std::string> notes;  // its renderer's notes (rank 0 prints its own)
   auto worker = [&](const std::function<Work(const Request&)>& ask) {
     Request q;
     for (;;) {
@@ -405,6 +466,8 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
         job.renderer->set_next_sample(w.first);
         const tracer::FrameStats fs = job.renderer->render(w.count);
         run.last = fs;
+        if (!fs.note.empty() && std::find(notes.begin(), notes.end(), fs.note) == notes.end())
+          notes.push_back(fs.note);
         run.rays += fs.rays;
         run.clamped += fs.clamped;
         run.clamped_luminance += fs.clamped_luminance;
@@ -423,6 +486,8 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   const auto work_end = clock_type::now();
   const double render_s = seconds_since(start);
   if (mpi.rank == 0 && !o.quiet && tty) std::cerr << "\n";
+  if (mpi.rank == 0 && !o.quiet)
+    for (const std::string& n : notes) std::cerr << "note: rank 0: " << n << "\n";
 
   // 3. Did every rank finish its batches? Rank 0 knows; all learn it.
   int failed = 0;
@@ -498,7 +563,7 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
                           {"render_s", mine.render_s}, {"ms_per_spp", mine.ms_per_spp},
                           {"idle_s", mine.idle_s},     {"host", mine.host},
                           {"backend", mine.backend},   {"device", mine.device}};
-  const std::vector<std::string> shares = gather_strings(mpi, share.dump());
+  const std::vector<std::string> shares = gather_strings(mpi, share.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   if (mpi.rank != 0) return 0;
 
   // 5. Rank 0 writes the image and the sidecar.
@@ -632,7 +697,15 @@ int render_frames(const MpiSession& mpi, const RenderOptions& o) {
 
 int run_render_mpi(const RenderOptions& o) {
   MpiSession mpi;
-  const int rc = o.frames.empty() ? render_image(mpi, o) : render_frames(mpi, o);
+  int rc = 0;
+  try {
+    rc = o.frames.empty() ? render_image(mpi, o) : render_frames(mpi, o);
+  } catch (const std::exception& e) {
+    // The other ranks wait in a collective this rank will not reach: end the job, saying why.
+    std::cerr << "error: rank " << mpi.rank << " (" << mpi.host << "): " << e.what()
+              << "\nerror: the MPI job is aborted; nothing was written\n" << std::flush;
+    MPI_Abort(MPI_COMM_WORLD, kExitInputError);
+  }
   // Every rank exits with rank 0's code, so mpirun's status is the render's.
   return broadcast_int(mpi.rank == 0 ? rc : 0);
 }

@@ -45,11 +45,12 @@ struct HostSlot {
 };
 
 // Loads `scene_path` (empty: the built-in box), applies the command line, checks everything that
-// can fail before rendering (settings, output format and folder, AOV list, denoiser) and makes
-// the renderer (on the device `slot` gives it, when given). Messages go to `err`. Returns 0, or
-// the exit code after saying why.
+// can fail before rendering (settings, output format and, where this process `writes` the
+// output, its folder and the denoiser; the AOV list) and makes the renderer (on the device `slot`
+// gives it, when given). Messages go to `err`. Returns 0, or the exit code after saying why.
 int prepare_render(const RenderOptions& o, const std::string& scene_path, const std::string& out,
-                   const HostSlot* slot, bool quiet, std::ostream& err, RenderJob* job);
+                   const HostSlot* slot, bool writes, bool quiet, std::ostream& err,
+                   RenderJob* job);
 
 // Adds samples to job.renderer until render.spp or render.time_limit_s, with progress on stderr
 // unless quiet; fills run's render fields (spp, wall time, rays, counters, last frame).

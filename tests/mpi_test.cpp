@@ -101,6 +101,19 @@ TEST_F(Mpi, TwoRanksMakeTheImageOfOneProcess) {
     EXPECT_FALSE(a.empty()) << aov;
     EXPECT_EQ(bytes(path(std::string("three.") + aov + ".png")), a) << aov << " differs";
   }
+  // Rank 0 decides the AOVs: a rank asked for other ones (MPMD) renders rank 0's, and the sums
+  // still add up, whichever way round.
+  for (const char* aov0 : {"", " --aov all"}) {
+    const std::string common = kScene + kSmall + "--spp 24 -q --out " + path("mixed.png");
+    const std::string aov1 = std::string(aov0).empty() ? " --aov albedo" : "";
+    ASSERT_EQ(run_command(std::string(TRACER_MPIEXEC) + " --allow-run-as-root --oversubscribe " +
+                              "-np 1 " + pathtracer_exe() + " render " + common + aov0 +
+                              " : -np 1 " + pathtracer_exe() + " render " + common + aov1,
+                          &out), 0) << out;
+    EXPECT_EQ(bytes(path("mixed.png")), bytes(path("single.png"))) << "rank 0's AOVs:" << aov0;
+    EXPECT_EQ(fs::exists(path("mixed.albedo.png")), !std::string(aov0).empty());
+    fs::remove(path("mixed.albedo.png"));
+  }
 }
 
 TEST_F(Mpi, BatchesKeepEveryRankBusyUnderATimeBudget) {

@@ -1016,6 +1016,7 @@ void CudaRenderer::display_to_device(void* rgba8, float exposure_scale, ToneMap 
 
 void CudaRenderer::display_rgba8(std::vector<uint32_t>& out, float exposure_scale,
                                  ToneMap op) const {
+  impl_->use_device();
   DeviceBuffer<uint32_t> dev(impl_->n());
   if (impl_->samples == 0) TRACER_CUDA_CHECK(cudaMemset(dev.get(), 0, dev.bytes()));
   else display_to_device(dev.get(), exposure_scale, op);

@@ -175,6 +175,9 @@ RankPlacement place_rank(BackendChoice asked, int threads_asked, int local_rank,
     p.threads = share_cores(local_size);
     return p;
   }
+  // A GPU rank that falls back to the CPU (the device refuses) takes the share every rank of the
+  // host would get.
+  p.threads = share_cores(local_size);
   if (asked == BackendChoice::kCuda) {
     p.device = gpus > 0 ? local_rank % gpus : 0;
     if (gpus > 0 && local_size > gpus)
@@ -234,9 +237,17 @@ uint64_t scene_fingerprint(const Scene& scene) {
     f.bytes(&s.radius, sizeof s.radius);
     f.bytes(&s.material, sizeof s.material);
   }
-  for (const TextureImage& t : scene.textures) f.vec(t.rgba8);
+  for (const TextureImage& t : scene.textures) {
+    f.vec(t.rgba8);
+    const int32_t dims[5] = {t.width, t.height, int32_t(t.srgb), int32_t(t.wrap_s),
+                             int32_t(t.wrap_t)};
+    f.bytes(dims, sizeof dims);
+    f.bytes(&t.uv_transform, sizeof t.uv_transform);
+  }
   for (const auto& m : scene.instanced_meshes) {
     f.vec(m.mesh.positions);
+    f.vec(m.mesh.normals);
+    f.vec(m.mesh.uvs);
     f.vec(m.mesh.indices);
     f.vec(m.mesh.materials);
   }
