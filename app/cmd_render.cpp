@@ -165,8 +165,9 @@ void render_progressive(RenderJob& job, bool quiet, tracer::SidecarRun* run) {
       const uint32_t d = renderer.samples_done();
       const double sps = double(d) * rs.width * rs.height / render_s;
       const double eta = timed ? rs.time_limit_s - render_s : (target - d) * render_s / d;
-      std::cerr << (tty ? "\r" : "") << "render: " << d << (timed ? "" : "/" + std::to_string(target))
-                << " spp, " << std::fixed << std::setprecision(2) << sps / 1e6 << " Msamples/s, ETA "
+      std::cerr << (tty ? "\r" : "") << "render: " << d
+                << (timed ? "" : "/" + std::to_string(target)) << " spp, " << std::fixed
+                << std::setprecision(2) << sps / 1e6 << " Msamples/s, ETA "
                 << fmt_seconds(std::max(0.0, eta)) << (tty ? "   " : "\n") << std::flush;
     }
   }

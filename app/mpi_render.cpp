@@ -25,6 +25,7 @@
 #include "backends/backend_select.h"
 #include "commands.h"
 #include "render_job.h"
+#include "scene/settings.h"
 
 #if defined(TRACER_HAVE_MPI)
 #include <mpi.h>
@@ -60,10 +61,12 @@ struct Request {
   uint32_t finished = 0;    // samples (or a frame: 1) just finished
   uint32_t item = 0;        // the frame just finished
   uint32_t status = kOk;    // kRankFailed: the rank stops; kItemFailed: that frame failed
-  char message[3968] = {};  // why it failed, or the frame's warnings (under 4 KiB in all: sent eagerly)
+  // Why it failed, or the frame's warnings (the whole request under 4 KiB: sent eagerly).
+  char message[3968] = {};
   void say(std::string s) {
     if (s.size() >= sizeof message) {
-      const std::string cut = "\n... (" + std::to_string(s.size()) + " bytes in all; the rest cut)\n";
+      const std::string cut =
+          "\n... (" + std::to_string(s.size()) + " bytes in all; the rest cut)\n";
       s = s.substr(0, sizeof message - 1 - cut.size()) + cut;
     }
     std::memcpy(message, s.data(), s.size());
@@ -175,13 +178,15 @@ class HostSums {
     const int err = MPI_Win_allocate_shared(MPI_Aint(floats * sizeof(float)), sizeof(float), info,
                                             mpi.node, &base, &win_);
     MPI_Info_free(&info);
+    MPI_Comm_set_errhandler(mpi.node, MPI_ERRORS_ARE_FATAL);
     if (err != MPI_SUCCESS) {
       char text[MPI_MAX_ERROR_STRING];
       int len = 0;
       MPI_Error_string(err, text, &len);
-      throw std::runtime_error("could not make the host's shared window for the sums (" +
-                               std::to_string(floats * sizeof(float) >> 20) +
-                               " MB a rank): " + std::string(text, size_t(len)));
+      char size[32];
+      std::snprintf(size, sizeof size, "%.1f MB", double(floats) * sizeof(float) / 1e6);
+      throw std::runtime_error(std::string("could not make the host's shared window for the ") +
+                               "sums (" + size + " a rank): " + std::string(text, size_t(len)));
     }
     MPI_Win_lock_all(MPI_MODE_NOCHECK, win_);
     mine_ = static_cast<float*>(base);
@@ -351,7 +356,8 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
     status.update({{"backend", job.renderer->backend_name()},
                    {"device", job.renderer->device_name()},
                    {"scene", std::to_string(tracer::scene_fingerprint(job.scene))}});
-  const std::vector<std::string> statuses = gather_strings(mpi, status.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  // (json_text never throws: bytes that are not UTF-8, a Latin-1 path say, are replaced)
+  const std::vector<std::string> statuses = gather_strings(mpi, tracer::json_text(status));
   std::vector<nlohmann::json> ranks;
   int first_rc = 0;
   if (mpi.rank == 0) {
@@ -392,15 +398,23 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
     std::cerr << "\n";
   }
 
-  // Rank 0 writes the AOVs (and denoises): every rank renders them when it asks.
-  job.renderer->set_aovs(broadcast_int(job.renderer->aovs() ? 1 : 0) != 0);
+  // Rank 0 writes the AOVs (and denoises): every rank renders them when it asks (their buffers,
+  // allocated now, can fail: said with the shared memory's check below).
+  std::string late_problem;
+  try {
+    job.renderer->set_aovs(broadcast_int(job.renderer->aovs() ? 1 : 0) != 0);
+  } catch (const std::exception& e) {
+    late_problem = mpi.host + ": rank " + std::to_string(mpi.rank) +
+                   ": the AOV buffers rank 0 asks for: " + e.what();
+  }
   // The host's shared window for the sums, made (and its pages touched) before the render, in
   // shared memory (/dev/shm), which containers keep small: checked first, with what to do.
   const size_t floats_per_rank = size_t(job.scene.settings.width) * job.scene.settings.height *
                                  (job.renderer->aovs() ? 13 : 6);
   {
-    std::string problem;
-    if (mpi.slot.local_rank == 0) problem = shared_memory_problem(mpi, floats_per_rank);
+    std::string problem = late_problem;
+    if (problem.empty() && mpi.slot.local_rank == 0)
+      problem = shared_memory_problem(mpi, floats_per_rank);
     const std::vector<std::string> problems = gather_strings(mpi, problem);
     int bad = 0;
     if (mpi.rank == 0)
@@ -563,7 +577,7 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
                           {"render_s", mine.render_s}, {"ms_per_spp", mine.ms_per_spp},
                           {"idle_s", mine.idle_s},     {"host", mine.host},
                           {"backend", mine.backend},   {"device", mine.device}};
-  const std::vector<std::string> shares = gather_strings(mpi, share.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  const std::vector<std::string> shares = gather_strings(mpi, tracer::json_text(share));
   if (mpi.rank != 0) return 0;
 
   // 5. Rank 0 writes the image and the sidecar.
@@ -703,7 +717,10 @@ int run_render_mpi(const RenderOptions& o) {
   } catch (const std::exception& e) {
     // The other ranks wait in a collective this rank will not reach: end the job, saying why.
     std::cerr << "error: rank " << mpi.rank << " (" << mpi.host << "): " << e.what()
-              << "\nerror: the MPI job is aborted; nothing was written\n" << std::flush;
+              << "\nerror: the MPI job is aborted"
+              << (o.frames.empty() ? "; nothing was written"
+                                   : "; the frames reported as written stay")
+              << "\n" << std::flush;
     MPI_Abort(MPI_COMM_WORLD, kExitInputError);
   }
   // Every rank exits with rank 0's code, so mpirun's status is the render's.

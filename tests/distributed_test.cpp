@@ -195,7 +195,8 @@ TEST(Distributed, RanksTakeOneGpuEachAndTheRestShareTheCores) {
     EXPECT_NE(p.note.find("CPU rank"), std::string::npos);
   }
   // 8 ranks, 8 GPUs: rank i on device i.
-  for (int r = 0; r < 8; ++r) EXPECT_EQ(place_rank(BackendChoice::kAuto, 0, r, 8, 8, 128).device, r);
+  for (int r = 0; r < 8; ++r)
+    EXPECT_EQ(place_rank(BackendChoice::kAuto, 0, r, 8, 8, 128).device, r);
   // No GPU: every rank on the CPU, the cores divided; an explicit thread count is kept.
   EXPECT_EQ(place_rank(BackendChoice::kAuto, 0, 1, 2, 0, 2).threads, 1);
   EXPECT_EQ(place_rank(BackendChoice::kAuto, 0, 1, 2, 0, 2).note, "");

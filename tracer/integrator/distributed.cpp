@@ -226,7 +226,9 @@ uint64_t scene_fingerprint(const Scene& scene) {
   j["materials"] = mats;
   j["lights"] = lights_to_json(scene.distant_lights, scene.point_lights);
   Fnv f;
-  f.text(j.dump());
+  // (names as their bytes too: two that differ only in bytes that are not UTF-8 differ here)
+  f.text(json_text(j));  // (bytes that are not UTF-8 replaced: it never throws)
+  for (const auto& m : scene.materials) f.text(m.name);
   f.vec(scene.mesh.positions);
   f.vec(scene.mesh.normals);
   f.vec(scene.mesh.uvs);
@@ -255,7 +257,12 @@ uint64_t scene_fingerprint(const Scene& scene) {
     f.bytes(&i.mesh, sizeof i.mesh);
     f.bytes(&i.world_from_object, sizeof i.world_from_object);
   }
-  if (scene.environment_image) f.vec(scene.environment_image->rgba);
+  if (scene.environment_image) {
+    f.vec(scene.environment_image->rgba);
+    const int32_t dims[2] = {int32_t(scene.environment_image->width),
+                             int32_t(scene.environment_image->height)};
+    f.bytes(dims, sizeof dims);
+  }
   return f.h;
 }
 
