@@ -162,13 +162,7 @@ void render_progressive(RenderJob& job, bool quiet, tracer::SidecarRun* run) {
     const auto now = clock::now();
     if (!quiet && std::chrono::duration<double>(now - last_print).count() > (tty ? 0.25 : 5.0)) {
       last_print = now;
-      const uint32_t d = renderer.samples_done();
-      const double sps = double(d) * rs.width * rs.height / render_s;
-      const double eta = timed ? rs.time_limit_s - render_s : (target - d) * render_s / d;
-      std::cerr << (tty ? "\r" : "") << "render: " << d
-                << (timed ? "" : "/" + std::to_string(target)) << " spp, " << std::fixed
-                << std::setprecision(2) << sps / 1e6 << " Msamples/s, ETA "
-                << fmt_seconds(std::max(0.0, eta)) << (tty ? "   " : "\n") << std::flush;
+      print_progress(rs, renderer.samples_done(), render_s, "", tty);
     }
   }
   if (!quiet && tty) std::cerr << "\n";
@@ -293,6 +287,18 @@ int render_one(const RenderOptions& o, const std::string& scene_path, const std:
   }
   return finish_render(job, img, aov_images, job.denoise ? &denoised : nullptr, &info, run, quiet,
                        err);
+}
+
+void print_progress(const tracer::RenderSettings& rs, uint32_t done, double seconds,
+                    const std::string& where, bool tty) {
+  const bool timed = rs.time_limit_s > 0.0;
+  const double sps = double(done) * rs.width * rs.height / std::max(seconds, 1e-9);
+  const double eta = timed ? rs.time_limit_s - seconds
+                           : done ? (double(rs.spp) - done) * seconds / done : 0.0;
+  std::cerr << (tty ? "\r" : "") << "render: " << done
+            << (timed ? "" : "/" + std::to_string(rs.spp)) << " spp" << where << ", " << std::fixed
+            << std::setprecision(2) << sps / 1e6 << " Msamples/s, ETA "
+            << fmt_seconds(std::max(0.0, eta)) << (tty ? "   " : "\n") << std::flush;
 }
 
 bool mpi_environment() {

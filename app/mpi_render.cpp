@@ -52,6 +52,9 @@ double seconds_since(clock_type::time_point t) {
 }
 
 constexpr int kTagRequest = 1, kTagWork = 2, kTagIds = 3;
+// A rank's segment of the shared window, per pixel: the even and the odd half's rgb sums, then
+// (with AOVs) the AOV sums.
+constexpr size_t kColourFloats = 6;
 
 // A rank asking rank 0 for work and reporting on the work it finished.
 struct Request {
@@ -410,7 +413,7 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   // The host's shared window for the sums, made (and its pages touched) before the render, in
   // shared memory (/dev/shm), which containers keep small: checked first, with what to do.
   const size_t floats_per_rank = size_t(job.scene.settings.width) * job.scene.settings.height *
-                                 (job.renderer->aovs() ? 13 : 6);
+                                 (kColourFloats + (job.renderer->aovs() ? tracer::kAovFloats : 0));
   {
     std::string problem = late_problem;
     if (problem.empty() && mpi.slot.local_rank == 0)
@@ -453,15 +456,8 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   auto tick = [&] {
     if (o.quiet || seconds_since(last_print) < (tty ? 0.25 : 5.0)) return;
     last_print = clock_type::now();
-    const double t = seconds_since(start);
-    const double sps = double(completed) * rs.width * rs.height / std::max(t, 1e-9);
-    const double eta = timed ? rs.time_limit_s - t
-                             : completed ? (double(target) - completed) * t / completed : 0.0;
-    std::cerr << (tty ? "\r" : "") << "render: " << completed
-              << (timed ? "" : "/" + std::to_string(target)) << " spp on " << mpi.size
-              << (mpi.size == 1 ? " rank, " : " ranks, ") << std::fixed << std::setprecision(2)
-              << sps / 1e6 << " Msamples/s, ETA " << fmt_seconds(std::max(0.0, eta))
-              << (tty ? "   " : "\n") << std::flush;
+    print_progress(rs, uint32_t(completed), seconds_since(start),
+                   " on " + std::to_string(mpi.size) + (mpi.size == 1 ? " rank" : " ranks"), tty);
   };
   tracer::RankShare mine;
   mine.rank = mpi.rank;
@@ -531,8 +527,8 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
   tracer::Accumulation acc;  // this rank's AOV sums and ids (the colour is in the window)
   if (aovs) {
     acc = tracer::accumulation_of_aovs(*job.renderer, rs.width, rs.height);
-    if (acc.aov_sum.empty()) acc.aov_sum.assign(pixels * tracer::kAccumulationAovFloats, 0.0f);
-    std::copy(acc.aov_sum.begin(), acc.aov_sum.end(), seg + 6 * pixels);
+    if (acc.aov_sum.empty()) acc.aov_sum.assign(pixels * tracer::kAovFloats, 0.0f);
+    std::copy(acc.aov_sum.begin(), acc.aov_sum.end(), seg + kColourFloats * pixels);
   }
   sums.reduce(mpi);
   const uint64_t my_counters[10] = {job.renderer->half_samples(0),
@@ -569,8 +565,10 @@ int render_image(const MpiSession& mpi, const RenderOptions& o) {
     total.width = rs.width;
     total.height = rs.height;
     total.sum[0].assign(seg, seg + 3 * pixels);
-    total.sum[1].assign(seg + 3 * pixels, seg + 6 * pixels);
-    if (aovs) total.aov_sum.assign(seg + 6 * pixels, seg + 13 * pixels);
+    total.sum[1].assign(seg + 3 * pixels, seg + kColourFloats * pixels);
+    if (aovs)
+      total.aov_sum.assign(seg + kColourFloats * pixels,
+                           seg + (kColourFloats + tracer::kAovFloats) * pixels);
   }
   MPI_Barrier(MPI_COMM_WORLD);
   nlohmann::json share = {{"samples", mine.samples},   {"batches", mine.batches},

@@ -70,6 +70,12 @@ int render_one(const RenderOptions& o, const std::string& scene_path, const std:
 // "4.2 s" or "3m07s", for progress lines.
 std::string fmt_seconds(double s);
 
+// One progress line on stderr ("render: 120/4096 spp[where], 85.3 Msamples/s, ETA 12.0 s"): done
+// samples after `seconds` of rendering towards rs.spp or rs.time_limit_s; on a terminal it
+// rewrites its line.
+void print_progress(const tracer::RenderSettings& rs, uint32_t done, double seconds,
+                    const std::string& where, bool tty);
+
 // Whether this process was started by an MPI launcher (mpirun, srun: its environment says so).
 bool mpi_environment();
 // The render (or --frames sequence) spread over the MPI job's ranks (mpi_render.cpp). In a

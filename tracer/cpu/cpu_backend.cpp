@@ -10,10 +10,6 @@
 
 namespace tracer {
 
-namespace {
-constexpr size_t kAovFloats = 7;  // albedo rgb, normal xyz, depth
-}  // namespace
-
 CpuRenderer::CpuRenderer(int threads) {
   threads_ = threads > 0 ? threads : int(std::max(1u, std::thread::hardware_concurrency()));
 }

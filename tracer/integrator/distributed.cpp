@@ -107,7 +107,7 @@ AovImages Accumulation::aov_images() const {
   out.prim.assign(n, 0);
   const double inv = 1.0 / aov_count;
   for (size_t i = 0; i < n; ++i) {
-    const float* v = &aov_sum[i * kAccumulationAovFloats];
+    const float* v = &aov_sum[i * kAovFloats];
     for (int c = 0; c < 3; ++c) {
       out.albedo.pixels[3 * i + c] = float(v[c] * inv);
       out.normal.pixels[3 * i + c] = float(v[3 + c] * inv);
@@ -137,10 +137,10 @@ Accumulation accumulation_of_aovs(const Renderer& r, int width, int height) {
   const size_t n = size_t(width) * size_t(height);
   acc.aov_count = r.aov_samples();
   const float w = float(acc.aov_count);
-  acc.aov_sum.resize(n * kAccumulationAovFloats);
+  acc.aov_sum.resize(n * kAovFloats);
   acc.aov_ids.resize(2 * n);
   for (size_t i = 0; i < n; ++i) {
-    float* v = &acc.aov_sum[i * kAccumulationAovFloats];
+    float* v = &acc.aov_sum[i * kAovFloats];
     for (int c = 0; c < 3; ++c) {
       v[c] = a.albedo.pixels[3 * i + c] * w;
       v[3 + c] = a.normal.pixels[3 * i + c] * w;

@@ -81,7 +81,6 @@ struct Accumulation {
   AovImages aov_images() const;                    // empty when there are none
   double half_relmse() const;                      // half_buffer_relmse() of these halves
 };
-inline constexpr size_t kAccumulationAovFloats = 7;
 
 // A renderer's accumulators (Renderer::half_sums; floats, as the GPU keeps them) for an image of
 // width x height. The counters are the caller's (Renderer keeps no totals of rays): `rays` etc.

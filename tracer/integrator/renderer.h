@@ -78,6 +78,10 @@ struct AutoKernelTimes {
   double wavefront_ms = 0, megakernel_ms = 0;
 };
 
+// Feature values a pixel's AOV sums hold where a host keeps them (CPU backend, distributed
+// rendering's sums): albedo rgb, normal xyz, depth.
+inline constexpr size_t kAovFloats = 7;
+
 // The means of the feature buffers (integrator/aov.h) over the samples so far.
 struct AovImages {
   ImageRGB albedo, normal;               // linear RGB; unit normals averaged (not renormalised)
