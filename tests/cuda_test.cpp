@@ -1000,6 +1000,9 @@ TEST(Gpu, GuidingTrainsKeepsTheMeanAndLowersNoise) {
         EXPECT_EQ(g.cells, cpu_guide.cells);
         EXPECT_NEAR(double(g.learned_cells), double(cpu_guide.learned_cells),
                     0.05 * cpu_guide.learned_cells + 5);
+        // The shares are chosen from noisy estimates: the same cells guide within a margin.
+        EXPECT_NEAR(double(g.guiding_cells), double(cpu_guide.guiding_cells),
+                    0.2 * cpu_guide.guiding_cells + 10);
         EXPECT_EQ(st.kernel, "wavefront");
         EXPECT_NE(st.specialization.find("path guiding"), std::string::npos) << st.specialization;
       }

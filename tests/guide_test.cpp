@@ -14,10 +14,10 @@ namespace {
 using namespace test;
 
 // A learned cell from a histogram: one bright lobe, a dim band and empty bins.
-void make_cell(std::vector<float>& hist, std::vector<uint32_t>& counts, std::vector<float>& cdf) {
-  hist.assign(kGuideBins, 0.0f);
+void make_cell(std::vector<float>& hist, std::vector<uint32_t>& counts, std::vector<float>& dist) {
+  hist.assign(kGuideHistFloats, 0.0f);
   counts.assign(1, 1000u);
-  cdf.assign(kGuideBins, 0.0f);
+  dist.assign(kGuideDistFloats, 0.0f);
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   for (uint32_t b = 0; b < kGuideBins; ++b) {
@@ -25,15 +25,15 @@ void make_cell(std::vector<float>& hist, std::vector<uint32_t>& counts, std::vec
     if (x >= 3 && x <= 5 && y >= 9 && y <= 11) hist[b] = 50.0f + 50.0f * u(rng);  // the lobe
     else if (y == 2) hist[b] = 2.0f * u(rng);                                     // a band
   }
-  ASSERT_TRUE(guide_build_cell(hist.data(), counts.data(), cdf.data(), 0));
+  ASSERT_TRUE(guide_build_cell(hist.data(), counts.data(), dist.data(), 0));
 }
 
 TEST(Guide, SamplerMatchesItsDensity) {
-  std::vector<float> hist, cdf;
+  std::vector<float> hist, dist;
   std::vector<uint32_t> counts;
-  make_cell(hist, counts, cdf);
+  make_cell(hist, counts, dist);
   GuideView g;
-  g.cdf = cdf.data();
+  g.dist = dist.data();
   ASSERT_TRUE(guide_learned(g, 0));
   // The density integrates to 1 over the sphere (bins of equal solid angle, 4 pi / 256 each).
   double integral = 0.0;
@@ -70,22 +70,86 @@ TEST(Guide, SamplerMatchesItsDensity) {
 }
 
 TEST(Guide, CellNeedsRecordsAndRadiance) {
-  std::vector<float> hist(kGuideBins, 1.0f), cdf(kGuideBins, 0.5f);
+  std::vector<float> hist(kGuideHistFloats, 1.0f), dist(kGuideDistFloats, 0.5f);
   std::vector<uint32_t> counts = {kGuideMinRecords - 1};
-  EXPECT_FALSE(guide_build_cell(hist.data(), counts.data(), cdf.data(), 0));
-  EXPECT_EQ(cdf.back(), 0.0f);  // not learned: the integrator samples the BSDF alone
+  GuideView g;
+  g.dist = dist.data();
+  EXPECT_FALSE(guide_build_cell(hist.data(), counts.data(), dist.data(), 0));
+  EXPECT_FALSE(guide_learned(g, 0));  // not learned: the integrator samples the BSDF alone
+  EXPECT_EQ(guide_mix(g, 0), 0.0f);
   counts[0] = kGuideMinRecords;
   std::fill(hist.begin(), hist.end(), 0.0f);
-  EXPECT_FALSE(guide_build_cell(hist.data(), counts.data(), cdf.data(), 0));
+  EXPECT_FALSE(guide_build_cell(hist.data(), counts.data(), dist.data(), 0));
   hist[3] = std::numeric_limits<float>::infinity();
-  EXPECT_FALSE(guide_build_cell(hist.data(), counts.data(), cdf.data(), 0));
+  EXPECT_FALSE(guide_build_cell(hist.data(), counts.data(), dist.data(), 0));
   hist[3] = 1.0f;
-  EXPECT_TRUE(guide_build_cell(hist.data(), counts.data(), cdf.data(), 0));
-  EXPECT_EQ(cdf.back(), 1.0f);
+  EXPECT_TRUE(guide_build_cell(hist.data(), counts.data(), dist.data(), 0));
+  EXPECT_TRUE(guide_learned(g, 0));
+  EXPECT_EQ(guide_mix(g, 0), kGuideMix);  // no guided records yet: the default share
   // Every bin keeps the uniform share.
-  GuideView g;
-  g.cdf = cdf.data();
   EXPECT_NEAR(guide_pdf(g, 0, vec3(0, 0, -1)), kGuideUniform / (4.0f * kPi), 1e-6f);
+}
+
+// The share of the guide a cell learns: one vertex in one cell, sampled from the mixture with the
+// default share and a uniform "BSDF" (f cos = 1 / (4 pi) everywhere, density 1 / (4 pi)), its
+// records trained and the cell rebuilt. Where the incident radiance is the guide's lobe, the
+// largest share has the least variance; where it is uniform (the BSDF alone is exact), share 0.
+float learned_share(bool radiance_in_lobe) {
+  std::vector<float> hist, dist;
+  std::vector<uint32_t> counts;
+  make_cell(hist, counts, dist);
+  std::vector<GuideRecord> records(kGuideRecords, GuideRecord{0, 0, 0, kInvalid, 0, 0, 0, 0});
+  GuideView g;
+  g.dist = dist.data();
+  g.hist = hist.data();
+  g.counts = counts.data();
+  g.records = records.data();
+  std::fill(hist.begin(), hist.end(), 0.0f);  // the distribution stays; the sums start again
+  auto radiance = [&](vec3 d) {
+    if (!radiance_in_lobe) return 1.0f;
+    const uint32_t b = guide_bin(d), x = b % kGuideSide, y = b / kGuideSide;
+    return x >= 3 && x <= 5 && y >= 9 && y <= 11 ? 100.0f : 0.0f;
+  };
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const float mix = guide_mix(g, 0), pb = 1.0f / (4.0f * kPi), f_cos = pb;
+  EXPECT_EQ(mix, kGuideMix);
+  for (uint32_t i = 0; i < 20000; ++i) {
+    vec3 d;
+    float pg;
+    if (u(rng) < mix) {
+      d = guide_sample(g, 0, vec2(u(rng), u(rng)), &pg);
+    } else {
+      d = equal_area_square_to_sphere(vec2(u(rng), u(rng)));
+      pg = guide_pdf(g, 0, d);
+    }
+    const float q = mix * pg + (1.0f - mix) * pb;
+    const vec3 throughput(f_cos / q);
+    guide_record(g, 0, i, 1, 0, d, q, throughput, 0.0f, f_cos, pg, pb);
+    guide_train_path(g, 0, i, throughput * radiance(d));
+  }
+  EXPECT_GE(hist[kGuideBins + kGuideShares], float(kGuideMinShareRecords));
+  EXPECT_TRUE(guide_build_cell(hist.data(), counts.data(), dist.data(), 0));
+  for (uint32_t i = 0; i <= kGuideShares; ++i)  // each pass chooses from its own records
+    EXPECT_EQ(hist[kGuideBins + i], 0.0f);
+  return guide_mix(g, 0);
+}
+
+TEST(Guide, CellLearnsItsShareOfTheMixture) {
+  EXPECT_EQ(learned_share(true), guide_share(kGuideShares - 1));
+  EXPECT_EQ(learned_share(false), 0.0f);
+  // A cell whose share is 0 is still learned (its training records keep the guide's density).
+  std::vector<float> hist, dist;
+  std::vector<uint32_t> counts;
+  make_cell(hist, counts, dist);
+  hist[kGuideBins + kGuideShares] = float(kGuideMinShareRecords);
+  hist[kGuideBins + 1] = 1.0f;  // share 0 has the least
+  hist[kGuideBins + 2] = hist[kGuideBins + 3] = 2.0f;
+  ASSERT_TRUE(guide_build_cell(hist.data(), counts.data(), dist.data(), 0));
+  GuideView g;
+  g.dist = dist.data();
+  EXPECT_TRUE(guide_learned(g, 0));
+  EXPECT_EQ(guide_mix(g, 0), 0.0f);
 }
 
 TEST(Guide, GridAndSchedule) {
@@ -194,6 +258,7 @@ TEST(Guide, TrainedGuideKeepsTheMeanAndLowersCausticNoise) {
   const GuideStatus st = guide.status(kGuideTrainSamples);
   EXPECT_EQ(st.builds, 8u);
   EXPECT_GT(st.learned_cells, 20u) << st.describe();
+  EXPECT_GT(st.guiding_cells, 10u) << st.describe();
   EXPECT_TRUE(st.frozen());
   IntegratorSettings guided = cfg;
   guided.guide = guide.view(kGuideTrainSamples);
@@ -230,6 +295,11 @@ TEST(Guide, RendererTrainsInPassesAndReports) {
   EXPECT_EQ(r.samples_done(), 305u);
   EXPECT_EQ(r.guide_status().builds, 8u);
   EXPECT_NE(r.guide_status().describe().find("frozen after 255 spp"), std::string::npos);
+  // The cells that guide are among the learned ones, and the status says how many.
+  const GuideStatus st = r.guide_status();
+  EXPECT_LE(st.guiding_cells, st.learned_cells);
+  EXPECT_NE(st.describe().find(std::to_string(st.guiding_cells) + " guide"), std::string::npos)
+      << st.describe();
   r.reset();  // a new render forgets the guide
   EXPECT_EQ(r.guide_status().builds, 0u);
   rs.guiding = false;

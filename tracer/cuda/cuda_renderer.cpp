@@ -183,10 +183,10 @@ struct CudaRenderer::Impl {
   const CompiledScene* compiled = nullptr;  // (set_scene: the caller keeps it alive)
   GuideGrid grid;  // of the scene at the image's size
   bool guiding = false;
-  DeviceBuffer<float> guide_hist, guide_cdf;
+  DeviceBuffer<float> guide_hist, guide_dist;
   DeviceBuffer<uint32_t> guide_counts, guide_learned;
   DeviceBuffer<GuideRecord> guide_records;
-  uint32_t guide_builds = 0, guide_learned_cells = 0;
+  uint32_t guide_builds = 0, guide_learned_cells[2] = {0, 0};  // learned, guiding
   bool kernel_forced = false;  // resolve() forced a kernel (guiding: the wavefront)
   void allocate_guide() {
     guiding = cfg.guiding != 0 && has_scene && compiled;
@@ -194,24 +194,25 @@ struct CudaRenderer::Impl {
     const size_t cells = guiding ? grid.cells() : 0;
     const size_t records = guiding ? size_t(n()) * kGuideRecords : 0;
     if (guiding)
-      require_device_memory(cells * (2 * kGuideBins * sizeof(float) + sizeof(uint32_t)) +
+      require_device_memory(cells * ((kGuideHistFloats + kGuideDistFloats) * sizeof(float) +
+                                         sizeof(uint32_t)) +
                                 records * sizeof(GuideRecord),
-                            guide_hist.bytes() * 2 + guide_records.bytes(),
+                            guide_hist.bytes() + guide_dist.bytes() + guide_records.bytes(),
                             "path guiding", "its grid of " + std::to_string(cells) +
                                 " cells and " + std::to_string(kGuideRecords) +
                                 " vertex records per pixel", prop.name);
-    guide_hist.resize(cells * kGuideBins);
-    guide_cdf.resize(cells * kGuideBins);
+    guide_hist.resize(cells * kGuideHistFloats);
+    guide_dist.resize(cells * kGuideDistFloats);
     guide_counts.resize(cells);
-    guide_learned.resize(guiding ? 1 : 0);
+    guide_learned.resize(guiding ? 2 : 0);
     guide_records.resize(records);
     clear_guide();
   }
   void clear_guide() {
-    guide_builds = guide_learned_cells = 0;
+    guide_builds = guide_learned_cells[0] = guide_learned_cells[1] = 0;
     if (!guiding) return;
     TRACER_CUDA_CHECK(cudaMemsetAsync(guide_hist.get(), 0, guide_hist.bytes(), stream));
-    TRACER_CUDA_CHECK(cudaMemsetAsync(guide_cdf.get(), 0, guide_cdf.bytes(), stream));
+    TRACER_CUDA_CHECK(cudaMemsetAsync(guide_dist.get(), 0, guide_dist.bytes(), stream));
     TRACER_CUDA_CHECK(cudaMemsetAsync(guide_counts.get(), 0, guide_counts.bytes(), stream));
     // Sample 0xffffffff: no record is of the render's samples yet.
     TRACER_CUDA_CHECK(cudaMemsetAsync(guide_records.get(), 0xff, guide_records.bytes(), stream));
@@ -219,7 +220,7 @@ struct CudaRenderer::Impl {
   GuideView guide_view(uint32_t sample) {
     if (!guiding) return GuideView();
     return guide_view_for(
-        grid, {guide_cdf.get(), guide_hist.get(), guide_counts.get(), guide_records.get()},
+        grid, {guide_dist.get(), guide_hist.get(), guide_counts.get(), guide_records.get()},
         guide_builds, sample);
   }
   // After a wavefront sample: its paths train the guide, and a pass's end rebuilds it.
@@ -227,10 +228,11 @@ struct CudaRenderer::Impl {
     if (!guiding || !guide_trains(sample)) return;
     launch_guide_train(cfg.guide, radiance.get(), n(), sample, stream);
     if (guide_builds_after(sample)) {
-      launch_guide_build(guide_hist.get(), guide_counts.get(), guide_cdf.get(), grid.cells(),
+      launch_guide_build(guide_hist.get(), guide_counts.get(), guide_dist.get(), grid.cells(),
                          guide_learned.get(), stream);
-      TRACER_CUDA_CHECK(cudaMemcpyAsync(&guide_learned_cells, guide_learned.get(),
-                                        sizeof(uint32_t), cudaMemcpyDeviceToHost, stream));
+      TRACER_CUDA_CHECK(cudaMemcpyAsync(guide_learned_cells, guide_learned.get(),
+                                        sizeof(guide_learned_cells), cudaMemcpyDeviceToHost,
+                                        stream));
       TRACER_CUDA_CHECK(cudaStreamSynchronize(stream));
       ++guide_builds;
     }
@@ -667,7 +669,8 @@ void CudaRenderer::reset() {
 
 GuideStatus CudaRenderer::guide_status() const {
   const Impl& m = *impl_;
-  return m.guiding ? GuideStatus::of(m.grid, m.next_sample, m.guide_builds, m.guide_learned_cells)
+  return m.guiding ? GuideStatus::of(m.grid, m.next_sample, m.guide_builds, m.guide_learned_cells[0],
+                                     m.guide_learned_cells[1])
                    : GuideStatus();
 }
 

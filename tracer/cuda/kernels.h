@@ -121,9 +121,9 @@ void launch_megakernel(uint32_t spec, const SceneView& s, const FlatParams& flat
 // recorded vertices to the guide's sums (radiance: the pool's final radiance per path id) ...
 void launch_guide_train(const GuideView& g, const float4* radiance, uint32_t n, uint32_t sample,
                         cudaStream_t stream);
-// ... and after a training pass every cell's distribution is rebuilt; *learned (device) counts
-// the learned cells (zeroed first).
-void launch_guide_build(const float* hist, const uint32_t* counts, float* cdf, uint32_t cells,
+// ... and after a training pass every cell's distribution is rebuilt; learned[0] (device)
+// counts the learned cells, learned[1] those whose share of the guide is not 0 (zeroed first).
+void launch_guide_build(float* hist, const uint32_t* counts, float* dist, uint32_t cells,
                         uint32_t* learned, cudaStream_t stream);
 
 // The wavefront's tail: the megakernel over the paths of a queue (count: its device length),

@@ -222,12 +222,15 @@ __global__ void guide_train_kernel(GuideView g, const float4* radiance, uint32_t
 }
 
 // ... and the rebuild of every cell's distribution, one thread per cell.
-__global__ void guide_build_kernel(const float* hist, const uint32_t* counts, float* cdf,
+__global__ void guide_build_kernel(float* hist, const uint32_t* counts, float* dist,
                                    uint32_t cells, uint32_t* learned) {
   const uint32_t cell = blockIdx.x * blockDim.x + threadIdx.x;
-  const bool ok = cell < cells && guide_build_cell(hist, counts, cdf, cell);
+  const bool ok = cell < cells && guide_build_cell(hist, counts, dist, cell);
+  const bool guides = ok && dist[size_t(cell) * kGuideDistFloats] > 0.0f;
   const unsigned ballot = __ballot_sync(0xffffffffu, ok);
+  const unsigned guiding = __ballot_sync(0xffffffffu, guides);
   if ((threadIdx.x & 31) == 0 && ballot) atomicAdd(learned, uint32_t(__popc(ballot)));
+  if ((threadIdx.x & 31) == 0 && guiding) atomicAdd(learned + 1, uint32_t(__popc(guiding)));
 }
 
 struct IsAlive {
@@ -290,10 +293,10 @@ void launch_guide_train(const GuideView& g, const float4* radiance, uint32_t n, 
   TRACER_CUDA_CHECK_LAUNCH("guide_train_kernel");
 }
 
-void launch_guide_build(const float* hist, const uint32_t* counts, float* cdf, uint32_t cells,
+void launch_guide_build(float* hist, const uint32_t* counts, float* dist, uint32_t cells,
                         uint32_t* learned, cudaStream_t stream) {
-  TRACER_CUDA_CHECK(cudaMemsetAsync(learned, 0, sizeof(uint32_t), stream));
-  guide_build_kernel<<<blocks(cells), kBlock, 0, stream>>>(hist, counts, cdf, cells, learned);
+  TRACER_CUDA_CHECK(cudaMemsetAsync(learned, 0, 2 * sizeof(uint32_t), stream));
+  guide_build_kernel<<<blocks(cells), kBlock, 0, stream>>>(hist, counts, dist, cells, learned);
   TRACER_CUDA_CHECK_LAUNCH("guide_build_kernel");
 }
 

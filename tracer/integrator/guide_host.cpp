@@ -60,7 +60,7 @@ GuideView guide_view_for(const GuideGrid& grid, const GuideArrays& arrays, uint3
   v.nx = grid.nx;
   v.ny = grid.ny;
   v.nz = grid.nz;
-  if (builds > 0) v.cdf = arrays.cdf;
+  if (builds > 0) v.dist = arrays.dist;
   if (guide_trains(sample)) {
     v.hist = arrays.hist;
     v.counts = arrays.counts;
@@ -70,12 +70,13 @@ GuideView guide_view_for(const GuideGrid& grid, const GuideArrays& arrays, uint3
 }
 
 GuideStatus GuideStatus::of(const GuideGrid& grid, uint32_t samples, uint32_t builds,
-                            uint32_t learned) {
+                            uint32_t learned, uint32_t guiding) {
   GuideStatus s;
   s.on = true;
   s.trained_samples = std::min(samples, kGuideTrainSamples);
   s.builds = builds;
   s.learned_cells = learned;
+  s.guiding_cells = guiding;
   s.cells = grid.cells();
   return s;
 }
@@ -88,7 +89,8 @@ std::string GuideStatus::describe() const {
     return s;
   };
   const std::string cells_text =
-      grouped(learned_cells) + " of " + grouped(cells) + " cells learned";
+      grouped(learned_cells) + " of " + grouped(cells) + " cells learned, " +
+      grouped(guiding_cells) + " guide";
   if (frozen()) return "frozen after " + std::to_string(kGuideTrainSamples) + " spp, " + cells_text;
   return "training: pass " + std::to_string(builds + 1) + " of 8 (" +
          std::to_string(trained_samples) + " of " + std::to_string(kGuideTrainSamples) +
@@ -109,47 +111,51 @@ uint32_t guide_pass_end(uint32_t sample) {
 
 void HostGuide::setup(const GuideGrid& grid, uint32_t pixels) {
   grid_ = grid;
-  const size_t bins = size_t(grid.cells()) * kGuideBins;
-  hist_.assign(bins, 0.0f);
-  cdf_.assign(bins, 0.0f);
+  hist_.assign(size_t(grid.cells()) * kGuideHistFloats, 0.0f);
+  dist_.assign(size_t(grid.cells()) * kGuideDistFloats, 0.0f);
   counts_.assign(grid.cells(), 0u);
-  records_.assign(size_t(pixels) * kGuideRecords, GuideRecord{0, 0.0f, 0.0f, kInvalid});
-  builds_ = learned_ = 0;
+  records_.assign(size_t(pixels) * kGuideRecords, GuideRecord{0, 0.0f, 0.0f, kInvalid, 0.0f, 0.0f, 0.0f, 0.0f});
+  builds_ = learned_ = guiding_ = 0;
 }
 
 void HostGuide::clear() {
   std::fill(hist_.begin(), hist_.end(), 0.0f);
-  std::fill(cdf_.begin(), cdf_.end(), 0.0f);
+  std::fill(dist_.begin(), dist_.end(), 0.0f);
   std::fill(counts_.begin(), counts_.end(), 0u);
-  std::fill(records_.begin(), records_.end(), GuideRecord{0, 0.0f, 0.0f, kInvalid});
-  builds_ = learned_ = 0;
+  std::fill(records_.begin(), records_.end(), GuideRecord{0, 0.0f, 0.0f, kInvalid, 0.0f, 0.0f, 0.0f, 0.0f});
+  builds_ = learned_ = guiding_ = 0;
 }
 
 GuideView HostGuide::view(uint32_t first_sample) {
-  return guide_view_for(grid_, {cdf_.data(), hist_.data(), counts_.data(), records_.data()},
+  return guide_view_for(grid_, {dist_.data(), hist_.data(), counts_.data(), records_.data()},
                         builds_, first_sample);
 }
 
 void HostGuide::build(int threads) {
   const uint32_t cells = grid_.cells();
-  std::atomic<uint32_t> next{0}, learned{0};
+  std::atomic<uint32_t> next{0}, learned{0}, guiding{0};
   auto work = [&] {
-    uint32_t mine = 0;
+    uint32_t mine = 0, guides = 0;
     for (uint32_t c; (c = next.fetch_add(64)) < cells;)
       for (uint32_t k = c; k < std::min(cells, c + 64); ++k)
-        mine += guide_build_cell(hist_.data(), counts_.data(), cdf_.data(), k);
+        if (guide_build_cell(hist_.data(), counts_.data(), dist_.data(), k)) {
+          ++mine;
+          guides += dist_[size_t(k) * kGuideDistFloats] > 0.0f;
+        }
     learned += mine;
+    guiding += guides;
   };
   std::vector<std::thread> pool;
   for (int t = 1; t < threads; ++t) pool.emplace_back(work);
   work();
   for (auto& t : pool) t.join();
   learned_ = learned;
+  guiding_ = guiding;
   ++builds_;
 }
 
 GuideStatus HostGuide::status(uint32_t samples) const {
-  return ready() ? GuideStatus::of(grid_, samples, builds_, learned_) : GuideStatus();
+  return ready() ? GuideStatus::of(grid_, samples, builds_, learned_, guiding_) : GuideStatus();
 }
 
 }  // namespace tracer

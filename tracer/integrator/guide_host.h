@@ -28,7 +28,7 @@ uint32_t guide_grid_side(uint32_t pixels);
 GuideGrid guide_grid(const CompiledScene& scene, uint32_t pixels);
 // A guide's arrays, wherever they live (host or device memory).
 struct GuideArrays {
-  float* cdf = nullptr;
+  float* dist = nullptr;
   float* hist = nullptr;
   uint32_t* counts = nullptr;
   GuideRecord* records = nullptr;
@@ -44,11 +44,14 @@ struct GuideStatus {
   uint32_t trained_samples = 0;  // samples that recorded (at most kGuideTrainSamples)
   uint32_t builds = 0;           // distributions built so far (the passes done)
   uint32_t learned_cells = 0, cells = 0;  // at the last build
+  uint32_t guiding_cells = 0;  // learned cells whose share of the guide is not 0
   bool frozen() const { return trained_samples >= kGuideTrainSamples; }
-  // The status of a guide on `grid` after `samples` samples, `builds` builds, `learned` cells.
+  // The status of a guide on `grid` after `samples` samples, `builds` builds, `learned` cells
+  // of which `guiding` guide.
   static GuideStatus of(const GuideGrid& grid, uint32_t samples, uint32_t builds,
-                        uint32_t learned);
-  // e.g. "training: pass 4 of 8, 1,234 of 13,824 cells learned" or "frozen after 255 spp, ...".
+                        uint32_t learned, uint32_t guiding);
+  // e.g. "training: pass 4 of 8 (14 of 255 spp), 1,234 of 13,824 cells learned, 801 guide" or
+  // "frozen after 255 spp, ...".
   std::string describe() const;
 };
 
@@ -63,7 +66,7 @@ class HostGuide {
   // Sizes the arrays for the grid and `pixels` paths and clears them.
   void setup(const GuideGrid& grid, uint32_t pixels);
   void clear();  // forgets everything learned (a new render)
-  bool ready() const { return !cdf_.empty(); }
+  bool ready() const { return !dist_.empty(); }
   // The view for samples from `first_sample` on (within one pass): the distribution once built,
   // the training arrays while the schedule trains.
   GuideView view(uint32_t first_sample);
@@ -73,10 +76,10 @@ class HostGuide {
 
  private:
   GuideGrid grid_;
-  std::vector<float> hist_, cdf_;
+  std::vector<float> hist_, dist_;
   std::vector<uint32_t> counts_;
   std::vector<GuideRecord> records_;
-  uint32_t builds_ = 0, learned_ = 0;
+  uint32_t builds_ = 0, learned_ = 0, guiding_ = 0;
 };
 
 }  // namespace tracer

@@ -357,11 +357,15 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
 
   // Path guiding at this vertex (integrator/guide.h): the cell, whether it guides (learned, and
   // a BSDF with a non-delta lobe), whether it records for training.
+  // Its share of the mixture: the cell's (0: the BSDF alone; the distribution, if any, still
+  // gives the training records its density).
   const GuideView& gv = cfg.guide;
-  const bool guide_here = (F & kFeatureGuiding) && (gv.cdf || gv.records) &&
+  const bool guide_here = (F & kFeatureGuiding) && (gv.dist || gv.records) &&
                           !bsdf_is_delta(m, type) && !diffuse_exit;
   const uint32_t gcell = guide_here ? guide_cell(gv, sh.p) : 0u;
-  const bool guided = guide_here && guide_wide_bsdf(m, type) && guide_learned(gv, gcell);
+  const bool learned = guide_here && guide_wide_bsdf(m, type) && guide_learned(gv, gcell);
+  const float mix = learned ? guide_mix(gv, gcell) : 0.0f;
+  const bool guided = mix > 0.0f;
 
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
     const LightContext ctx = light_tree ? vertex_light_context(sh.p, ng_viewer, normal_code)
@@ -388,8 +392,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           if (cfg.mis && !delta) {
             scatter_pdf = bsdf_pdf<F>(m, wo, wi);
             if (guided)
-              scatter_pdf = kGuideMix * guide_pdf(gv, gcell, wi_world) +
-                            (1.0f - kGuideMix) * scatter_pdf;
+              scatter_pdf = mix * guide_pdf(gv, gcell, wi_world) + (1.0f - mix) * scatter_pdf;
           }
           const float w = cfg.mis && !delta ? power_heuristic(ls.pdf, scatter_pdf) : 1.0f;
           shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * fast_div(w, ls.pdf);
@@ -404,33 +407,43 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     }
   }
 
-  // Only materials with several lobes draw the number that chooses one.
+  // Only materials with several lobes draw the number that chooses one. A guided vertex keeps
+  // the BSDF's value times the cosine and both densities at the direction for training.
   BsdfSample bs;
-  float guide_choice = 1.0f;
+  float guide_choice = 1.0f, f_cos = 0.0f, pdf_guide = 0.0f, pdf_bsdf = 0.0f;
   vec2 guide_u(0.0f);
   if (guided) u.guide(cfg, st.pixel, st.sample, st.depth, &guide_choice, &guide_u);
-  if (guided && guide_choice < kGuideMix) {
+  if (guided && guide_choice < mix) {
     // One-sample MIS of guide and BSDF: a direction from the guide, weighed by the mixture.
-    float pg;
-    const vec3 d = guide_sample(gv, gcell, guide_u, &pg);
+    const vec3 d = guide_sample(gv, gcell, guide_u, &pdf_guide);
     bs.wi = frame.to_local(d);
     bs.specular = false;
-    const float pdf = kGuideMix * pg + (1.0f - kGuideMix) * bsdf_pdf<F>(m, wo, bs.wi);
+    pdf_bsdf = bsdf_pdf<F>(m, wo, bs.wi);
+    const float pdf = mix * pdf_guide + (1.0f - mix) * pdf_bsdf;
     bs.valid = pdf > 0.0f;
     bs.pdf = pdf;
-    bs.weight = bs.valid ? bsdf_eval<F>(m, wo, bs.wi) * (glm::abs(bs.wi.z) / pdf) : vec3(0.0f);
+    const vec3 f = bs.valid ? bsdf_eval<F>(m, wo, bs.wi) * glm::abs(bs.wi.z) : vec3(0.0f);
+    f_cos = luminance(f);
+    bs.weight = bs.valid ? f / pdf : vec3(0.0f);
   } else {
     bs = bsdf_sample<F>(m, wo, u.bsdf(), bsdf_chooses_lobe(type) ? u.lobe() : 0.5f);
     if (guided && bs.valid) {
       if (bs.specular) {  // a delta lobe, which the guide cannot sample: chosen with 1 - mix
-        bs.weight *= 1.0f / (1.0f - kGuideMix);
+        bs.weight *= 1.0f / (1.0f - mix);
       } else {
-        const float pdf =
-            kGuideMix * guide_pdf(gv, gcell, fast_normalize(frame.to_world(bs.wi))) +
-            (1.0f - kGuideMix) * bsdf_pdf<F>(m, wo, bs.wi);
-        bs.weight = bsdf_eval<F>(m, wo, bs.wi) * (glm::abs(bs.wi.z) / pdf);
+        pdf_guide = guide_pdf(gv, gcell, fast_normalize(frame.to_world(bs.wi)));
+        pdf_bsdf = bsdf_pdf<F>(m, wo, bs.wi);
+        const float pdf = mix * pdf_guide + (1.0f - mix) * pdf_bsdf;
+        const vec3 f = bsdf_eval<F>(m, wo, bs.wi) * glm::abs(bs.wi.z);
+        f_cos = luminance(f);
+        bs.weight = f / pdf;
         bs.pdf = pdf;
       }
+    } else if ((F & kFeatureGuiding) && learned && gv.records && bs.valid && !bs.specular) {
+      // A cell whose share is 0 while training: the guide's density for the share's statistics.
+      pdf_guide = guide_pdf(gv, gcell, fast_normalize(frame.to_world(bs.wi)));
+      pdf_bsdf = bs.pdf;
+      f_cos = luminance(bs.weight) * bs.pdf;
     }
   }
   if (!bs.valid) return false;
@@ -475,7 +488,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   // before it, counting this vertex's shadow ray as if it arrives (it is not along wi).
   if ((F & kFeatureGuiding) && guide_here && gv.records && !bs.specular)
     guide_record(gv, st.pixel, st.sample, st.depth, gcell, wi_world, bs.pdf, st.throughput,
-                 luminance(st.radiance) + (shadow.valid ? luminance(shadow.contribution) : 0.0f));
+                 luminance(st.radiance) + (shadow.valid ? luminance(shadow.contribution) : 0.0f),
+                 f_cos, pdf_guide, pdf_bsdf);
   st.depth += 1;
   return !is_black(st.throughput);
 }

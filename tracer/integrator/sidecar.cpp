@@ -102,6 +102,7 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
                     {"trained_samples", run.guide.trained_samples},
                     {"builds", run.guide.builds},
                     {"learned_cells", run.guide.learned_cells},
+                    {"guiding_cells", run.guide.guiding_cells},
                     {"cells", run.guide.cells}};
   if (!run.denoise.denoiser.empty()) {
     // The denoised image is biased: the sidecar says what made it from what.
