@@ -191,7 +191,11 @@ int run_info(const InfoOptions& o) {
             << std::setprecision(2) << lt.build_ms << " ms\n"
             << "flat list   " << flat_text << "\n"
             << "features    " << tracer::describe_features(cs.features()) << "\n"
-            << "GPU kernels " << tracer::spec_name_for_features(cs.features()) << "\n"
+            << "GPU kernels " << tracer::spec_name_for_features(cs.features())
+            << (gpu.shade_spec != gpu.spec
+                    ? std::string("; shade: ") + tracer::spec_label(gpu.shade_spec)
+                    : std::string())
+            << "\n"
             << "GPU design  " << gpu_design_head(gpu) << "\n"
             << "render      " << scene.settings.width << "x" << scene.settings.height << ", "
             << scene.settings.spp << " spp, max depth " << scene.settings.max_depth << "\n";

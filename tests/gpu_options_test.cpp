@@ -149,7 +149,7 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
          "the kernels compiled for the scene's features, or the general ones (with instances "
          "where the scene has some)");
   expect((spec_for_features(t.features) & ~e.spec) == 0, "the kernels cover the scene's features");
-  expect(e.shade_spec == (t.guiding ? kGuidedSpec : e.spec),
+  expect(e.shade_spec == (t.guiding ? guided_shade_spec(e.spec) : e.spec),
          "the guided shade kernel with guiding, else the other stages' variant");
   expect(!(e.spec & kSpecLights) || (e.spec & kSpecSpecular),
          "the lights' kernels are among the specular ones (no diffuse-with-lights variant)");

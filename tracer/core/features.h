@@ -61,17 +61,24 @@ constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4, k
                    kSpecInstances = 16, kSpecGuiding = 32;
 constexpr uint32_t kGeneralSpec = 15;                      // every feature but instances
 constexpr uint32_t kInstancesSpec = kGeneralSpec | kSpecInstances;  // every scene feature
-// The guided shade kernel (path guiding): one variant for every scene, as guiding runs where
-// paths are long and the shading's cost is in its own sampling, not in unused features' code.
+// Path guiding's shade kernels (the only kernels that guide): the bit 32 on the spheres and
+// specular bits of a scene's variant (4 variants), and the general one with instances for scenes
+// with lights beyond emitters or instances (kGuidedSpec). guided_shade_spec() picks one.
 constexpr uint32_t kGuidedSpec = kInstancesSpec | kSpecGuiding;
-constexpr uint32_t kSpecCount = 64;  // indices 0..63; only 0..7, 12..15, 31 and 63 are used
+constexpr uint32_t kSpecCount = 64;  // indices 0..63; 0..7, 12..15, 31, 32..37 and 63 are used
+constexpr uint32_t guided_shade_spec(uint32_t spec) {
+  return (spec & (kSpecLights | kSpecInstances))
+             ? kGuidedSpec
+             : ((spec & (kSpecSpheres | kSpecSpecular)) | kSpecGuiding);
+}
 
 template <uint32_t Spec>
 constexpr uint32_t features_of() {
   static_assert(!(Spec & kSpecLights) || (Spec & kSpecSpecular), "lights imply specular");
   static_assert(!(Spec & kSpecInstances) || (Spec & ~kSpecGuiding) == kInstancesSpec,
                 "instances imply every other feature");
-  static_assert(!(Spec & kSpecGuiding) || Spec == kGuidedSpec, "guiding implies every feature");
+  static_assert(!(Spec & kSpecGuiding) || Spec == guided_shade_spec(Spec & ~kSpecGuiding),
+                "a guided variant is one guided_shade_spec() names");
   return kFeatureEmissiveMeshes | kFeatureShadingNormals |
          ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
          ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
@@ -101,7 +108,18 @@ inline const char* spec_label(uint32_t spec) {
       "", "", "", "",
       "triangles, pinhole, specular, lights",  "spheres+triangles, pinhole, specular, lights",
       "triangles, thin lens, specular, lights", "general (all features)"};
-  if (spec & kSpecGuiding) return "general with path guiding (all features)";
+  if (spec == kGuidedSpec) return "general with instances and path guiding (all features)";
+  if (spec & kSpecGuiding) {
+    static const char* kGuided[8] = {"triangles, diffuse only, path guiding",
+                                     "spheres+triangles, diffuse only, path guiding",
+                                     "",
+                                     "",
+                                     "triangles, specular, path guiding",
+                                     "spheres+triangles, specular, path guiding",
+                                     "",
+                                     ""};
+    return kGuided[spec & 7];
+  }
   if (spec & kSpecInstances) return "general with instances (all features)";
   return (spec & kSpecLights) ? kWithLights[spec & 7] : kNames[spec & 7];
 }

@@ -269,8 +269,16 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   }                                                                                       \
   shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
                                                       next_queue, shadow_queue)
-  if (spec & kSpecGuiding) {  // path guiding: one variant for every scene
-    CALL(kGuidedSpec);
+  if (spec & kSpecGuiding) {  // path guiding (features.h, guided_shade_spec)
+    switch (spec) {
+      case kSpecGuiding: CALL(kSpecGuiding); break;
+      case kSpecGuiding | kSpecSpheres: CALL(kSpecGuiding | kSpecSpheres); break;
+      case kSpecGuiding | kSpecSpecular: CALL(kSpecGuiding | kSpecSpecular); break;
+      case kSpecGuiding | kSpecSpheres | kSpecSpecular:
+        CALL(kSpecGuiding | kSpecSpheres | kSpecSpecular);
+        break;
+      default: CALL(kGuidedSpec); break;
+    }
   } else if (spec & kSpecInstances) {  // instances imply every other feature (features.h)
     CALL(kInstancesSpec);
   } else {

@@ -245,7 +245,7 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
   e.spec = e.specialize                              ? spec_for_features(scene.features)
            : (scene.features & kFeatureInstances) ? kInstancesSpec
                                                    : kGeneralSpec;
-  e.shade_spec = scene.guiding ? kGuidedSpec : e.spec;
+  e.shade_spec = scene.guiding ? guided_shade_spec(e.spec) : e.spec;
   return e;
 }
 

@@ -94,7 +94,7 @@ struct EffectiveGpuOptions {
   // Kernels compiled for the scene's features only (spec), or the general ones (kGeneralSpec).
   bool specialize = false;
   uint32_t spec = 7;
-  // The shade kernel's variant: spec, or kGuidedSpec with path guiding.
+  // The shade kernel's variant: spec, or with path guiding guided_shade_spec(spec).
   uint32_t shade_spec = 7;
   std::string build_variant;  // gpu_build_variant()
   // One entry per changed switch and per path that is off, each with its reason.
