@@ -669,8 +669,8 @@ void CudaRenderer::reset() {
 
 GuideStatus CudaRenderer::guide_status() const {
   const Impl& m = *impl_;
-  return m.guiding ? GuideStatus::of(m.grid, m.next_sample, m.guide_builds, m.guide_learned_cells[0],
-                                     m.guide_learned_cells[1])
+  return m.guiding ? GuideStatus::of(m.grid, m.next_sample, m.guide_builds,
+                                     m.guide_learned_cells[0], m.guide_learned_cells[1])
                    : GuideStatus();
 }
 

@@ -26,9 +26,10 @@
 //
 // The share s is learned per cell, as "Practical Path Guiding in Production" (Mueller 2019)
 // learns its selection probability, but by choice among a few candidates instead of by gradient
-// descent: each training pass estimates, from the vertices of learned cells, the second moment of the
-// vertex's estimate f cos L / p under every candidate share (the recorded sample reweighted by the
-// ratio of the densities), and the build gives the cell the candidate with the least. Where the
+// descent: each training pass estimates, from the vertices of learned cells, the second moment
+// of the vertex's estimate f cos L / p under every candidate share (the recorded sample
+// reweighted by the ratio of the densities), and the build gives the cell the candidate with the
+// least (the last pass decides: earlier passes' densities are stale). Where the
 // BSDF already samples what arrives (a diffuse wall lit evenly, a glossy lobe), the share drops to
 // 0 and the vertex costs what an unguided one does; where the guide knows a bright direction the
 // BSDF misses, it rises to 3/4.

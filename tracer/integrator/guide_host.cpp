@@ -109,12 +109,15 @@ uint32_t guide_pass_end(uint32_t sample) {
   return kGuideTrainSamples - 1;
 }
 
+// A record of no sample (sample kInvalid): stale for every one.
+constexpr GuideRecord kNoRecord{0, 0.0f, 0.0f, kInvalid, 0.0f, 0.0f, 0.0f, 0.0f};
+
 void HostGuide::setup(const GuideGrid& grid, uint32_t pixels) {
   grid_ = grid;
   hist_.assign(size_t(grid.cells()) * kGuideHistFloats, 0.0f);
   dist_.assign(size_t(grid.cells()) * kGuideDistFloats, 0.0f);
   counts_.assign(grid.cells(), 0u);
-  records_.assign(size_t(pixels) * kGuideRecords, GuideRecord{0, 0.0f, 0.0f, kInvalid, 0.0f, 0.0f, 0.0f, 0.0f});
+  records_.assign(size_t(pixels) * kGuideRecords, kNoRecord);
   builds_ = learned_ = guiding_ = 0;
 }
 
@@ -122,7 +125,7 @@ void HostGuide::clear() {
   std::fill(hist_.begin(), hist_.end(), 0.0f);
   std::fill(dist_.begin(), dist_.end(), 0.0f);
   std::fill(counts_.begin(), counts_.end(), 0u);
-  std::fill(records_.begin(), records_.end(), GuideRecord{0, 0.0f, 0.0f, kInvalid, 0.0f, 0.0f, 0.0f, 0.0f});
+  std::fill(records_.begin(), records_.end(), kNoRecord);
   builds_ = learned_ = guiding_ = 0;
 }
 

@@ -355,10 +355,9 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
   const uint32_t normal_code = light_tree ? pack_light_normal(ng_viewer) : 0u;
 
-  // Path guiding at this vertex (integrator/guide.h): the cell, whether it guides (learned, and
-  // a BSDF with a non-delta lobe), whether it records for training.
-  // Its share of the mixture: the cell's (0: the BSDF alone; the distribution, if any, still
-  // gives the training records its density).
+  // Path guiding at this vertex (integrator/guide.h): the cell; whether it is learned for this
+  // BSDF (a wide non-delta lobe) and the cell's share of the mixture (0: the BSDF alone, while the
+  // distribution still gives the training records the guide's density); whether it records.
   const GuideView& gv = cfg.guide;
   const bool guide_here = (F & kFeatureGuiding) && (gv.dist || gv.records) &&
                           !bsdf_is_delta(m, type) && !diffuse_exit;
