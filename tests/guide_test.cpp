@@ -153,6 +153,19 @@ TEST(Guide, CellLearnsItsShareOfTheMixture) {
   g.dist = dist.data();
   EXPECT_TRUE(guide_learned(g, 0));
   EXPECT_EQ(guide_mix(g, 0), 0.0f);
+  // A share must gain kGuideMinGain over the BSDF alone to be taken.
+  auto choose = [&](float m0, float m1, float m2, float m3) {
+    hist[kGuideBins + kGuideShares] = float(kGuideMinShareRecords);
+    hist[kGuideBins + 0] = m0;
+    hist[kGuideBins + 1] = m1;
+    hist[kGuideBins + 2] = m2;
+    hist[kGuideBins + 3] = m3;
+    EXPECT_TRUE(guide_build_cell(hist.data(), counts.data(), dist.data(), 0));
+    return guide_mix(g, 0);
+  };
+  EXPECT_EQ(choose(1.0f, 0.9f, 0.95f, 1.2f), 0.0f);  // 10% less: not worth a guided vertex
+  EXPECT_EQ(choose(1.0f, 0.9f, 0.5f, 0.6f), guide_share(2));
+  EXPECT_EQ(choose(1.0f, 0.8f, 0.7f, 0.74f), guide_share(2));  // 30% less
 }
 
 TEST(Guide, GridAndSchedule) {
@@ -296,7 +309,9 @@ TEST(Guide, TrainedGuideKeepsTheMeanAndLowersCausticNoise) {
               " (%s)\n",
               vb / va, rb / ra, std::chrono::duration<double>(t2 - t1).count(),
               std::chrono::duration<double>(t1 - t0).count(), st.describe().c_str());
-  if (!file) EXPECT_LT(vb, 0.8 * va);  // 0.66 measured
+  // 0.82 measured: at 48x48 few cells gather enough records to show kGuideMinGain (0.61 at
+  // 96x96, 0.66 here without that margin).
+  if (!file) EXPECT_LT(vb, 0.87 * va);
 }
 
 TEST(Guide, RendererTrainsInPassesAndReports) {
