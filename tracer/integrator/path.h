@@ -409,6 +409,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   // Only materials with several lobes draw the number that chooses one. A guided vertex keeps
   // the BSDF's value times the cosine and both densities at the direction for training.
   BsdfSample bs;
+  vec3 wi_world;  // the sampled direction in world space (bs.wi's, normalised once)
   float guide_choice = 1.0f, f_cos = 0.0f, pdf_guide = 0.0f, pdf_bsdf = 0.0f;
   vec2 guide_u(0.0f);
   if (guided) u.guide(cfg, st.pixel, st.sample, st.depth, &guide_choice, &guide_u);
@@ -416,6 +417,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     // One-sample MIS of guide and BSDF: a direction from the guide, weighed by the mixture.
     const vec3 d = guide_sample(gv, gcell, guide_u, &pdf_guide);
     bs.wi = frame.to_local(d);
+    wi_world = fast_normalize(frame.to_world(bs.wi));
     bs.specular = false;
     pdf_bsdf = bsdf_pdf<F>(m, wo, bs.wi);
     const float pdf = mix * pdf_guide + (1.0f - mix) * pdf_bsdf;
@@ -426,11 +428,12 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     bs.weight = bs.valid ? f / pdf : vec3(0.0f);
   } else {
     bs = bsdf_sample<F>(m, wo, u.bsdf(), bsdf_chooses_lobe(type) ? u.lobe() : 0.5f);
+    wi_world = fast_normalize(frame.to_world(bs.wi));
     if (guided && bs.valid) {
       if (bs.specular) {  // a delta lobe, which the guide cannot sample: chosen with 1 - mix
         bs.weight *= 1.0f / (1.0f - mix);
       } else {
-        pdf_guide = guide_pdf(gv, gcell, fast_normalize(frame.to_world(bs.wi)));
+        pdf_guide = guide_pdf(gv, gcell, wi_world);
         pdf_bsdf = bsdf_pdf<F>(m, wo, bs.wi);
         const float pdf = mix * pdf_guide + (1.0f - mix) * pdf_bsdf;
         const vec3 f = bsdf_eval<F>(m, wo, bs.wi) * glm::abs(bs.wi.z);
@@ -440,13 +443,12 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       }
     } else if ((F & kFeatureGuiding) && learned && gv.records && bs.valid && !bs.specular) {
       // A cell whose share is 0 while training: the guide's density for the share's statistics.
-      pdf_guide = guide_pdf(gv, gcell, fast_normalize(frame.to_world(bs.wi)));
+      pdf_guide = guide_pdf(gv, gcell, wi_world);
       pdf_bsdf = bs.pdf;
       f_cos = luminance(bs.weight) * bs.pdf;
     }
   }
   if (!bs.valid) return false;
-  const vec3 wi_world = fast_normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wi_world, sh.ng);
   // A reflector whose shading normal sends the ray under the true surface would leak light.
   if (!transmits && side * glm::dot(wo_world, sh.ng) <= 0.0f) return false;
