@@ -186,6 +186,7 @@ struct Sweep {
   uint64_t nonfinite = 0;
   double to_flip05 = -1;  // seconds to the first checkpoint of mean FLIP <= 0.05 (-1: never)
   std::string denoiser;   // what denoised it (denoise configurations)
+  std::string guide;      // path guiding's status at the end (GuideStatus::describe; "" off)
 };
 
 // Pending FLIP jobs, oldest first: (checkpoint index, mean FLIP).
@@ -371,6 +372,10 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
   collect_flips(flips, sw, 0);
   std::fprintf(stderr, "%s%-32s %6u spp %8.3f s relMSE %.3e\n", isatty(2) ? "\r" : "",
                c.name.c_str(), last.spp, last.seconds, last.error.relmse);
+  if (const tracer::GuideStatus g = r.guide_status(); g.on) {
+    sw.guide = g.describe();
+    std::fprintf(stderr, "  path guiding: %s\n", sw.guide.c_str());
+  }
   sw.summary = tracer::summarize(sw.points);
   if (c.denoise) {  // a denoiser trades noise for bias whatever the slope says
     sw.summary.biased = true;
@@ -467,6 +472,7 @@ void write_outputs(const std::string& dir, const std::vector<Sweep>& sweeps,
                    {"verdict", m.verdict},
                    {"nonfinite", s.nonfinite},
                    {"time_to_flip_0.05_s", s.to_flip05},
+                   {"guiding", s.guide},
                    {"checkpoints", cps}});
   }
   meta["configs"] = arr;

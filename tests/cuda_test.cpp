@@ -8,10 +8,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <random>
 
 #include "cpu/cpu_backend.h"
 #include "integrator/distributed.h"
 #include "cuda/cuda_renderer.h"
+#include "cuda/device_buffer.h"
+#include "cuda/film.h"
 #include "scene/loader.h"
 #include "scene_builders.h"
 #include "test_util.h"
@@ -966,6 +969,52 @@ TEST(Gpu, KernelAutoChoosesAndSaysWhich) {
 // independent seeds, each through training and beyond, against the CPU's unguided statistics)
 // with less noise where the light shines through glass (assets/scenes/glass_lamp.json: light
 // sampling reaches no light there). Every megakernel request runs the wavefront.
+// Path guiding's calibration measures a block's noise on the device (film.cu) as the CPU does
+// (guide_block_noise): the same sum for the same films.
+TEST(Gpu, CalibrationNoiseMatchesTheHost) {
+  REQUIRE_GPU(gpu);
+  const uint32_t n = 10000;
+  std::vector<float4> a(n), b(n), then(n), base(n);
+  std::vector<double> now_h(3 * size_t(n)), then_h(3 * size_t(n)), base_h(3 * size_t(n));
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 4.0f);
+  for (uint32_t i = 0; i < n; ++i) {
+    float fa[3], fb[3], ft[3], fm[3];
+    for (int c = 0; c < 3; ++c) {
+      const bool black = c == 2 && i % 7 == 0;  // some black channels
+      fm[c] = black ? 0.0f : 64.0f * u(rng);
+      ft[c] = fm[c] + (black ? 0.0f : 2.0f * u(rng));
+      fa[c] = 0.5f * ft[c] + u(rng);
+      fb[c] = 0.5f * ft[c] + (i % 5 == 0 ? 8.0f : u(rng));
+      now_h[3 * i + c] = double(fa[c]) + double(fb[c]);
+      then_h[3 * i + c] = ft[c];
+      base_h[3 * i + c] = fm[c];
+    }
+    a[i] = make_float4(fa[0], fa[1], fa[2], 0.0f);
+    b[i] = make_float4(fb[0], fb[1], fb[2], 0.0f);
+    then[i] = make_float4(ft[0], ft[1], ft[2], 0.0f);
+    base[i] = make_float4(fm[0], fm[1], fm[2], 0.0f);
+  }
+  DeviceBuffer<float4> d_a, d_b, d_then, d_base, d_sum(n);
+  d_a.upload(a);
+  d_b.upload(b);
+  d_then.upload(then);
+  d_base.upload(base);
+  DeviceBuffer<double> d_noise(1);
+  launch_block_noise(d_a.get(), d_b.get(), d_then.get(), d_base.get(), 1.0f / 8.0f, 1.0f / 64.0f,
+                     n, d_noise.get(), nullptr);
+  std::vector<double> noise;
+  d_noise.download(noise);
+  const double host = guide_block_noise(now_h.data(), then_h.data(), base_h.data(), 1.0 / 8.0,
+                                        1.0 / 64.0, now_h.size());
+  EXPECT_NEAR(noise[0], host, 1e-4 * host);
+  // The films' sum that the blocks start from.
+  launch_sum_films(d_a.get(), d_b.get(), d_sum.get(), n, nullptr);
+  std::vector<float4> sum;
+  d_sum.download(sum);
+  EXPECT_NEAR(sum[5].y, a[5].y + b[5].y, 1e-5f * (a[5].y + b[5].y));
+}
+
 TEST(Gpu, GuidingTrainsKeepsTheMeanAndLowersNoise) {
   REQUIRE_GPU(gpu);
   const Scene s = load_scene(source_dir() + "/assets/scenes/glass_lamp.json");
@@ -1003,8 +1052,13 @@ TEST(Gpu, GuidingTrainsKeepsTheMeanAndLowersNoise) {
         // The shares are chosen from noisy estimates: the same cells guide within a margin.
         EXPECT_NEAR(double(g.guiding_cells), double(cpu_guide.guiding_cells),
                     0.2 * cpu_guide.guiding_cells + 10);
-        EXPECT_EQ(st.kernel, "wavefront");
         EXPECT_NE(st.specialization.find("path guiding"), std::string::npos) << st.specialization;
+        // Calibrated after training (guide_host.h): 8 unguided and 8 guided samples measured.
+        ASSERT_TRUE(g.calibration.done()) << g.describe();
+        EXPECT_EQ(g.calibration.samples[0], kGuideCalibrationSamples / 2);
+        EXPECT_GT(g.calibration.time_ratio(), 0.0);
+        EXPECT_GT(g.calibration.variance_ratio(), 0.0);
+        if (!g.retired()) EXPECT_EQ(st.kernel, "wavefront");
       }
     }
     if (guided) {  // a megakernel request renders guided in the wavefront too

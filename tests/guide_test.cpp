@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <random>
 
@@ -191,6 +192,81 @@ TEST(Guide, GridAndSchedule) {
   EXPECT_EQ(guide_builds_done(1000), 8u);
 }
 
+// After training, calibration: a block of unguided samples, then a block of guided ones; the
+// guide stays if its variance times its time is at least 10% below the unguided one's.
+TEST(Guide, CalibrationKeepsTheGuideOnlyWhereItPays) {
+  std::vector<uint32_t> calibrating, guided, starts, ends;
+  for (uint32_t s = 0; s < 1000; ++s) {
+    if (guide_calibrates(s)) calibrating.push_back(s);
+    if (guide_calibrates(s) && guide_calibration_guided(s)) guided.push_back(s);
+    if (guide_calibration_block_starts(s)) starts.push_back(s);
+    if (guide_calibration_block_ends(s)) ends.push_back(s);
+  }
+  ASSERT_EQ(calibrating.size(), kGuideCalibrationSamples);
+  EXPECT_EQ(calibrating.front(), 256u);  // after the last training pass, at a block of Sobol's
+  EXPECT_EQ(guided, (std::vector<uint32_t>{264, 265, 266, 267, 268, 269, 270, 271}));
+  EXPECT_EQ(starts, (std::vector<uint32_t>{256, 264}));
+  EXPECT_EQ(ends, (std::vector<uint32_t>{263, 271}));
+
+  // Guided: half the variance for 1.5x the time (0.75 at equal time): kept.
+  auto calibration = [](double guided_seconds, double guided_noise) {
+    GuideCalibration c;
+    for (uint32_t k = 0; k < kGuideCalibrationBlock; ++k) c.add_time(false, 0.002);
+    c.noise[0] = 40.0;
+    for (uint32_t k = 0; k < kGuideCalibrationBlock; ++k) {
+      EXPECT_FALSE(c.done());
+      c.add_time(true, guided_seconds);
+    }
+    EXPECT_FALSE(c.done());  // until the guided block's noise is measured
+    c.noise[1] = guided_noise;
+    EXPECT_TRUE(c.done());
+    return c;
+  };
+  const GuideCalibration c = calibration(0.003, 20.0);
+  EXPECT_NEAR(c.time_ratio(), 1.5, 1e-12);
+  EXPECT_NEAR(c.variance_ratio(), 0.5, 1e-12);
+  EXPECT_TRUE(c.keeps());
+  // 0.9x the variance for 1.5x the time (1.35): retired; exactly even: retired too (the guide
+  // must win by 10%); 0.45 x 2 = 0.9: kept.
+  const GuideCalibration worse = calibration(0.003, 36.0);
+  EXPECT_FALSE(worse.keeps());
+  EXPECT_FALSE(calibration(0.004, 20.0).keeps());
+  EXPECT_TRUE(calibration(0.004, 18.0).keeps());
+  EXPECT_EQ(GuideCalibration().time_ratio(), 1.0);  // nothing measured yet
+  EXPECT_EQ(GuideCalibration().variance_ratio(), 1.0);
+  // Times by their medians: a first sample that loads the kernels does not decide.
+  GuideCalibration slow_start;
+  for (uint32_t k = 0; k < kGuideCalibrationBlock; ++k) {
+    slow_start.add_time(false, k == 0 ? 0.05 : 0.002);
+    slow_start.add_time(true, k == 0 ? 0.05 : 0.003);
+  }
+  EXPECT_NEAR(slow_start.time_ratio(), 1.5, 1e-12);
+
+  // The noise measure: a block of 2 samples whose mean is (1, 3), against a mean of (1, 1)
+  // (sums of 4 samples before the calibration).
+  const double now[2] = {5.0, 11.0}, then[2] = {3.0, 5.0}, base[2] = {4.0, 4.0};
+  EXPECT_NEAR(guide_block_noise(now, then, base, 0.5, 0.25, 2), 4.0 / (1.01 * 1.01), 1e-12);
+
+  // The CPU guide hands out no distribution for the unguided block and none at all once retired.
+  HostGuide guide;
+  guide.setup(guide_grid(vec3(0.0f), vec3(1.0f), 1), 1);
+  guide.build(1);
+  EXPECT_NE(guide.view(kGuideTrainSamples).dist, nullptr);
+  EXPECT_EQ(guide.view(256).dist, nullptr);
+  EXPECT_EQ(guide.view(263).dist, nullptr);
+  EXPECT_NE(guide.view(264).dist, nullptr);
+  EXPECT_NE(guide.view(272).dist, nullptr);
+  guide.calibration() = worse;
+  EXPECT_EQ(guide.view(272).dist, nullptr);
+  EXPECT_TRUE(guide.status(272).retired());
+  EXPECT_NE(guide.status(300).describe().find("retired (unguided from here): 0.90x the variance "
+                                              "for 1.50x the time per sample"),
+            std::string::npos)
+      << guide.status(300).describe();
+  guide.clear();  // a new render calibrates anew
+  EXPECT_FALSE(guide.calibration().done());
+}
+
 // A small box lit only through glass: its light hangs behind a glass plate, so every path to it
 // refracts twice and next-event estimation reaches none (Veach's "light through a window"), and a
 // rough metal ball in the room. BSDF sampling finds the light where it points at it; the guide
@@ -288,7 +364,7 @@ TEST(Guide, TrainedGuideKeepsTheMeanAndLowersCausticNoise) {
   EXPECT_GT(st.guiding_cells, 10u) << st.describe();
   EXPECT_TRUE(st.frozen());
   IntegratorSettings guided = cfg;
-  guided.guide = guide.view(kGuideTrainSamples);
+  guided.guide = guide.view(kGuideTrainSamples + kGuideCalibrationSamples);  // guided
   const auto t0 = std::chrono::steady_clock::now();
   const PixelStats a = stats_with(cs, cfg, kW, kH, 1000, spp);
   const auto t1 = std::chrono::steady_clock::now();
@@ -329,10 +405,25 @@ TEST(Guide, RendererTrainsInPassesAndReports) {
   EXPECT_EQ(r.guide_status().builds, 2u);
   EXPECT_NE(r.guide_status().describe().find("training: pass 3 of 8"), std::string::npos)
       << r.guide_status().describe();
-  r.render(300);
-  EXPECT_EQ(r.samples_done(), 305u);
+  r.render(255);
+  EXPECT_EQ(r.samples_done(), 260u);
   EXPECT_EQ(r.guide_status().builds, 8u);
   EXPECT_NE(r.guide_status().describe().find("frozen after 255 spp"), std::string::npos);
+  EXPECT_NE(r.guide_status().describe().find("calibrating (4 of 16 spp)"), std::string::npos)
+      << r.guide_status().describe();
+  r.render(45);
+  EXPECT_EQ(r.samples_done(), 305u);
+  // Calibrated: both kinds of sample measured, and the decision follows from the ratios.
+  const GuideCalibration& c = r.guide_status().calibration;
+  ASSERT_TRUE(c.done());
+  EXPECT_EQ(c.samples[0], kGuideCalibrationSamples / 2);
+  EXPECT_EQ(c.samples[1], kGuideCalibrationSamples / 2);
+  EXPECT_GT(c.time_ratio(), 0.0);
+  EXPECT_GT(c.variance_ratio(), 0.0);
+  EXPECT_TRUE(std::isfinite(c.time_ratio() * c.variance_ratio()));
+  EXPECT_NE(r.guide_status().describe().find(c.keeps() ? "; kept: " : "; retired"),
+            std::string::npos)
+      << r.guide_status().describe();
   // The cells that guide are among the learned ones, and the status says how many.
   const GuideStatus st = r.guide_status();
   EXPECT_LE(st.guiding_cells, st.learned_cells);

@@ -162,15 +162,42 @@ FrameStats CpuRenderer::render(uint32_t spp) {
   if (!scene_) throw std::logic_error("CpuRenderer::render: no scene set");
   if (!guide_.ready()) return render_pass(spp);
   // Guiding: the guide is rebuilt at the end of each training pass, so a call that spans passes
-  // renders them one after another.
+  // renders them one after another; the calibration's samples (guide_host.h) one at a time.
   const auto start = std::chrono::steady_clock::now();
   FrameStats total;
   for (uint32_t done = 0; done < spp;) {
     const uint32_t first = next_;
-    const uint32_t chunk =
-        guide_trains(first) ? std::min(spp - done, guide_pass_end(first) - first + 1) : spp - done;
+    uint32_t chunk = spp - done;
+    if (guide_trains(first)) {
+      chunk = std::min(chunk, guide_pass_end(first) - first + 1);
+    } else if (guide_calibrates(first)) {
+      chunk = 1;
+    } else if (first < kGuideCalibrationStart) {
+      chunk = std::min(chunk, kGuideCalibrationStart - first);
+    }
+    const bool calibrating = guide_calibrates(first) && !guide_.calibration().done();
+    if (calibrating && guide_calibration_block_starts(first)) {
+      // The sums before a block: the first block's also give the mean both blocks are
+      // measured against.
+      calibration_then_ = total_sums();
+      if (first == kGuideCalibrationStart) {
+        calibration_base_ = calibration_then_;
+        calibration_base_count_ = samples_;
+      }
+    }
     FrameStats st = render_pass(chunk);
     if (st.spp_added == 0) break;  // cancelled
+    if (calibrating) {
+      GuideCalibration& c = guide_.calibration();
+      const bool guided = guide_calibration_guided(first);
+      c.add_time(guided, st.ms * 1e-3);
+      if (guide_calibration_block_ends(first) && calibration_base_count_ > 0) {
+        const std::vector<double> now = total_sums();
+        c.noise[guided] = guide_block_noise(now.data(), calibration_then_.data(),
+                                            calibration_base_.data(), 1.0 / kGuideCalibrationBlock,
+                                            1.0 / calibration_base_count_, now.size());
+      }
+    }
     if (guide_trains(next_ - 1) && guide_builds_after(next_ - 1)) guide_.build(threads_);
     if (done == 0) {
       total = st;
@@ -248,6 +275,12 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
   nonfinite_ += st.nonfinite;
   st.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return st;
+}
+
+std::vector<double> CpuRenderer::total_sums() const {
+  std::vector<double> t(sum_even_.size());
+  for (size_t i = 0; i < t.size(); ++i) t[i] = sum_even_[i] + sum_odd_[i];
+  return t;
 }
 
 ImageRGB CpuRenderer::image() const {

@@ -59,6 +59,10 @@ class CpuRenderer final : public Renderer {
   // Path guiding (render.guiding): sized by set_settings, cleared by reset().
   HostGuide guide_;
   void setup_guide();
+  // Its calibration (guide_host.h): the sums before the first block and before the current one.
+  std::vector<double> calibration_base_, calibration_then_;
+  uint32_t calibration_base_count_ = 0;
+  std::vector<double> total_sums() const;  // sum_even_ + sum_odd_
   // Adds spp samples within one pass of the guide's schedule (all of them when not guiding).
   FrameStats render_pass(uint32_t spp);
   const std::atomic<bool>* cancel_ = nullptr;

@@ -8,8 +8,10 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "cuda/device_buffer.h"
+#include "cuda/film.h"
 #include "cuda/kernels.h"
 
 namespace tracer {
@@ -187,6 +189,15 @@ struct CudaRenderer::Impl {
   DeviceBuffer<uint32_t> guide_counts, guide_learned;
   DeviceBuffer<GuideRecord> guide_records;
   uint32_t guide_builds = 0, guide_learned_cells[2] = {0, 0};  // learned, guiding
+  // After training: kept or retired (guide_host.h). An unguided calibration sample runs the
+  // stages of eff_plain; the films' sums before the first block and before the current one are
+  // kept in calibration_base and calibration_then.
+  GuideCalibration calibration;
+  EffectiveGpuOptions eff_plain;
+  DeviceBuffer<float4> calibration_base, calibration_then;
+  uint32_t calibration_base_count = 0;
+  DeviceBuffer<double> calibration_sum;
+  bool guide_retired() const { return guiding && calibration.done() && !calibration.keeps(); }
   bool kernel_forced = false;  // resolve() forced a kernel (guiding: the wavefront)
   void allocate_guide() {
     guiding = cfg.guiding != 0 && has_scene && compiled;
@@ -210,6 +221,10 @@ struct CudaRenderer::Impl {
   }
   void clear_guide() {
     guide_builds = guide_learned_cells[0] = guide_learned_cells[1] = 0;
+    const bool was_retired = guide_retired();
+    calibration = GuideCalibration();
+    calibration_base_count = 0;
+    if (was_retired) resolve();  // guided again
     if (!guiding) return;
     TRACER_CUDA_CHECK(cudaMemsetAsync(guide_hist.get(), 0, guide_hist.bytes(), stream));
     TRACER_CUDA_CHECK(cudaMemsetAsync(guide_dist.get(), 0, guide_dist.bytes(), stream));
@@ -218,7 +233,9 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaMemsetAsync(guide_records.get(), 0xff, guide_records.bytes(), stream));
   }
   GuideView guide_view(uint32_t sample) {
-    if (!guiding) return GuideView();
+    if (!guiding || guide_retired() ||
+        (guide_calibrates(sample) && !guide_calibration_guided(sample)))
+      return GuideView();
     return guide_view_for(
         grid, {guide_dist.get(), guide_hist.get(), guide_counts.get(), guide_records.get()},
         guide_builds, sample);
@@ -250,7 +267,12 @@ struct CudaRenderer::Impl {
     if (!has_scene) return;
     GpuSceneTraits traits = gpu_scene_traits(view, flat_available, cfg);
     traits.bvh8_available = nodes8.size() > 0;
+    if (guide_retired()) traits.guiding = false;  // the render goes on unguided
     eff = resolve_gpu_options(opts, traits);
+    // The unguided calibration samples' stages (guide_host.h): the same options without guiding.
+    GpuSceneTraits plain = traits;
+    plain.guiding = false;
+    eff_plain = traits.guiding ? resolve_gpu_options(opts, plain) : eff;
     // A kernel the resolution forces (path guiding: the wavefront) runs; once no longer forced,
     // the request runs again (--kernel auto times both designs anew).
     const bool forced = eff.options.kernel != opts.kernel;
@@ -670,7 +692,8 @@ void CudaRenderer::reset() {
 GuideStatus CudaRenderer::guide_status() const {
   const Impl& m = *impl_;
   return m.guiding ? GuideStatus::of(m.grid, m.next_sample, m.guide_builds,
-                                     m.guide_learned_cells[0], m.guide_learned_cells[1])
+                                     m.guide_learned_cells[0], m.guide_learned_cells[1],
+                                     m.calibration)
                    : GuideStatus();
 }
 
@@ -772,12 +795,32 @@ FrameStats CudaRenderer::render(uint32_t spp) {
     }
     // Timed: the first sample of a call, and all of auto's four (its first wavefront sample's
     // alive counts give the second the estimate its tail needs).
-    const bool timed = k == 0 || m.chosen == KernelMode::kAuto;
+    // Path guiding's calibration samples (guide_host.h) are timed; the films' sums are kept
+    // before each block.
+    const bool calibrating_guide = m.guiding && !m.calibration.done() &&
+                                   guide_calibrates(sample) && mode == KernelMode::kWavefront;
+    const bool timed = k == 0 || m.chosen == KernelMode::kAuto || calibrating_guide;
     m.cfg.guide = m.guide_view(sample);
+    if (calibrating_guide && guide_calibration_block_starts(sample)) {
+      m.calibration_then.resize(m.n());
+      m.calibration_sum.resize(1);
+      launch_sum_films(m.film[0].get(), m.film[1].get(), m.calibration_then.get(), m.n(),
+                       m.stream);
+      if (sample == kGuideCalibrationStart) {
+        m.calibration_base.resize(m.n());
+        TRACER_CUDA_CHECK(cudaMemcpyAsync(m.calibration_base.get(), m.calibration_then.get(),
+                                          m.calibration_then.bytes(), cudaMemcpyDeviceToDevice,
+                                          m.stream));
+        m.calibration_base_count = m.film_count[0] + m.film_count[1];
+      }
+    }
+    const bool unguided = calibrating_guide && !guide_calibration_guided(sample);
     if (mode == KernelMode::kMegakernel) {
       m.megakernel_wave(sample, first, timed);
     } else {
+      if (unguided) std::swap(m.eff, m.eff_plain);
       m.wavefront_wave(sample, first, timed);
+      if (unguided) std::swap(m.eff, m.eff_plain);
       m.guide_after_sample(sample);
     }
     // The feature buffers after the sample's paths (outside its timed stages).
@@ -791,6 +834,21 @@ FrameStats CudaRenderer::render(uint32_t spp) {
       m.collect(t);
       if (k == 0) st.stages = t;
       if (calibrating) m.auto_ms[mode == KernelMode::kWavefront ? 0 : 1] = t.total();
+      if (calibrating_guide) {
+        m.calibration.add_time(!unguided, t.total() * 1e-3);
+        if (guide_calibration_block_ends(sample) && m.calibration_base_count > 0) {
+          launch_block_noise(m.film[0].get(), m.film[1].get(), m.calibration_then.get(),
+                             m.calibration_base.get(), 1.0f / float(kGuideCalibrationBlock),
+                             1.0f / float(m.calibration_base_count), m.n(),
+                             m.calibration_sum.get(), m.stream);
+          double noise = 0.0;
+          TRACER_CUDA_CHECK(cudaMemcpyAsync(&noise, m.calibration_sum.get(), sizeof(double),
+                                            cudaMemcpyDeviceToHost, m.stream));
+          TRACER_CUDA_CHECK(cudaStreamSynchronize(m.stream));
+          m.calibration.noise[!unguided] = noise;
+        }
+        if (m.guide_retired()) m.resolve();  // unguided from the next sample on
+      }
       if (mode == KernelMode::kWavefront) {
         m.alive_counts.download(m.tail_estimate);
         m.tail_estimate[0] = m.n();

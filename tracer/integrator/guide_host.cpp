@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <thread>
 
 #include "bvh/bvh.h"
+#include "integrator/guide_calibration.h"
 #include "scene/compiled_scene.h"
 
 namespace tracer {
@@ -69,8 +71,41 @@ GuideView guide_view_for(const GuideGrid& grid, const GuideArrays& arrays, uint3
   return v;
 }
 
+void GuideCalibration::add_time(bool guided, double sample_seconds) {
+  if (samples[guided] < kEach) seconds[guided][samples[guided]++] = sample_seconds;
+}
+
+double GuideCalibration::time_ratio() const {
+  if (samples[0] == 0 || samples[1] == 0) return 1.0;
+  auto median = [&](int kind) {
+    double t[kEach];
+    const uint32_t n = samples[kind];
+    for (uint32_t i = 0; i < n; ++i) {  // insertion sort of at most kEach
+      uint32_t j = i;
+      for (; j > 0 && t[j - 1] > seconds[kind][i]; --j) t[j] = t[j - 1];
+      t[j] = seconds[kind][i];
+    }
+    return n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2]);
+  };
+  const double unguided = median(0);
+  return unguided > 0.0 ? median(1) / unguided : 1.0;
+}
+
+double GuideCalibration::variance_ratio() const {
+  return noise[0] > 0.0 && noise[1] >= 0.0 ? noise[1] / noise[0] : 1.0;
+}
+
+double guide_block_noise(const double* now, const double* then, const double* base,
+                         double inv_block, double inv_base, size_t floats) {
+  double total = 0.0;
+  for (size_t i = 0; i < floats; ++i)
+    total += guide_moment_term((now[i] - then[i]) * inv_block, base[i] * inv_base);
+  return total;
+}
+
 GuideStatus GuideStatus::of(const GuideGrid& grid, uint32_t samples, uint32_t builds,
-                            uint32_t learned, uint32_t guiding) {
+                            uint32_t learned, uint32_t guiding,
+                            const GuideCalibration& calibration) {
   GuideStatus s;
   s.on = true;
   s.trained_samples = std::min(samples, kGuideTrainSamples);
@@ -78,6 +113,7 @@ GuideStatus GuideStatus::of(const GuideGrid& grid, uint32_t samples, uint32_t bu
   s.learned_cells = learned;
   s.guiding_cells = guiding;
   s.cells = grid.cells();
+  s.calibration = calibration;
   return s;
 }
 
@@ -91,7 +127,20 @@ std::string GuideStatus::describe() const {
   const std::string cells_text =
       grouped(learned_cells) + " of " + grouped(cells) + " cells learned, " +
       grouped(guiding_cells) + " guide";
-  if (frozen()) return "frozen after " + std::to_string(kGuideTrainSamples) + " spp, " + cells_text;
+  if (frozen()) {
+    const GuideCalibration& c = calibration;
+    std::string verdict;
+    if (!c.done()) {
+      verdict = "; calibrating (" + std::to_string(c.samples[0] + c.samples[1]) + " of " +
+                std::to_string(kGuideCalibrationSamples) + " spp)";
+    } else {
+      char ratios[96];
+      std::snprintf(ratios, sizeof(ratios), "%.2fx the variance for %.2fx the time per sample",
+                    c.variance_ratio(), c.time_ratio());
+      verdict = std::string(c.keeps() ? "; kept: " : "; retired (unguided from here): ") + ratios;
+    }
+    return "frozen after " + std::to_string(kGuideTrainSamples) + " spp, " + cells_text + verdict;
+  }
   return "training: pass " + std::to_string(builds + 1) + " of 8 (" +
          std::to_string(trained_samples) + " of " + std::to_string(kGuideTrainSamples) +
          " spp), " + cells_text;
@@ -119,6 +168,7 @@ void HostGuide::setup(const GuideGrid& grid, uint32_t pixels) {
   counts_.assign(grid.cells(), 0u);
   records_.assign(size_t(pixels) * kGuideRecords, kNoRecord);
   builds_ = learned_ = guiding_ = 0;
+  calibration_ = GuideCalibration();
 }
 
 void HostGuide::clear() {
@@ -127,9 +177,13 @@ void HostGuide::clear() {
   std::fill(counts_.begin(), counts_.end(), 0u);
   std::fill(records_.begin(), records_.end(), kNoRecord);
   builds_ = learned_ = guiding_ = 0;
+  calibration_ = GuideCalibration();
 }
 
 GuideView HostGuide::view(uint32_t first_sample) {
+  const bool retired = calibration_.done() && !calibration_.keeps();
+  if (retired || (guide_calibrates(first_sample) && !guide_calibration_guided(first_sample)))
+    return GuideView();
   return guide_view_for(grid_, {dist_.data(), hist_.data(), counts_.data(), records_.data()},
                         builds_, first_sample);
 }
@@ -158,7 +212,7 @@ void HostGuide::build(int threads) {
 }
 
 GuideStatus HostGuide::status(uint32_t samples) const {
-  return ready() ? GuideStatus::of(grid_, samples, builds_, learned_, guiding_) : GuideStatus();
+  return ready() ? GuideStatus::of(grid_, samples, builds_, learned_, guiding_, calibration_) : GuideStatus();
 }
 
 }  // namespace tracer

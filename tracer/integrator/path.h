@@ -38,15 +38,13 @@ struct IntegratorSettings {
 // The dimension pairs of the Sobol sampler: each draw of a vertex has its own (a 1D draw takes
 // the first coordinate of its pair). The camera vertex is bounce 0, surface vertex k bounce k.
 enum CameraDims : uint32_t { kDimJitter = 0, kDimLens = 1 };
-// (Pair 0 of a surface vertex is unused by the light: its point's first coordinate also chooses
-// the light, see sample_light_2d. Path guiding takes pair 0 for its direction and pair 5.)
+// (Pair 0 of a surface vertex is unused: the light point's first coordinate also chooses the
+// light, see sample_light_2d, and path guiding splits the BSDF's pair, see shade_path.)
 enum VertexDims : uint32_t {
-  kDimGuideDir = 0,  // path guiding only (integrator/guide.h)
   kDimLightPoint = 1,
   kDimBsdf = 2,
   kDimLobe = 3,
   kDimRoulette = 4,
-  kDimGuideChoice = 5,  // path guiding only
 };
 
 // The random numbers of one surface vertex, from either sampler. The random sampler draws them
@@ -76,20 +74,6 @@ struct VertexSampler {
   TRACER_HD vec2 bsdf() const { return sobol ? q.get_2d(kDimBsdf) : pcg_bsdf; }
   TRACER_HD float lobe() const { return sobol ? q.get_1d(kDimLobe) : pcg_lobe; }
   TRACER_HD float rr() const { return sobol ? q.get_1d(kDimRoulette) : pcg_rr; }
-  // Path guiding's numbers (guide or BSDF, and the guide's direction), drawn only where a vertex
-  // is guided: with PCG32 from a stream of their own (the "bounce" 0xfff00000 + depth lies beyond
-  // every random-walk step's), so that the other draws keep their places.
-  TRACER_HD void guide(const IntegratorSettings& cfg, uint32_t pixel, uint32_t sample,
-                       uint32_t bounce, float* choice, vec2* dir) const {
-    if (sobol) {
-      *choice = q.get_1d(kDimGuideChoice);
-      *dir = q.get_2d(kDimGuideDir);
-    } else {
-      Pcg32 rng = make_path_rng(pixel, sample, 0xfff00000u + bounce, cfg.seed);
-      *choice = rng.next_float();
-      *dir = rng.next_2d();
-    }
-  }
 };
 
 // Whether path guiding samples at a vertex of this BSDF: lobes wide enough for a histogram of
@@ -410,12 +394,20 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   // the BSDF's value times the cosine and both densities at the direction for training.
   BsdfSample bs;
   vec3 wi_world;  // the sampled direction in world space (bs.wi's, normalised once)
-  float guide_choice = 1.0f, f_cos = 0.0f, pdf_guide = 0.0f, pdf_bsdf = 0.0f;
-  vec2 guide_u(0.0f);
-  if (guided) u.guide(cfg, st.pixel, st.sample, st.depth, &guide_choice, &guide_u);
-  if (guided && guide_choice < mix) {
+  float f_cos = 0.0f, pdf_guide = 0.0f, pdf_bsdf = 0.0f;
+  // A guided vertex chooses guide or BSDF by the first coordinate of the BSDF's point and
+  // stretches that coordinate's part back to [0, 1): each technique gets the Sobol points of its
+  // part of the square, as well spread as all of them (a choice by a number of another pair
+  // would hand each technique a random subset, and the image would lose the sampler's faster
+  // than 1/N convergence wherever the guide is on).
+  vec2 ub = u.bsdf();
+  const bool from_guide = guided && ub.x < mix;
+  if (guided)
+    ub.x = glm::min(from_guide ? ub.x / mix : (ub.x - mix) / (1.0f - mix),
+                    0.99999994f);  // (the float below 1)
+  if (from_guide) {
     // One-sample MIS of guide and BSDF: a direction from the guide, weighed by the mixture.
-    const vec3 d = guide_sample(gv, gcell, guide_u, &pdf_guide);
+    const vec3 d = guide_sample(gv, gcell, ub, &pdf_guide);
     bs.wi = frame.to_local(d);
     wi_world = fast_normalize(frame.to_world(bs.wi));
     bs.specular = false;
@@ -427,7 +419,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     f_cos = luminance(f);
     bs.weight = bs.valid ? f / pdf : vec3(0.0f);
   } else {
-    bs = bsdf_sample<F>(m, wo, u.bsdf(), bsdf_chooses_lobe(type) ? u.lobe() : 0.5f);
+    bs = bsdf_sample<F>(m, wo, ub, bsdf_chooses_lobe(type) ? u.lobe() : 0.5f);
     wi_world = fast_normalize(frame.to_world(bs.wi));
     if (guided && bs.valid) {
       if (bs.specular) {  // a delta lobe, which the guide cannot sample: chosen with 1 - mix

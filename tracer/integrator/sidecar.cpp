@@ -104,6 +104,12 @@ nlohmann::json make_sidecar(const Scene& scene, const SidecarRun& run) {
                     {"learned_cells", run.guide.learned_cells},
                     {"guiding_cells", run.guide.guiding_cells},
                     {"cells", run.guide.cells}};
+  if (run.guide.on && run.guide.calibration.done()) {
+    const GuideCalibration& c = run.guide.calibration;
+    j["guiding"]["decision"] = c.keeps() ? "kept" : "retired";
+    j["guiding"]["variance_ratio"] = c.variance_ratio();
+    j["guiding"]["time_ratio"] = c.time_ratio();
+  }
   if (!run.denoise.denoiser.empty()) {
     // The denoised image is biased: the sidecar says what made it from what.
     j["denoise"] = {{"denoiser", run.denoise.denoiser},
