@@ -4,6 +4,10 @@
 # closed), the glass/mirror box and the bunny box. Figures go to $OUT (at most 8 files).
 #   here:   scripts/build-device.sh      (builds .devbuild/dist)
 #   device: run(command="scripts/gpu-check.sh", carry=[".devbuild/dist"])
+# When the tree and the dist pass the carry's 64 MiB: carry a gzip of it instead,
+#   here:   tar -cf - -C .devbuild dist | gzip -6 > .devbuild/dist.tar.gz
+#   device: run(command="tar xzf .devbuild/dist.tar.gz -C .devbuild && scripts/gpu-check.sh",
+#               carry=[".devbuild/dist.tar.gz"])
 # A build variant (tracer/integrator/gpu_options.h) runs the same way from its own folder, e.g.
 #   here:   VARIANT=unfused EXTRA_CXX_FLAGS=-DTRACER_VARIANT_UNFUSED scripts/build-device.sh
 #   device: run(command="DIST=.devbuild/dist-unfused scripts/gpu-check.sh bench", ...)
