@@ -174,7 +174,7 @@ TEST(Guide, GridAndSchedule) {
   EXPECT_EQ(g.ny, kGuideMaxSide);
   EXPECT_NEAR(g.nx, kGuideMaxSide / 2, 1);  // (the margin may add one)
   EXPECT_NEAR(g.nz, kGuideMaxSide / 4, 1);
-  const GuideView v = guide_view_for(g, GuideArrays(), 0, 0);
+  const GuideView v = guide_view_for(g, GuideArrays(), 0, 0, GuideCalibration());
   EXPECT_EQ(guide_cell(v, vec3(-1.0f, 0.0f, -0.5f)), 0u);
   EXPECT_EQ(guide_cell(v, vec3(1.0f, 4.0f, 0.5f)), g.cells() - 1);
   EXPECT_EQ(guide_cell(v, vec3(-100.0f)), 0u);  // outside: the nearest cell

@@ -197,7 +197,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<float4> calibration_base, calibration_then;
   uint32_t calibration_base_count = 0;
   DeviceBuffer<double> calibration_sum;
-  bool guide_retired() const { return guiding && calibration.done() && !calibration.keeps(); }
+  bool guide_retired() const { return guiding && calibration.retires(); }
   bool kernel_forced = false;  // resolve() forced a kernel (guiding: the wavefront)
   void allocate_guide() {
     guiding = cfg.guiding != 0 && has_scene && compiled;
@@ -233,12 +233,10 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaMemsetAsync(guide_records.get(), 0xff, guide_records.bytes(), stream));
   }
   GuideView guide_view(uint32_t sample) {
-    if (!guiding || guide_retired() ||
-        (guide_calibrates(sample) && !guide_calibration_guided(sample)))
-      return GuideView();
+    if (!guiding) return GuideView();
     return guide_view_for(
         grid, {guide_dist.get(), guide_hist.get(), guide_counts.get(), guide_records.get()},
-        guide_builds, sample);
+        guide_builds, sample, calibration);
   }
   // After a wavefront sample: its paths train the guide, and a pass's end rebuilds it.
   void guide_after_sample(uint32_t sample) {

@@ -55,8 +55,7 @@ constexpr float kGuideMinRoughness = 0.3f;    // rougher lobes are guided (path.
 constexpr uint32_t kGuideShares = 4;
 constexpr uint32_t kGuideMinShareRecords = 64;  // guided records a cell needs to choose its share
 // A cell guides only where its best share is estimated to cut the vertex's second moment by at
-// least this much against the BSDF alone: enough to pay for a guided vertex's extra lookups and
-// for the stratification the mixture's choice takes from the BSDF's samples.
+// least this much against the BSDF alone: enough to pay for a guided vertex's extra lookups.
 constexpr float kGuideMinGain = 0.25f;
 // A cell's training sums (GuideView::hist): the bins' L / p, then per candidate share the
 // estimated second moment of the vertex's estimate, then the number of guided records.
@@ -242,8 +241,7 @@ TRACER_HD inline void guide_train_path(const GuideView& g, uint32_t pixel, uint3
 // uniform density mixed in (a bin no record reached keeps a little density, so one noisy pass
 // cannot shut out a direction). Its share: the candidate with the least estimated second moment
 // once kGuideMinShareRecords guided records are in (0 unless that is kGuideMinGain below the
-// BSDF's alone), kGuideMix before. Returns whether the cell
-// is learned.
+// BSDF's alone), kGuideMix before. Returns whether the cell is learned.
 TRACER_HD inline bool guide_build_cell(float* hist, const uint32_t* counts, float* dist,
                                        uint32_t cell) {
   float* h = hist + size_t(cell) * kGuideHistFloats;

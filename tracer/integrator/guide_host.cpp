@@ -55,8 +55,10 @@ GuideGrid guide_grid(const CompiledScene& scene, uint32_t pixels) {
 }
 
 GuideView guide_view_for(const GuideGrid& grid, const GuideArrays& arrays, uint32_t builds,
-                         uint32_t sample) {
+                         uint32_t sample, const GuideCalibration& calibration) {
   GuideView v;
+  if (calibration.retires() || (guide_calibrates(sample) && !guide_calibration_guided(sample)))
+    return v;
   v.lo = grid.lo;
   v.inv_cell = grid.inv_cell;
   v.nx = grid.nx;
@@ -137,7 +139,7 @@ std::string GuideStatus::describe() const {
       char ratios[96];
       std::snprintf(ratios, sizeof(ratios), "%.2fx the variance for %.2fx the time per sample",
                     c.variance_ratio(), c.time_ratio());
-      verdict = std::string(c.keeps() ? "; kept: " : "; retired (unguided from here): ") + ratios;
+      verdict = std::string(c.retires() ? "; retired (unguided from here): " : "; kept: ") + ratios;
     }
     return "frozen after " + std::to_string(kGuideTrainSamples) + " spp, " + cells_text + verdict;
   }
@@ -181,11 +183,8 @@ void HostGuide::clear() {
 }
 
 GuideView HostGuide::view(uint32_t first_sample) {
-  const bool retired = calibration_.done() && !calibration_.keeps();
-  if (retired || (guide_calibrates(first_sample) && !guide_calibration_guided(first_sample)))
-    return GuideView();
   return guide_view_for(grid_, {dist_.data(), hist_.data(), counts_.data(), records_.data()},
-                        builds_, first_sample);
+                        builds_, first_sample, calibration_);
 }
 
 void HostGuide::build(int threads) {
@@ -212,7 +211,8 @@ void HostGuide::build(int threads) {
 }
 
 GuideStatus HostGuide::status(uint32_t samples) const {
-  return ready() ? GuideStatus::of(grid_, samples, builds_, learned_, guiding_, calibration_) : GuideStatus();
+  return ready() ? GuideStatus::of(grid_, samples, builds_, learned_, guiding_, calibration_)
+                 : GuideStatus();
 }
 
 }  // namespace tracer

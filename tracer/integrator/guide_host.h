@@ -33,11 +33,6 @@ struct GuideArrays {
   uint32_t* counts = nullptr;
   GuideRecord* records = nullptr;
 };
-// The view for a sample, by the schedule: the distribution once `builds` > 0, the training
-// arrays while the sample trains (guide_trains). Both backends' guides hand theirs out so.
-GuideView guide_view_for(const GuideGrid& grid, const GuideArrays& arrays, uint32_t builds,
-                         uint32_t sample);
-
 // After training, the guide earns its keep or retires. Two blocks of kGuideCalibrationBlock
 // samples follow the last training pass, from sample kGuideCalibrationStart: unguided, then
 // guided. Both backends time each sample and measure each block's noise as the relMSE of its mean
@@ -61,10 +56,11 @@ inline bool guide_calibration_guided(uint32_t sample) {
 }
 // Whether `sample` begins a block (the films are kept before it) or ends one (its noise measured).
 inline bool guide_calibration_block_starts(uint32_t sample) {
-  return guide_calibrates(sample) && (sample - kGuideCalibrationStart) % kGuideCalibrationBlock == 0;
+  return guide_calibrates(sample) &&
+         (sample - kGuideCalibrationStart) % kGuideCalibrationBlock == 0;
 }
 inline bool guide_calibration_block_ends(uint32_t sample) {
-  return guide_calibrates(sample + 1 - kGuideCalibrationBlock) &&
+  return guide_calibrates(sample) &&
          (sample + 1 - kGuideCalibrationStart) % kGuideCalibrationBlock == 0;
 }
 struct GuideCalibration {
@@ -84,7 +80,14 @@ struct GuideCalibration {
   // the cheaper estimator wins (the unguided kernels are the specialised ones, with the tail).
   static constexpr double kGuideKeepGain = 0.1;
   bool keeps() const { return variance_ratio() * time_ratio() <= 1.0 - kGuideKeepGain; }
+  bool retires() const { return done() && !keeps(); }
 };
+// The view for a sample, by the schedule: the distribution once `builds` > 0, the training
+// arrays while the sample trains (guide_trains); none for the calibration's unguided block or
+// once the guide has retired. Both backends' guides hand theirs out so.
+GuideView guide_view_for(const GuideGrid& grid, const GuideArrays& arrays, uint32_t builds,
+                         uint32_t sample, const GuideCalibration& calibration);
+
 // A block's noise: over pixels and channels, guide_moment_term (guide_calibration.h) of the
 // block's mean, (now - then) * inv_block, against the earlier mean base * inv_base; the arrays
 // hold each pixel's rgb sums over all samples so far (both halves).
@@ -100,7 +103,7 @@ struct GuideStatus {
   uint32_t guiding_cells = 0;  // learned cells whose share of the guide is not 0
   GuideCalibration calibration;  // kept or retired, once calibration.done()
   bool frozen() const { return trained_samples >= kGuideTrainSamples; }
-  bool retired() const { return calibration.done() && !calibration.keeps(); }
+  bool retired() const { return calibration.retires(); }
   // The status of a guide on `grid` after `samples` samples, `builds` builds, `learned` cells
   // of which `guiding` guide.
   static GuideStatus of(const GuideGrid& grid, uint32_t samples, uint32_t builds,
