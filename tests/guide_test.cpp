@@ -344,8 +344,9 @@ uint32_t env_number(const char* name, uint32_t fallback) {
 }
 
 // Also the measurement behind docs/PERFORMANCE.md's guiding rows: with GUIDE_SCENE=FILE (and
-// GUIDE_SIZE, GUIDE_SPP) it trains on that scene at that size (default render settings: depth 8)
-// and prints the ratios at equal samples; only the built-in caustic box is held to a limit.
+// GUIDE_SIZE, GUIDE_SPP, GUIDE_DEPTH) it trains on that scene at that size (default render
+// settings, depth 8 unless GUIDE_DEPTH says otherwise: the gain by path length) and prints the
+// ratios at equal samples; only the built-in caustic box is held to a limit.
 TEST(Guide, TrainedGuideKeepsTheMeanAndLowersCausticNoise) {
   const char* file = std::getenv("GUIDE_SCENE");
   const int kW = int(env_number("GUIDE_SIZE", 48)), kH = kW;
@@ -355,6 +356,7 @@ TEST(Guide, TrainedGuideKeepsTheMeanAndLowersCausticNoise) {
   RenderSettings rs;
   rs.width = kW;
   rs.height = kH;
+  rs.max_depth = int(env_number("GUIDE_DEPTH", uint32_t(rs.max_depth)));
   IntegratorSettings cfg = make_integrator_settings(rs);
   HostGuide guide;
   train(cs, cfg, guide);
