@@ -1,0 +1,207 @@
+// Manifold next-event estimation's solver (integrator/manifold.h) against independent answers:
+// Snell's and the reflection law at the solution, a closed form through a slab, and the
+// generalized geometry term against finite differences of forward ray tracing through the same
+// surfaces (direction at x -> point on the light), which shares no code with the solver.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "integrator/manifold.h"
+
+namespace {
+using namespace tracer;
+
+// A glass slab between z = 1 and z = 1.2 (index 1.5): its lower face (outside below) and its
+// upper face (outside above).
+SpecularSurface plane(float z, vec3 n, float eta) {
+  SpecularSurface s;
+  s.kind = SpecularSurface::kPlane;
+  s.a = vec3(0.0f, 0.0f, z);
+  s.n = n;
+  s.eta = eta;
+  return s;
+}
+ManifoldChain slab() {
+  ManifoldChain ch;
+  ch.k = 2;
+  ch.surface[0] = plane(1.0f, vec3(0, 0, -1), 1.5f);
+  ch.surface[1] = plane(1.2f, vec3(0, 0, 1), 1.5f);
+  return ch;
+}
+
+// Seeds the chain where the straight line from x to y crosses its surfaces (planes: at their
+// heights), as the blocked shadow ray would.
+void seed_on_line(ManifoldChain& ch, vec3 x, vec3 y) {
+  for (uint32_t i = 0; i < ch.k; ++i) {
+    const float t = (ch.surface[i].a.z - x.z) / (y.z - x.z);
+    ch.p[i] = x + t * (y - x);
+  }
+}
+
+// Forward tracing: from x along d through the chain's surfaces (intersected in order, each
+// reflecting or refracting), to the plane z = light_z; false where a surface is missed or light is
+// totally reflected.
+bool trace_forward(const ManifoldChain& ch, vec3 x, vec3 d, float light_z, vec3* hit) {
+  vec3 o = x;
+  for (uint32_t i = 0; i < ch.k; ++i) {
+    const SpecularSurface& s = ch.surface[i];
+    double t;
+    if (s.kind == SpecularSurface::kPlane) {
+      t = glm::dot(s.a - o, s.n) / double(glm::dot(d, s.n));
+    } else {  // the nearer hit in front
+      const vec3 oc = o - s.a;
+      const double b = glm::dot(oc, d), c = glm::dot(oc, oc) - s.radius * s.radius;
+      const double disc = b * b - c;
+      if (disc < 0) return false;
+      t = -b - std::sqrt(disc);
+      if (t <= 1e-6) t = -b + std::sqrt(disc);
+    }
+    if (!(t > 1e-6)) return false;
+    o = o + float(t) * d;
+    vec3 n = s.normal(o);
+    if (s.eta == 0.0f) {
+      d = glm::reflect(d, n);
+    } else {
+      const bool entering = glm::dot(d, n) < 0.0f;
+      const float eta = entering ? 1.0f / s.eta : s.eta;  // incident over transmitted
+      const vec3 nn = entering ? n : -n;
+      const vec3 r = glm::refract(d, nn, eta);
+      if (glm::length(r) == 0.0f) return false;
+      d = glm::normalize(r);
+    }
+  }
+  if (!(d.z != 0.0f)) return false;
+  const float t = (light_z - o.z) / d.z;
+  if (!(t > 0.0f)) return false;
+  *hit = o + t * d;
+  return true;
+}
+
+// |d omega / d A| at x towards direction d0 by central differences of forward tracing: the
+// inverse of the area on the light that a unit of solid angle around d0 maps to.
+double forward_geometry(const ManifoldChain& ch, vec3 x, vec3 d0, float light_z) {
+  const Frame f = Frame::from_normal(d0);
+  const float e = 1e-3f;
+  vec3 h[4];
+  const vec3 dirs[4] = {d0 + e * f.t, d0 - e * f.t, d0 + e * f.b, d0 - e * f.b};
+  for (int i = 0; i < 4; ++i)
+    if (!trace_forward(ch, x, glm::normalize(dirs[i]), light_z, &h[i])) return -1.0;
+  const glm::dvec3 du = glm::dvec3(h[0] - h[1]) / (2.0 * e), dv = glm::dvec3(h[2] - h[3]) / (2.0 * e);
+  return 1.0 / glm::length(glm::cross(du, dv));  // (the light's plane is z = const)
+}
+
+TEST(Manifold, SlabAtNormalIncidenceHasTheApparentDistance) {
+  ManifoldChain ch = slab();
+  const vec3 x(0.0f), y(0.0f, 0.0f, 3.0f);
+  seed_on_line(ch, x, y);
+  ASSERT_TRUE(manifold_walk(ch, x, y, 3.0f));
+  // Paraxially, a lateral step at y is the angle at x times 1 + 0.2 / 1.5 + 1.8.
+  const double apparent = 1.0 + 0.2 / 1.5 + 1.8;
+  EXPECT_NEAR(manifold_geometry(ch, x, y, vec3(0, 0, -1), 3.0f), 1.0 / (apparent * apparent),
+              2e-3 / (apparent * apparent));
+  // Without the slab: cos / r^2.
+  ManifoldChain none;
+  EXPECT_NEAR(manifold_geometry(none, x, y, vec3(0, 0, -1), 3.0f), 1.0 / 9.0, 1e-3 / 9.0);
+}
+
+TEST(Manifold, ObliqueSlabSatisfiesSnellAndMatchesTheClosedForm) {
+  ManifoldChain ch = slab();
+  const vec3 x(0.0f), y(1.0f, 0.4f, 3.0f);
+  seed_on_line(ch, x, y);
+  ASSERT_TRUE(manifold_walk(ch, x, y, 3.0f));
+  // The closed form: the offset along the path's azimuth at the entry height, s, solves
+  // s + 0.2 tan(theta_glass) + 1.8 tan(theta_air) = |y.xy| with tan(theta_air) = s.
+  const double target = std::hypot(1.0, 0.4);
+  double lo = 0.0, hi = target;
+  for (int i = 0; i < 100; ++i) {
+    const double s = 0.5 * (lo + hi), sin_air = s / std::sqrt(1 + s * s);
+    const double sin_glass = sin_air / 1.5, tan_glass = sin_glass / std::sqrt(1 - sin_glass * sin_glass);
+    (s + 0.2 * tan_glass + 1.8 * s < target ? lo : hi) = s;
+  }
+  const double s = 0.5 * (lo + hi);
+  EXPECT_NEAR(ch.p[0].x, s * 1.0 / target, 1e-4);
+  EXPECT_NEAR(ch.p[0].y, s * 0.4 / target, 1e-4);
+  EXPECT_NEAR(ch.p[0].z, 1.0, 1e-6);
+  // Snell at both faces.
+  for (uint32_t i = 0; i < 2; ++i) {
+    const vec3 a = i == 0 ? x : ch.p[0], b = i == 0 ? ch.p[1] : y;
+    const vec3 wi = glm::normalize(a - ch.p[i]), wo = glm::normalize(b - ch.p[i]);
+    const float si = glm::length(glm::cross(wi, vec3(0, 0, 1)));
+    const float so = glm::length(glm::cross(wo, vec3(0, 0, 1)));
+    EXPECT_NEAR(i == 0 ? si : 1.5f * si, i == 0 ? 1.5f * so : so, 1e-4f);
+  }
+  // The geometry term against forward tracing.
+  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1), 3.0f);
+  const double expected = forward_geometry(ch, x, glm::normalize(ch.p[0] - x), 3.0f);
+  ASSERT_GT(expected, 0.0);
+  EXPECT_NEAR(g / expected, 1.0, 3e-3) << g << " vs " << expected;
+}
+
+TEST(Manifold, MirrorBallReflectsTheLightAndMatchesForwardTracing) {
+  ManifoldChain ch;
+  ch.k = 1;
+  ch.surface[0].kind = SpecularSurface::kSphere;
+  ch.surface[0].a = vec3(0.0f, 0.0f, 1.0f);
+  ch.surface[0].radius = 0.4f;
+  ch.surface[0].eta = 0.0f;  // a mirror
+  // x on a wall beside the ball, the light above it (z = 3, facing down).
+  const vec3 x(1.5f, 0.2f, 0.3f), y(-0.3f, 0.5f, 3.0f);
+  // A seed on the ball facing between them (the integrator samples it on the ball).
+  ch.p[0] = ch.surface[0].project(ch.surface[0].a +
+                                   glm::normalize(glm::normalize(x - ch.surface[0].a) +
+                                                  glm::normalize(y - ch.surface[0].a)));
+  ASSERT_TRUE(manifold_walk(ch, x, y, 3.0f));
+  const vec3 n = ch.surface[0].normal(ch.p[0]);
+  const vec3 wi = glm::normalize(x - ch.p[0]), wo = glm::normalize(y - ch.p[0]);
+  EXPECT_NEAR(glm::dot(wi, n), glm::dot(wo, n), 1e-5f);                 // equal angles
+  EXPECT_NEAR(glm::dot(glm::cross(wi, wo), n), 0.0f, 1e-5f);             // one plane
+  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1), 3.0f);
+  const double expected = forward_geometry(ch, x, glm::normalize(ch.p[0] - x), 3.0f);
+  ASSERT_GT(expected, 0.0);
+  EXPECT_NEAR(g / expected, 1.0, 3e-3) << g << " vs " << expected;
+  // A convex mirror shrinks the light's image: far less solid angle than the light seen directly.
+  EXPECT_LT(g, 0.2 * glm::abs(glm::normalize(x - y).z) / glm::dot(y - x, y - x));
+}
+
+TEST(Manifold, GlassBallRefractsTwiceAndMatchesForwardTracing) {
+  ManifoldChain ch;
+  ch.k = 2;
+  for (uint32_t i = 0; i < 2; ++i) {
+    ch.surface[i].kind = SpecularSurface::kSphere;
+    ch.surface[i].a = vec3(0.0f, 0.0f, 1.5f);
+    ch.surface[i].radius = 0.5f;
+    ch.surface[i].eta = 1.5f;
+  }
+  // x on the floor below the ball, slightly off its axis; the light above.
+  const vec3 x(0.15f, -0.1f, 0.0f), y(0.05f, 0.02f, 3.0f);
+  // Seeds where the straight line crosses the ball (the blocked shadow ray's hits).
+  const vec3 d = glm::normalize(y - x), oc = x - ch.surface[0].a;
+  const float b = glm::dot(oc, d), c = glm::dot(oc, oc) - 0.25f, disc = std::sqrt(b * b - c);
+  ch.p[0] = x + (-b - disc) * d;
+  ch.p[1] = x + (-b + disc) * d;
+  ASSERT_TRUE(manifold_walk(ch, x, y, 3.0f));
+  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1), 3.0f);
+  const double expected = forward_geometry(ch, x, glm::normalize(ch.p[0] - x), 3.0f);
+  ASSERT_GT(expected, 0.0);
+  EXPECT_NEAR(g / expected, 1.0, 3e-3) << g << " vs " << expected;
+  // The ball focuses: more solid angle at x than the light would have seen directly.
+  EXPECT_GT(g, glm::abs(d.z) / glm::dot(y - x, y - x));
+}
+
+TEST(Manifold, RefusesWhatNoSpecularPathJoins) {
+  // Total internal reflection: from inside the slab's glass at a grazing angle, no way out.
+  ManifoldChain ch;
+  ch.k = 1;
+  ch.surface[0] = plane(1.2f, vec3(0, 0, 1), 1.5f);
+  const vec3 x(0.0f, 0.0f, 1.1f), y(10.0f, 0.0f, 1.21f);
+  ch.p[0] = vec3(5.0f, 0.0f, 1.2f);
+  EXPECT_FALSE(manifold_walk(ch, x, y, 10.0f));
+  // A mirror with both points behind it.
+  ManifoldChain m;
+  m.k = 1;
+  m.surface[0] = plane(1.0f, vec3(0, 0, 1), 0.0f);
+  m.p[0] = vec3(0.0f, 0.0f, 1.0f);
+  EXPECT_FALSE(manifold_walk(m, vec3(0.0f), vec3(1.0f, 0.0f, 0.5f), 1.0f));
+}
+
+}  // namespace
