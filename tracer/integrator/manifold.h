@@ -25,7 +25,10 @@ namespace tracer {
 
 constexpr uint32_t kManifoldMaxChain = 2;
 constexpr uint32_t kManifoldIterations = 24;
-constexpr float kManifoldTolerance = 1e-6f;  // |C| at a solution (C is a difference of unit vectors)
+// |C| (a sum of unit vectors' tangential parts) that ends the iteration, and the most a solution
+// may keep when float's rounding stops the iteration before it.
+constexpr float kManifoldTolerance = 1e-6f;
+constexpr float kManifoldAccept = 2e-5f;
 
 struct SpecularSurface {
   enum Kind : uint8_t { kPlane, kSphere };
@@ -168,9 +171,9 @@ TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y, float sca
       }
       for (uint32_t i = 0; i < n; ++i) d[i] *= 0.5f;
     }
-    if (!improved) return false;
+    if (!improved) break;  // at float's limit: accepted when close enough
   }
-  return norm <= kManifoldTolerance;
+  return norm <= kManifoldAccept;
 }
 
 // The generalized geometry term of a solved chain: the solid angle at x that a unit of area at

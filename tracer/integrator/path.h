@@ -8,6 +8,8 @@
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "integrator/guide.h"
+#include "integrator/manifold.h"
+#include "materials/fresnel.h"
 #include "integrator/lights.h"
 #include "integrator/medium.h"
 
@@ -19,6 +21,7 @@ struct IntegratorSettings {
   uint32_t rr_start_depth = 4;
   uint32_t seed = 0;
   uint32_t nee = 1, mis = 1, russian_roulette = 1;
+  uint32_t mnee = 0;  // experiment: manifold NEE through smooth dielectrics (CPU only)
   uint32_t jitter = 1;  // 0: every sample goes through the pixel centre (enables hit caching)
   float clamp = 0.0f;   // > 0: scale each sample down to at most this much per channel (biased)
   // kSamplerRandom (PCG32), kSamplerSobol or kSamplerSobolPairs (core/sobol.h)
@@ -109,6 +112,14 @@ enum PathFlags : uint32_t {
   kPathInMedium = 1u << 1,      // inside a subsurface medium (PathState::medium)
   kPathWalkCapped = 1u << 2,    // ended: the random walk hit kMaxWalkSteps (counted)
   kPathMediumLeak = 1u << 3,    // ended: left a medium without crossing its boundary (counted)
+  // Manifold NEE's partition (cfg.mnee): the last non-delta vertex connected to the lights
+  // through smooth dielectrics; the refractions since (1 or 2: bits 5, 6) and whether anything
+  // else (a reflection, a third refraction) came since. Emission reached through exactly two
+  // refractions belongs to MNEE and is not added.
+  kPathMneeFrom = 1u << 4,
+  kPathMneeRefract1 = 1u << 5,
+  kPathMneeRefract2 = 1u << 6,
+  kPathMneeOther = 1u << 7,
 };
 // The wavefront keeps the flags in 4 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
 static_assert(kPathMediumLeak < (1u << 4), "PathFlags must fit in 4 bits");
@@ -205,6 +216,99 @@ TRACER_HD TRACER_INLINE Ray spawn_ray_to(vec3 p, vec3 n_p, vec3 q, vec3 n_q) {
 TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
   return c.x <= 0.0f && c.y <= 0.0f && c.z <= 0.0f;
 }
+
+#if !defined(__CUDA_ARCH__)
+// Manifold next-event estimation (experiment, CPU only; integrator/manifold.h): from surface
+// point x (its BSDF m in `frame`, viewer direction wo, the viewer's side ng_viewer) to light
+// sample ls through the one or two smooth dielectric surfaces that the straight segment crosses
+// (exactly two: in and out of the glass). The chain is seeded where the segment crosses them,
+// solved by Newton's method, checked for visibility segment by segment, and weighted by the
+// Fresnel transmittances and the generalized geometry term over the light's area density.
+template <uint32_t F>
+inline vec3 mnee_connect(const SceneView& s, const SurfaceHit& sh, uint32_t prim,
+                         const Material& m, const Frame& frame, vec3 wo, vec3 ng_viewer,
+                         const LightSample& ls) {
+  const vec3 x = sh.p, y = ls.p;
+  const float dist = glm::length(y - x);
+  if (!(dist > 0.0f)) return vec3(0.0f);
+  ManifoldChain ch;
+  uint32_t prims[kManifoldMaxChain];
+  // The seed: the specular surfaces the straight segment crosses before the light.
+  Ray r = spawn_ray(x, sh.ng, (y - x) / dist);
+  r.tmax = dist * (1.0f - 1e-4f);
+  uint32_t skip = prim;
+  for (;;) {
+    const Hit h = intersect_closest<F>(s, r, skip);
+    if (!h.valid()) break;
+    const SurfaceHit hs = make_surface_hit<F>(s, r, h);
+    const Material& ms = s.materials[hs.material];
+    if (hs.light != kInvalid && h.prim == ls.prim) break;  // the light itself
+    if (ms.type != MaterialType::kDielectric || !bsdf_is_delta(ms, ms.type) ||
+        ch.k == kManifoldMaxChain)
+      return vec3(0.0f);
+    SpecularSurface& su = ch.surface[ch.k];
+    if (prim_is_triangle(s, h.prim)) {
+      su.kind = SpecularSurface::kPlane;
+      su.a = hs.p;
+      su.n = hs.ng;
+    } else {
+      const Sphere& sph = s.spheres[h.prim - s.tri_count];
+      su.kind = SpecularSurface::kSphere;
+      su.a = sph.center;
+      su.radius = sph.radius;
+    }
+    su.eta = ms.ior;
+    prims[ch.k] = h.prim;
+    ch.p[ch.k++] = hs.p;
+    const float left = dist - glm::length(hs.p - x);
+    r = spawn_ray(hs.p, hs.ng, r.d);
+    r.tmax = left * (1.0f - 1e-4f);
+    skip = prim_is_triangle(s, h.prim) ? h.prim : kInvalid;
+    if (!(r.tmax > 0.0f)) break;
+  }
+  if (ch.k != 2) return vec3(0.0f);  // in and out of the glass only
+  if (!manifold_walk(ch, x, y, dist)) return vec3(0.0f);
+  // The solved chain must be what the rays see: each segment's first hit the next vertex on its
+  // surface (same material; the same plane or sphere), and the last segment free to the light.
+  vec3 from = x, from_n = sh.ng;
+  uint32_t from_prim = prim;
+  float transmittance = 1.0f;
+  for (uint32_t i = 0; i < ch.k; ++i) {
+    const vec3 d = glm::normalize(ch.p[i] - from);
+    const float len = glm::length(ch.p[i] - from);
+    Ray seg = spawn_ray(from, from_n, d);
+    seg.tmax = len * 1.01f;
+    const Hit h = intersect_closest<F>(s, seg, from_prim);
+    if (!h.valid()) return vec3(0.0f);
+    const SurfaceHit hs = make_surface_hit<F>(s, seg, h);
+    if (glm::length(hs.p - ch.p[i]) > 1e-3f * dist) return vec3(0.0f);
+    if (s.materials[hs.material].ior != ch.surface[i].eta) return vec3(0.0f);
+    // Fresnel transmittance, on the side the path arrives from x.
+    const vec3 n = ch.surface[i].normal(ch.p[i]);
+    const float c = glm::dot(-d, n);
+    transmittance *= 1.0f - fresnel_dielectric(glm::abs(c), c > 0.0f ? ch.surface[i].eta
+                                                                       : 1.0f / ch.surface[i].eta);
+    from = hs.p;
+    from_n = hs.ng;
+    from_prim = prim_is_triangle(s, h.prim) ? h.prim : kInvalid;
+    (void)prims;
+  }
+  const Ray last = spawn_ray_to(from, glm::dot(y - from, from_n) > 0.0f ? from_n : -from_n, y, ls.n);
+  if (intersect_any<F>(s, last, ls.prim, from_prim)) return vec3(0.0f);
+  // The light must face both x's side (ls.le is its radiance towards x) and the chain's end.
+  if (!(glm::dot(ls.n, ch.p[ch.k - 1] - y) > 0.0f)) return vec3(0.0f);
+  const vec3 w1 = glm::normalize(ch.p[0] - x);
+  if (!(glm::dot(w1, ng_viewer) > 0.0f)) return vec3(0.0f);
+  const vec3 wi = frame.to_local(w1);
+  const vec3 f = bsdf_eval<F>(m, wo, wi);
+  const float cos_y = glm::abs(glm::dot(ls.n, (x - y) / dist));
+  const float area_pdf = ls.pdf * cos_y / (dist * dist);
+  const float g = manifold_geometry(ch, x, y, ls.n, dist);
+  if (!(area_pdf > 0.0f) || !(g > 0.0f)) return vec3(0.0f);
+  const vec3 c = f * glm::abs(wi.z) * transmittance * ls.le * (g / area_pdf);
+  return is_finite(c) ? c : vec3(0.0f);
+}
+#endif
 
 // Shades the hit of st.ray. Adds emission to st.radiance, may fill `shadow`, and returns whether
 // the path continues, in which case st.ray is the next segment. Forced inline: nvcc outlines it
@@ -322,6 +426,11 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           w = 0.0f;
         }
       }
+      // Reached through one or two refractions alone from a vertex that manifold NEE
+      // connected: that estimator's share of the paths.
+      if (cfg.mnee && (st.flags & kPathMneeFrom) && (st.flags & kPathMneeRefract2) &&
+          !(st.flags & kPathMneeOther))
+        w = 0.0f;
       st.radiance += st.throughput * le * w;
     }
   }
@@ -387,6 +496,11 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);
         }
       }
+#if !defined(__CUDA_ARCH__)
+      // Manifold NEE: the same light point through the glass the shadow ray may cross.
+      if (cfg.mnee && !ls.infinite && !ls.delta)
+        st.radiance += st.throughput * mnee_connect<F>(s, sh, hit.prim, m, frame, wo, ng_viewer, ls);
+#endif
     }
   }
 
@@ -457,6 +571,19 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       st.walk_steps = 0;
     } else {
       st.flags &= ~kPathInMedium;
+    }
+  }
+  if (cfg.mnee) {  // manifold NEE's partition (kPathMneeFrom)
+    if (!bsdf_is_delta(m, type)) {
+      st.flags &= ~(kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeOther);
+      if (cfg.nee && s.light_count > 0) st.flags |= kPathMneeFrom;
+      else st.flags &= ~kPathMneeFrom;
+    } else if (type == MaterialType::kDielectric && side * glm::dot(wo_world, sh.ng) < 0.0f) {
+      if (st.flags & kPathMneeRefract2) st.flags |= kPathMneeOther;
+      else if (st.flags & kPathMneeRefract1) st.flags = (st.flags & ~kPathMneeRefract1) | kPathMneeRefract2;
+      else st.flags |= kPathMneeRefract1;
+    } else {
+      st.flags |= kPathMneeOther;
     }
   }
   st.throughput *= bs.weight;
