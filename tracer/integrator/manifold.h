@@ -5,16 +5,16 @@
 // refraction), found by Newton's method on the specular surfaces, and the generalized geometry
 // term that turns the light sample's area density into a density of directions at x.
 //
-// Not yet used by the integrator (the branch's first step): the surfaces are the two analytic
-// kinds the target scenes' casters are made of, a plane (a flat face of a box or mesh) and a
-// sphere; a mesh with interpolated normals needs its vertices moved along the mesh (re-projected
-// by a ray, as Hanika does) and is left for the integration.
+// Used by path.h's mnee_connect (an experiment: CPU only, IntegratorSettings::mnee). The
+// surfaces are the two analytic kinds the target scenes' casters are made of, a plane (a flat
+// face of a box or mesh) and a sphere; a mesh with interpolated normals needs its vertices moved
+// along the mesh (re-projected by a ray, as Hanika does).
 //
 // The constraint at vertex i with neighbours a (towards x) and b (towards y): with wi and wo the
 // unit directions to them and eta_i, eta_o the indices of refraction on their sides (1 and 1 for
 // a mirror), the tangential part of eta_i wi + eta_o wo is zero: the law of reflection, or
 // Snell's law (eta_i sin = eta_o sin, on opposite sides). Newton moves each vertex in its tangent
-// plane by the solve of J d = -C (J by central differences: 2k x 2k, k <= 2) and puts it back on
+// plane by the solve of J d = -C (J by forward differences: 2k x 2k, k <= 2) and puts it back on
 // its surface (the plane itself, or the sphere along its radius), halving a step that does not
 // lower |C|.
 #pragma once
@@ -128,6 +128,28 @@ TRACER_HD inline bool manifold_solve(float A[4][4], float* r, uint32_t n, float*
   return true;
 }
 
+// The constraint Jacobian of the chain at its vertices (2k x 2k, by differences of each vertex's
+// tangent-plane step: central, or forward from c, the constraints at the chain, where Newton's
+// direction needs no more); false where a moved chain is invalid.
+TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y, float h,
+                                        float J[4][4], const float* c = nullptr) {
+  const uint32_t n = 2 * ch.k;
+  for (uint32_t j = 0; j < n; ++j) {
+    float step[2 * kManifoldMaxChain] = {};
+    float cp[2 * kManifoldMaxChain], cm[2 * kManifoldMaxChain];
+    step[j] = h;
+    if (!manifold_constraints(manifold_moved(ch, step), x, y, cp)) return false;
+    if (c) {
+      for (uint32_t i = 0; i < n; ++i) J[i][j] = (cp[i] - c[i]) / h;
+      continue;
+    }
+    step[j] = -h;
+    if (!manifold_constraints(manifold_moved(ch, step), x, y, cm)) return false;
+    for (uint32_t i = 0; i < n; ++i) J[i][j] = (cp[i] - cm[i]) / (2.0f * h);
+  }
+  return true;
+}
+
 TRACER_HD inline float manifold_norm(const float* c, uint32_t n) {
   float s = 0.0f;
   for (uint32_t i = 0; i < n; ++i) s += c[i] * c[i];
@@ -145,16 +167,7 @@ TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y, float sca
   const float h = 1e-3f * scale;
   for (uint32_t it = 0; it < kManifoldIterations && norm > kManifoldTolerance; ++it) {
     float J[4][4];
-    for (uint32_t j = 0; j < n; ++j) {  // column j: d C / d step_j by central differences
-      float step[2 * kManifoldMaxChain] = {};
-      float cp[2 * kManifoldMaxChain], cm[2 * kManifoldMaxChain];
-      step[j] = h;
-      const bool okp = manifold_constraints(manifold_moved(ch, step), x, y, cp);
-      step[j] = -h;
-      const bool okm = manifold_constraints(manifold_moved(ch, step), x, y, cm);
-      if (!okp || !okm) return false;
-      for (uint32_t i = 0; i < n; ++i) J[i][j] = (cp[i] - cm[i]) / (2.0f * h);
-    }
+    if (!manifold_jacobian(ch, x, y, h, J, c)) return false;
     float r[2 * kManifoldMaxChain], d[2 * kManifoldMaxChain];
     for (uint32_t i = 0; i < n; ++i) r[i] = -c[i];
     if (!manifold_solve(J, r, n, d)) return false;
@@ -166,8 +179,11 @@ TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y, float sca
       if (manifold_constraints(next, x, y, cn) && manifold_norm(cn, n) < norm) {
         ch = next;
         for (uint32_t i = 0; i < n; ++i) c[i] = cn[i];
+        const float before = norm;
         norm = manifold_norm(cn, n);
         improved = true;
+        // Close enough and no longer converging fast: float's rounding has the rest.
+        if (norm <= kManifoldAccept && norm > 0.25f * before) return true;
       }
       for (uint32_t i = 0; i < n; ++i) d[i] *= 0.5f;
     }
@@ -177,25 +193,43 @@ TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y, float sca
 }
 
 // The generalized geometry term of a solved chain: the solid angle at x that a unit of area at
-// y (in the plane of the light's normal ny) maps to, |d omega_x / d A_y|, by central differences
-// of the solve (each perturbed y re-solved from the solution; steps of 0.3% of `scale` balance
-// the differences' truncation against float rounding: within 0.1-0.2% of forward tracing in
-// manifold_test; the analytic derivative of Zeltner et al.'s block-tridiagonal system would be
-// exact). 0 when a re-solve fails. For an empty chain it is the usual cos_y / r^2.
+// y (in the plane of the light's normal ny) maps to, |d omega_x / d A_y|. By the implicit
+// function theorem: the chain's steps move with y as dP/dy = -J^-1 dC/dy (J the constraint
+// Jacobian at the solution, dC/dy by central differences along the light's tangents), and
+// omega_x follows the first vertex. For an empty chain it is the usual cos_y / r^2.
 TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y, vec3 ny,
                                          float scale) {
   const Frame f = Frame::from_normal(ny);
-  const float e = 3e-3f * scale;
-  vec3 w[4];
-  const vec3 offsets[4] = {f.t * e, -f.t * e, f.b * e, -f.b * e};
-  for (int i = 0; i < 4; ++i) {
-    ManifoldChain m = ch;
-    const vec3 yi = y + offsets[i];
-    if (ch.k > 0 && !manifold_walk(m, x, yi, scale)) return 0.0f;
-    w[i] = glm::normalize((ch.k > 0 ? m.p[0] : yi) - x);
+  const float e = 1e-3f * scale;
+  if (ch.k == 0) {
+    vec3 w[4];
+    const vec3 offsets[4] = {f.t * e, -f.t * e, f.b * e, -f.b * e};
+    for (int i = 0; i < 4; ++i) w[i] = glm::normalize(y + offsets[i] - x);
+    return glm::length(glm::cross((w[0] - w[1]) / (2.0f * e), (w[2] - w[3]) / (2.0f * e)));
   }
-  const vec3 du = (w[0] - w[1]) / (2.0f * e), dv = (w[2] - w[3]) / (2.0f * e);
-  return glm::length(glm::cross(du, dv));
+  const uint32_t n = 2 * ch.k;
+  float J[4][4];
+  if (!manifold_jacobian(ch, x, y, e, J)) return 0.0f;
+  const vec3 d0 = ch.p[0] - x;
+  const float l0 = glm::length(d0);
+  const vec3 w0 = d0 / l0;
+  const Frame f0 = Frame::from_normal(ch.surface[0].normal(ch.p[0]));
+  vec3 dw[2];
+  for (int axis = 0; axis < 2; ++axis) {
+    const vec3 t = axis == 0 ? f.t : f.b;
+    float cp[2 * kManifoldMaxChain], cm[2 * kManifoldMaxChain];
+    if (!manifold_constraints(ch, x, y + e * t, cp) || !manifold_constraints(ch, x, y - e * t, cm))
+      return 0.0f;
+    float r[2 * kManifoldMaxChain], step[2 * kManifoldMaxChain];
+    for (uint32_t i = 0; i < n; ++i) r[i] = -(cp[i] - cm[i]) / (2.0f * e);
+    float A[4][4];
+    for (uint32_t i = 0; i < 4; ++i)
+      for (uint32_t j = 0; j < 4; ++j) A[i][j] = J[i][j];
+    if (!manifold_solve(A, r, n, step)) return 0.0f;
+    const vec3 dp = step[0] * f0.t + step[1] * f0.b;  // the first vertex's move per unit of y
+    dw[axis] = (dp - glm::dot(dp, w0) * w0) / l0;
+  }
+  return glm::length(glm::cross(dw[0], dw[1]));
 }
 
 }  // namespace tracer
