@@ -48,17 +48,17 @@ std::vector<GpuOptions> all_requests() {
 
 // Every scene a rule distinguishes: the features the rules and the specialisation read
 // (textures, random walks, spheres, depth of field, specular materials, lights beyond emitters,
-// instances),
-// with and without a flat list, a jittered camera and a lens.
+// instances, glass),
+// with and without a flat list, a jittered camera and a lens, guiding and manifold NEE.
 std::vector<GpuSceneTraits> all_scenes() {
   const uint32_t bits[] = {kFeatureTextures, kFeatureSubsurface, kFeatureSpheres,
                            kFeatureDepthOfField, kFeatureMirror, kFeaturePointLights,
-                           kFeatureInstances};
+                           kFeatureInstances, kFeatureDielectric};
   std::vector<GpuSceneTraits> out;
-  for (uint32_t mask = 0; mask < 128; ++mask)
-    for (int other = 0; other < 32; ++other) {
+  for (uint32_t mask = 0; mask < 256; ++mask)
+    for (int other = 0; other < 64; ++other) {
       GpuSceneTraits t;
-      for (int i = 0; i < 7; ++i)
+      for (int i = 0; i < 8; ++i)
         if (mask & (1u << i)) t.features |= bits[i];
       // Scenes with instances have no flat list (CompiledScene).
       if ((t.features & kFeatureInstances) && (other & 1)) continue;
@@ -67,6 +67,7 @@ std::vector<GpuSceneTraits> all_scenes() {
       t.depth_of_field = other & 4;
       t.bvh8_available = other & 8;
       t.guiding = other & 16;
+      t.mnee = other & 32;
       out.push_back(t);
     }
   return out;
@@ -79,7 +80,7 @@ std::string describe_case(const GpuOptions& o, const GpuSceneTraits& t) {
          fraction_text(o.tail_fraction) + "; scene features 0x" + std::to_string(t.features) +
          ", flat list " + on_off(t.flat_available) + ", jitter " + on_off(t.jitter) + ", lens " +
          on_off(t.depth_of_field) + ", 8-wide tree " + on_off(t.bvh8_available) + ", guiding " +
-         on_off(t.guiding);
+         on_off(t.guiding) + ", mnee " + on_off(t.mnee);
 }
 
 // The user's switches, by the names the overrides use, as text.
@@ -118,8 +119,11 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
   };
 
   // The user's switches.
-  expect(o.kernel == (t.guiding ? KernelMode::kWavefront : r.kernel),
-         "the kernel is as requested (auto is decided by timing); guiding: the wavefront");
+  // Manifold NEE runs where the scene has glass (elsewhere it has nothing to connect through).
+  const bool mnee = t.mnee && (t.features & kFeatureDielectric);
+  expect(o.kernel == (t.guiding || mnee ? KernelMode::kWavefront : r.kernel),
+         "the kernel is as requested (auto is decided by timing); guiding or manifold NEE: the "
+         "wavefront");
   expect(o.sort_materials == r.sort_materials, "sorting is as requested");
   expect(o.compaction != Compaction::kAuto, "compaction auto is resolved");
   if (r.compaction == Compaction::kAuto)
@@ -128,8 +132,9 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
   else
     expect(o.compaction == r.compaction, "an explicit compaction is kept");
   expect(o.tail_fraction ==
-             (o.compaction == Compaction::kOff || t.guiding ? 0.0f : r.tail_fraction),
-         "a tail only with compaction (it takes its paths from a queue), never with guiding");
+             (o.compaction == Compaction::kOff || t.guiding || mnee ? 0.0f : r.tail_fraction),
+         "a tail only with compaction (it takes its paths from a queue), never with guiding or "
+         "manifold NEE");
   expect(o.first_bounce_cache == (r.first_bounce_cache && !t.jitter && !t.depth_of_field),
          "the cache never with jitter or depth of field, else as requested");
   expect(o.flat_list == (r.flat_list && t.flat_available),
@@ -149,8 +154,13 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
          "the kernels compiled for the scene's features, or the general ones (with instances "
          "where the scene has some)");
   expect((spec_for_features(t.features) & ~e.spec) == 0, "the kernels cover the scene's features");
-  expect(e.shade_spec == (t.guiding ? guided_shade_spec(e.spec) : e.spec),
-         "the guided shade kernel with guiding, else the other stages' variant");
+  expect(e.shade_spec == (mnee        ? caustic_shade_spec(e.spec)
+                          : t.guiding ? guided_shade_spec(e.spec)
+                                      : e.spec),
+         "the caustic shade kernel with manifold NEE, the guided one with guiding, else the "
+         "other stages' variant");
+  expect((spec_for_features(t.features) & ~kSpecDepthOfField & ~e.shade_spec) == 0,
+         "the shade kernel covers the scene's features (but the lens, which it does not read)");
   expect(!(e.spec & kSpecLights) || (e.spec & kSpecSpecular),
          "the lights' kernels are among the specular ones (no diffuse-with-lights variant)");
   expect(*spec_label(e.spec) != '\0', "the kernels have a name");
@@ -231,8 +241,8 @@ TEST(GpuOptions, EveryCombinationObeysTheRules) {
   const std::vector<GpuOptions> requests = all_requests();
   const std::vector<GpuSceneTraits> scenes = all_scenes();
   ASSERT_EQ(requests.size(), 192u);
-  // 64 x 32 without instances, 64 x 16 with (no flat list)
-  ASSERT_EQ(scenes.size(), 3072u);
+  // 128 x 64 without instances, 128 x 32 with (no flat list)
+  ASSERT_EQ(scenes.size(), 12288u);
   size_t failed = 0, overridden = 0;
   for (const GpuSceneTraits& t : scenes)
     for (const GpuOptions& r : requests) {

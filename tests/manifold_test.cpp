@@ -283,7 +283,8 @@ TEST(Manifold, LampBehindGlassKeepsItsMeanWithLessNoise) {
   std::printf("  mnee / plain: variance per sample %.4f, relative %.4f; time %.2f s / %.2f s; "
               "means %.4f / %.4f; relative variance x time %.4f\n",
               vb / va, rb / ra, tb, ta, b.image_mean().y, a.image_mean().y, rb / ra * tb / ta);
-  EXPECT_LT(rb, 0.5 * ra);  // measured 0.13 (for 5.6x the time: PERFORMANCE.md row 110)
+  // Through the lamp's glass slab light sampling finds nothing without manifold NEE.
+  if (!file) EXPECT_LT(rb, 0.5 * ra);  // measured 0.17 (PERFORMANCE.md row 111)
 }
 
 }  // namespace

@@ -34,6 +34,10 @@ enum SceneFeature : uint32_t {
   // the wavefront's guided shade kernel only (kSpecGuiding); live where IntegratorSettings::guide
   // has a guide.
   kFeatureGuiding = 1u << 14,
+  // Not a scene feature: manifold next-event estimation through smooth glass (render.mnee,
+  // integrator/path.h), compiled into the CPU's code and the wavefront's caustic shade kernels
+  // only (kSpecCaustics); live where IntegratorSettings::mnee is set.
+  kFeatureCaustics = 1u << 15,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;
@@ -58,34 +62,47 @@ constexpr uint32_t kFeatureLights = kFeatureInfiniteLights | kFeaturePointLights
 // (PERFORMANCE.md, row 94), and scenes of instances are large scenes that pay for the general
 // kernels' code little. 13 variants in all.
 constexpr uint32_t kSpecSpheres = 1, kSpecDepthOfField = 2, kSpecSpecular = 4, kSpecLights = 8,
-                   kSpecInstances = 16, kSpecGuiding = 32;
+                   kSpecInstances = 16, kSpecGuiding = 32, kSpecCaustics = 64;
 constexpr uint32_t kGeneralSpec = 15;                      // every feature but instances
 constexpr uint32_t kInstancesSpec = kGeneralSpec | kSpecInstances;  // every scene feature
 // Path guiding's shade kernels (the only kernels that guide): the bit 32 on the spheres and
 // specular bits of a scene's variant (4 variants), and the general one with instances for scenes
 // with lights beyond emitters or instances (kGuidedSpec). guided_shade_spec() picks one.
 constexpr uint32_t kGuidedSpec = kInstancesSpec | kSpecGuiding;
-constexpr uint32_t kSpecCount = 64;  // indices 0..63; 0..7, 12..15, 31, 32..37 and 63 are used
 constexpr uint32_t guided_shade_spec(uint32_t spec) {
   return (spec & (kSpecLights | kSpecInstances))
              ? kGuidedSpec
              : ((spec & (kSpecSpheres | kSpecSpecular)) | kSpecGuiding);
 }
+// Manifold NEE's shade kernels (render.mnee; the only kernels that compile it): the bit 64 on a
+// guided variant of a scene with glass (so specular: 3 variants), whose guiding is live only
+// where a guide is. caustic_shade_spec() picks one.
+constexpr uint32_t caustic_shade_spec(uint32_t spec) {
+  return guided_shade_spec(spec | kSpecSpecular) | kSpecCaustics;
+}
+// Indices 0..127; 0..7, 12..15, 31, 32..37, 63, 100, 101 and 127 are used.
+constexpr uint32_t kSpecCount = 128;
 
 template <uint32_t Spec>
 constexpr uint32_t features_of() {
   static_assert(!(Spec & kSpecLights) || (Spec & kSpecSpecular), "lights imply specular");
-  static_assert(!(Spec & kSpecInstances) || (Spec & ~kSpecGuiding) == kInstancesSpec,
+  static_assert(!(Spec & kSpecInstances) ||
+                    (Spec & ~(kSpecGuiding | kSpecCaustics)) == kInstancesSpec,
                 "instances imply every other feature");
-  static_assert(!(Spec & kSpecGuiding) || Spec == guided_shade_spec(Spec & ~kSpecGuiding),
+  static_assert(!(Spec & kSpecGuiding) || (Spec & kSpecCaustics) ||
+                    Spec == guided_shade_spec(Spec & ~kSpecGuiding),
                 "a guided variant is one guided_shade_spec() names");
+  static_assert(!(Spec & kSpecCaustics) ||
+                    Spec == caustic_shade_spec(Spec & ~(kSpecGuiding | kSpecCaustics)),
+                "a caustic variant is one caustic_shade_spec() names");
   return kFeatureEmissiveMeshes | kFeatureShadingNormals |
          ((Spec & kSpecSpheres) ? kFeatureSpheres : 0u) |
          ((Spec & kSpecDepthOfField) ? kFeatureDepthOfField : 0u) |
          ((Spec & kSpecSpecular) ? kFeatureSpecular : 0u) |
          ((Spec & kSpecLights) ? kFeatureLights : 0u) |
          ((Spec & kSpecInstances) ? kFeatureInstances : 0u) |
-         ((Spec & kSpecGuiding) ? kFeatureGuiding : 0u);
+         ((Spec & kSpecGuiding) ? kFeatureGuiding : 0u) |
+         ((Spec & kSpecCaustics) ? kFeatureCaustics : 0u);
 }
 
 // The smallest specialisation that covers a scene's features.
@@ -108,6 +125,11 @@ inline const char* spec_label(uint32_t spec) {
       "", "", "", "",
       "triangles, pinhole, specular, lights",  "spheres+triangles, pinhole, specular, lights",
       "triangles, thin lens, specular, lights", "general (all features)"};
+  if (spec == (kGuidedSpec | kSpecCaustics))
+    return "general with instances, path guiding and manifold NEE (all features)";
+  if (spec & kSpecCaustics)
+    return (spec & kSpecSpheres) ? "spheres+triangles, specular, path guiding, manifold NEE"
+                                 : "triangles, specular, path guiding, manifold NEE";
   if (spec == kGuidedSpec) return "general with instances and path guiding (all features)";
   if (spec & kSpecGuiding) {
     static const char* kGuided[8] = {"triangles, diffuse only, path guiding",

@@ -157,6 +157,7 @@ struct CudaRenderer::Impl {
   // The odd bounces' rays when they are stored at their queue slots (eff.rays_at_slots).
   DeviceBuffer<float4> ray_o_odd, ray_d_odd;
   DeviceBuffer<float4> cached_hits;
+  DeviceBuffer<float4> mnee_state;  // WavefrontState::mnee, with render.mnee only
   DeviceBuffer<uint8_t> alive;
   // queue: CUB's output, or (compaction in the shade kernel) the queues of even bounces, and
   // queue_odd those of odd ones: a bounce reads one while its shade kernel fills the other.
@@ -323,6 +324,8 @@ struct CudaRenderer::Impl {
     w.alive_counts = alive_counts.get();
     w.shadow_counts = shadow_counts.get();
     w.finish_counts = shadow_counts.get() + shadow_stride;
+    mnee_state.resize(eff.shade_spec & kSpecCaustics ? n() : 0);
+    w.mnee = mnee_state.get();
     return w;
   }
 

@@ -63,6 +63,9 @@ struct WavefrontState {
   // queue its shade kernel wrote (the shadow stage then traces only those).
   uint32_t* shadow_counts = nullptr;
   uint32_t* finish_counts = nullptr;  // ... and its paths that end without one (far end)
+  // Manifold NEE (render.mnee; the caustic shade kernels only): each path's PathState::mnee_o
+  // and mnee_normal (bits), at its id.
+  float4* mnee = nullptr;
 };
 
 // The flat primitive list's entries (SceneView::flat_loop) passed by value to the kernels that

@@ -57,9 +57,22 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   PathState st;
   if (id != kInvalid) {
     st = load_state(w, id, ri, sample);
+    constexpr bool kCaustics = (features_of<Spec>() & kFeatureCaustics) != 0;
+    if (kCaustics && (st.flags & kPathMneeFrom)) {
+      const float4 m = w.mnee[id];
+      st.mnee_o = vec3(m.x, m.y, m.z);
+      st.mnee_normal = __float_as_uint(m.w);
+    }
     const Hit hit = load_hit(w, ri);
     go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
     store_path(w, id, st);
+    // This vertex sampled the lights (no refraction since): its origin, for the paths' later
+    // emission hits (path.h).
+    if (kCaustics && go_on && (st.flags & kPathMneeFrom) &&
+        !(st.flags & (kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeOther)))
+      w.mnee[id] = make_float4(st.mnee_o.x, st.mnee_o.y, st.mnee_o.z,
+                               __uint_as_float(st.mnee_normal));
+
     // With rays at their slots the next ray goes to its slot in the next queue, below.
     if (!w.rays_at_slots) store_ray(w.next_ray_o, w.next_ray_d, id, st);
     // A medium scatter continues from no surface; a surface bounce leaves from the triangle that
@@ -269,7 +282,17 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   }                                                                                       \
   shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
                                                       next_queue, shadow_queue)
-  if (spec & kSpecGuiding) {  // path guiding (features.h, guided_shade_spec)
+  if (spec & kSpecCaustics) {  // manifold NEE (features.h, caustic_shade_spec)
+    switch (spec) {
+      case kSpecCaustics | kSpecGuiding | kSpecSpecular:
+        CALL(kSpecCaustics | kSpecGuiding | kSpecSpecular);
+        break;
+      case kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular:
+        CALL(kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular);
+        break;
+      default: CALL(kGuidedSpec | kSpecCaustics); break;
+    }
+  } else if (spec & kSpecGuiding) {  // path guiding (features.h, guided_shade_spec)
     switch (spec) {
       case kSpecGuiding: CALL(kSpecGuiding); break;
       case kSpecGuiding | kSpecSpheres: CALL(kSpecGuiding | kSpecSpheres); break;

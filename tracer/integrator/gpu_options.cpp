@@ -101,6 +101,7 @@ GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,
   t.jitter = cfg.jitter != 0;
   t.depth_of_field = view.camera.lens_radius > 0.0f;
   t.guiding = cfg.guiding != 0;
+  t.mnee = cfg.mnee != 0;
   return t;
 }
 
@@ -170,6 +171,19 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
   if (scene.guiding && o.tail_fraction != 0.0f) {
     changed("tail_fraction", fraction_text(o.tail_fraction), "0",
             "path guiding: the tail is a megakernel, which neither guides nor trains");
+    o.tail_fraction = 0.0f;
+  }
+  // Manifold NEE runs in the caustic shade kernels only (features.h), where a scene has glass
+  // (elsewhere it has nothing to connect through, and the usual kernels run).
+  const bool mnee = scene.mnee && (scene.features & kFeatureDielectric);
+  if (mnee && o.kernel != KernelMode::kWavefront) {
+    changed("kernel", kernel_mode_name(o.kernel), "wavefront",
+            "manifold NEE runs in the wavefront's caustic shade kernels");
+    o.kernel = KernelMode::kWavefront;
+  }
+  if (mnee && o.tail_fraction != 0.0f) {
+    changed("tail_fraction", fraction_text(o.tail_fraction), "0",
+            "manifold NEE: the tail is a megakernel, which does not compile it");
     o.tail_fraction = 0.0f;
   }
   if (o.compaction == Compaction::kOff && o.tail_fraction != 0.0f) {
@@ -245,7 +259,9 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
   e.spec = e.specialize                              ? spec_for_features(scene.features)
            : (scene.features & kFeatureInstances) ? kInstancesSpec
                                                    : kGeneralSpec;
-  e.shade_spec = scene.guiding ? guided_shade_spec(e.spec) : e.spec;
+  e.shade_spec = mnee ? caustic_shade_spec(e.spec)
+                 : scene.guiding ? guided_shade_spec(e.spec)
+                                 : e.spec;
   return e;
 }
 

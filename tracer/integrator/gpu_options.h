@@ -52,6 +52,7 @@ struct GpuSceneTraits {
   bool depth_of_field = false;  // the camera's lens radius is above zero
   bool bvh8_available = false;  // the compiled scene has an 8-wide tree (CompiledScene::bvh8)
   bool guiding = false;         // path guiding is asked for (IntegratorSettings::guiding)
+  bool mnee = false;            // manifold NEE is asked for (IntegratorSettings::mnee)
 };
 // From a scene's view (its features and camera) and whether it has a flat list, or from the
 // compiled scene itself.
@@ -94,7 +95,8 @@ struct EffectiveGpuOptions {
   // Kernels compiled for the scene's features only (spec), or the general ones (kGeneralSpec).
   bool specialize = false;
   uint32_t spec = 7;
-  // The shade kernel's variant: spec, or with path guiding guided_shade_spec(spec).
+  // The shade kernel's variant: spec, with path guiding guided_shade_spec(spec), with manifold
+  // NEE caustic_shade_spec(spec).
   uint32_t shade_spec = 7;
   std::string build_variant;  // gpu_build_variant()
   // One entry per changed switch and per path that is off, each with its reason.

@@ -21,7 +21,9 @@ struct IntegratorSettings {
   uint32_t rr_start_depth = 4;
   uint32_t seed = 0;
   uint32_t nee = 1, mis = 1, russian_roulette = 1;
-  uint32_t mnee = 0;  // experiment: manifold NEE through smooth dielectrics (CPU only)
+  // Manifold next-event estimation through smooth glass (render.mnee): only code compiled with
+  // kFeatureCaustics reads it (the CPU's, the wavefront's caustic shade kernels).
+  uint32_t mnee = 0;
   uint32_t jitter = 1;  // 0: every sample goes through the pixel centre (enables hit caching)
   float clamp = 0.0f;   // > 0: scale each sample down to at most this much per channel (biased)
   // kSamplerRandom (PCG32), kSamplerSobol or kSamplerSobolPairs (core/sobol.h)
@@ -112,17 +114,17 @@ enum PathFlags : uint32_t {
   kPathInMedium = 1u << 1,      // inside a subsurface medium (PathState::medium)
   kPathWalkCapped = 1u << 2,    // ended: the random walk hit kMaxWalkSteps (counted)
   kPathMediumLeak = 1u << 3,    // ended: left a medium without crossing its boundary (counted)
-  // Manifold NEE's partition (cfg.mnee): the last non-delta vertex connected to the lights
-  // through smooth dielectrics; the refractions since (1 or 2: bits 5, 6) and whether anything
-  // else (a reflection, a third refraction) came since. Emission reached through exactly two
-  // refractions belongs to MNEE and is not added.
+  // Manifold NEE (cfg.mnee): the last non-delta vertex sampled the lights (its offset origin in
+  // PathState::mnee_o); the refractions since (1 or 2: bits 5, 6) and whether anything else (a
+  // reflection, a third refraction) came since. Emission reached through exactly two
+  // refractions is not added where manifold NEE found that path from the vertex (shade_path).
   kPathMneeFrom = 1u << 4,
   kPathMneeRefract1 = 1u << 5,
   kPathMneeRefract2 = 1u << 6,
   kPathMneeOther = 1u << 7,
 };
-// The wavefront keeps the flags in 4 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
-static_assert(kPathMediumLeak < (1u << 4), "PathFlags must fit in 4 bits");
+// The wavefront keeps the flags in 8 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
+static_assert(kPathMneeOther < (1u << 8), "PathFlags must fit in 8 bits");
 
 struct PathState {
   Ray ray;
@@ -139,6 +141,10 @@ struct PathState {
   // The geometric normal of the vertex `ray` leaves from, as pack_light_normal codes it (bvh
   // light sampler only): with the ray's origin, the context of the light tree's pmf for MIS.
   uint32_t prev_normal;
+  // Manifold NEE (kPathMneeFrom): the offset origin of the last vertex that sampled the lights,
+  // and its normal's light-tree code (as prev_normal), from which its light was chosen.
+  vec3 mnee_o;
+  uint32_t mnee_normal;
 };
 
 // A shadow ray for next-event estimation: if nothing blocks it, `contribution` is added.
@@ -217,98 +223,116 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
   return c.x <= 0.0f && c.y <= 0.0f && c.z <= 0.0f;
 }
 
-#if !defined(__CUDA_ARCH__)
-// Manifold next-event estimation (experiment, CPU only; integrator/manifold.h): from surface
-// point x (its BSDF m in `frame`, viewer direction wo, the viewer's side ng_viewer) to light
-// sample ls through the one or two smooth dielectric surfaces that the straight segment crosses
-// (exactly two: in and out of the glass). The chain is seeded where the segment crosses them,
-// solved by Newton's method, checked for visibility segment by segment, and weighted by the
-// Fresnel transmittances and the generalized geometry term over the light's area density.
+// Manifold next-event estimation (render.mnee; integrator/manifold.h): light reaches a
+// non-delta vertex through smooth glass, where a shadow ray is blocked by the glass and only a
+// BSDF-sampled path could find it. From the vertex's offset origin o (offset_ray_origin of the
+// point to its viewer's side) to a light point y on primitive light_prim (unit normal ny): the
+// two smooth dielectric surfaces the straight segment crosses (in and out of one piece of glass)
+// seed the chain; Newton's method solves it; each of its segments must then be what a ray sees
+// (the next vertex, on the same material and surface, whose shading normal is the surface's:
+// no interpolated or mapped normals), and the last one free to the light, which must emit
+// towards both o and the chain. Returns the chain and its throughput (the two transmissions:
+// Fresnel, tint, the eta^2 of radiance, Beer-Lambert absorption inside). A function of (o, y)
+// alone, so that a BSDF-sampled path can ask whether this estimator covers it (shade_path).
 template <uint32_t F>
-inline vec3 mnee_connect(const SceneView& s, const SurfaceHit& sh, uint32_t prim,
-                         const Material& m, const Frame& frame, vec3 wo, vec3 ng_viewer,
-                         const LightSample& ls) {
-  const vec3 x = sh.p, y = ls.p;
-  const float dist = glm::length(y - x);
-  if (!(dist > 0.0f)) return vec3(0.0f);
-  ManifoldChain ch;
-  uint32_t prims[kManifoldMaxChain];
-  // The seed: the specular surfaces the straight segment crosses before the light.
-  Ray r = spawn_ray(x, sh.ng, (y - x) / dist);
+TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
+                                 ManifoldChain& ch, vec3& throughput) {
+  const float dist = glm::length(y - o);
+  if (!(dist > 0.0f)) return false;
+  uint32_t material[kManifoldMaxChain];
+  Ray r;
+  r.o = o;
+  r.d = (y - o) / dist;
   r.tmax = dist * (1.0f - 1e-4f);
-  uint32_t skip = prim;
-  for (;;) {
-    const Hit h = intersect_closest<F>(s, r, skip);
-    if (!h.valid()) break;
+  r.pad = 0.0f;
+  ch.k = 0;
+  for (;;) {  // the seed: where the straight segment crosses the glass
+    const Hit h = intersect_closest<F>(s, r, kInvalid);
+    if (!h.valid() || h.prim == light_prim) break;
     const SurfaceHit hs = make_surface_hit<F>(s, r, h);
     const Material& ms = s.materials[hs.material];
-    if (hs.light != kInvalid && h.prim == ls.prim) break;  // the light itself
-    if (ms.type != MaterialType::kDielectric || !bsdf_is_delta(ms, ms.type) ||
+    if (ms.type != MaterialType::kDielectric || ms.roughness > 0.0f || ms.has_textures() ||
         ch.k == kManifoldMaxChain)
-      return vec3(0.0f);
+      return false;
     SpecularSurface& su = ch.surface[ch.k];
-    if (prim_is_triangle(s, h.prim)) {
-      su.kind = SpecularSurface::kPlane;
-      su.a = hs.p;
-      su.n = hs.ng;
-    } else {
+    if ((F & kFeatureSpheres) && !prim_is_triangle(s, h.prim) &&
+        h.prim - s.tri_count < s.sphere_count) {
       const Sphere& sph = s.spheres[h.prim - s.tri_count];
       su.kind = SpecularSurface::kSphere;
       su.a = sph.center;
       su.radius = sph.radius;
+    } else {  // a triangle (also of an instance): its plane
+      su.kind = SpecularSurface::kPlane;
+      su.a = hs.p;
+      su.n = hs.ng;
     }
     su.eta = ms.ior;
-    prims[ch.k] = h.prim;
+    material[ch.k] = hs.material;
     ch.p[ch.k++] = hs.p;
-    const float left = dist - glm::length(hs.p - x);
     r = spawn_ray(hs.p, hs.ng, r.d);
-    r.tmax = left * (1.0f - 1e-4f);
-    skip = prim_is_triangle(s, h.prim) ? h.prim : kInvalid;
+    r.tmax = (dist - glm::length(hs.p - o)) * (1.0f - 1e-4f);
     if (!(r.tmax > 0.0f)) break;
   }
-  if (ch.k != 2) return vec3(0.0f);  // in and out of the glass only
-  if (!manifold_walk(ch, x, y, dist)) return vec3(0.0f);
-  // The solved chain must be what the rays see: each segment's first hit the next vertex on its
-  // surface (same material; the same plane or sphere), and the last segment free to the light.
-  vec3 from = x, from_n = sh.ng;
-  uint32_t from_prim = prim;
-  float transmittance = 1.0f;
+  if (ch.k != 2 || material[0] != material[1]) return false;  // in and out of one glass
+  if (!manifold_walk(ch, o, y, dist)) return false;
+  // The solved chain must be what rays see.
+  vec3 from = o;
+  throughput = vec3(1.0f);
   for (uint32_t i = 0; i < ch.k; ++i) {
-    const vec3 d = glm::normalize(ch.p[i] - from);
-    const float len = glm::length(ch.p[i] - from);
-    Ray seg = spawn_ray(from, from_n, d);
+    const vec3 d = ch.p[i] - from;
+    const float len = glm::length(d);
+    if (!(len > 0.0f)) return false;
+    Ray seg;
+    seg.o = from;
+    seg.d = d / len;
     seg.tmax = len * 1.01f;
-    const Hit h = intersect_closest<F>(s, seg, from_prim);
-    if (!h.valid()) return vec3(0.0f);
+    seg.pad = 0.0f;
+    const Hit h = intersect_closest<F>(s, seg, kInvalid);
+    if (!h.valid()) return false;
     const SurfaceHit hs = make_surface_hit<F>(s, seg, h);
-    if (glm::length(hs.p - ch.p[i]) > 1e-3f * dist) return vec3(0.0f);
-    if (s.materials[hs.material].ior != ch.surface[i].eta) return vec3(0.0f);
-    // Fresnel transmittance, on the side the path arrives from x.
     const vec3 n = ch.surface[i].normal(ch.p[i]);
-    const float c = glm::dot(-d, n);
-    transmittance *= 1.0f - fresnel_dielectric(glm::abs(c), c > 0.0f ? ch.surface[i].eta
-                                                                       : 1.0f / ch.surface[i].eta);
-    from = hs.p;
-    from_n = hs.ng;
-    from_prim = prim_is_triangle(s, h.prim) ? h.prim : kInvalid;
-    (void)prims;
+    if (glm::length(hs.p - ch.p[i]) > 1e-3f * dist || hs.material != material[i] ||
+        glm::abs(glm::dot(hs.ns, n)) < 1.0f - 1e-5f)
+      return false;
+    const Material& mi = s.materials[material[i]];
+    // The transmission as the BSDF weighs it (bsdf.h, smooth dielectric), on the side the path
+    // arrives from o; inside (the second vertex) after Beer-Lambert's attenuation.
+    const float c = glm::dot(-seg.d, n);
+    const float eta = c > 0.0f ? mi.ior : 1.0f / mi.ior;
+    if (i > 0 && !is_black(mi.absorption)) throughput *= glm::exp(-mi.absorption * len);
+    throughput *= mi.albedo * ((1.0f - material_fresnel(mi, glm::abs(c), eta)) / (eta * eta));
+    from = spawn_ray(hs.p, hs.ng, seg.d).o;
   }
-  const Ray last = spawn_ray_to(from, glm::dot(y - from, from_n) > 0.0f ? from_n : -from_n, y, ls.n);
-  if (intersect_any<F>(s, last, ls.prim, from_prim)) return vec3(0.0f);
-  // The light must face both x's side (ls.le is its radiance towards x) and the chain's end.
-  if (!(glm::dot(ls.n, ch.p[ch.k - 1] - y) > 0.0f)) return vec3(0.0f);
-  const vec3 w1 = glm::normalize(ch.p[0] - x);
+  const vec3 to_end = from - y;
+  if (!(glm::dot(ny, to_end) * glm::dot(ny, o - y) > 0.0f)) return false;  // the same face
+  const Ray last = spawn_ray_to(from, glm::dot(y - from, ch.surface[1].normal(ch.p[1])) > 0.0f
+                                          ? ch.surface[1].normal(ch.p[1])
+                                          : -ch.surface[1].normal(ch.p[1]),
+                                y, ny);
+  return !intersect_any<F>(s, last, light_prim);
+}
+
+// Manifold NEE's contribution at vertex p (offset origin o; BSDF m in `frame`, viewer direction
+// wo, the viewer's side ng_viewer) for light sample ls (sampled from p): zero unless mnee_chain
+// joins o and the light point. The light's solid-angle density at p becomes a density of area.
+template <uint32_t F>
+TRACER_HD inline vec3 mnee_connect(const SceneView& s, vec3 p, vec3 o, const Material& m,
+                                   const Frame& frame, vec3 wo, vec3 ng_viewer,
+                                   const LightSample& ls) {
+  ManifoldChain ch;
+  vec3 tr;
+  if (!mnee_chain<F>(s, o, ls.p, ls.n, ls.prim, ch, tr)) return vec3(0.0f);
+  const vec3 w1 = glm::normalize(ch.p[0] - o);
   if (!(glm::dot(w1, ng_viewer) > 0.0f)) return vec3(0.0f);
   const vec3 wi = frame.to_local(w1);
   const vec3 f = bsdf_eval<F>(m, wo, wi);
-  const float cos_y = glm::abs(glm::dot(ls.n, (x - y) / dist));
-  const float area_pdf = ls.pdf * cos_y / (dist * dist);
-  const float g = manifold_geometry(ch, x, y, ls.n, dist);
+  const float d2 = glm::dot(ls.p - p, ls.p - p);
+  const float area_pdf = ls.pdf * glm::abs(glm::dot(ls.n, p - ls.p)) / (d2 * glm::sqrt(d2));
+  const float g = manifold_geometry(ch, o, ls.p, ls.n, glm::length(ls.p - o));
   if (!(area_pdf > 0.0f) || !(g > 0.0f)) return vec3(0.0f);
-  const vec3 c = f * glm::abs(wi.z) * transmittance * ls.le * (g / area_pdf);
+  const vec3 c = f * glm::abs(wi.z) * tr * ls.le * (g / area_pdf);
   return is_finite(c) ? c : vec3(0.0f);
 }
-#endif
 
 // Shades the hit of st.ray. Adds emission to st.radiance, may fill `shadow`, and returns whether
 // the path continues, in which case st.ray is the next segment. Forced inline: nvcc outlines it
@@ -426,11 +450,24 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           w = 0.0f;
         }
       }
-      // Reached through one or two refractions alone from a vertex that manifold NEE
-      // connected: that estimator's share of the paths.
-      if (cfg.mnee && (st.flags & kPathMneeFrom) && (st.flags & kPathMneeRefract2) &&
-          !(st.flags & kPathMneeOther))
-        w = 0.0f;
+      // Reached through exactly two refractions from a vertex that sampled the lights: manifold
+      // NEE's, where from that vertex it finds this path (the chain whose last vertex this
+      // segment left from) to this point of a light it could have chosen there. The two
+      // estimators so split the paths exactly, also where the solve fails (no bias).
+      if ((F & kFeatureCaustics) && cfg.mnee && sh.light != kInvalid &&
+          (st.flags & (kPathMneeFrom | kPathMneeRefract2 | kPathMneeOther)) ==
+              (kPathMneeFrom | kPathMneeRefract2)) {
+        ManifoldChain ch;
+        vec3 tr;
+        if (mnee_chain<F>(s, st.mnee_o, sh.p, sh.ng, hit.prim, ch, tr) &&
+            glm::length(ch.p[1] - st.ray.o) <= 1e-3f * glm::length(sh.p - st.mnee_o)) {
+          const bool tree = (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh &&
+                            s.light_tree.nodes;
+          const LightContext from{st.mnee_o,
+                                  tree ? unpack_light_normal(st.mnee_normal) : vec3(0.0f)};
+          if (light_choice_pmf<F>(s, cfg.light_sampler, from, sh.light) > 0.0f) w = 0.0f;
+        }
+      }
       st.radiance += st.throughput * le * w;
     }
   }
@@ -496,11 +533,12 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);
         }
       }
-#if !defined(__CUDA_ARCH__)
-      // Manifold NEE: the same light point through the glass the shadow ray may cross.
-      if (cfg.mnee && !ls.infinite && !ls.delta)
-        st.radiance += st.throughput * mnee_connect<F>(s, sh, hit.prim, m, frame, wo, ng_viewer, ls);
-#endif
+      // Manifold NEE: the same light point through the glass the shadow ray may cross (a path
+      // of 3 more segments, within max_depth as the BSDF's would have to be).
+      if ((F & kFeatureCaustics) && cfg.mnee && !ls.infinite && !ls.delta &&
+          st.depth + 3 <= cfg.max_depth)
+        st.radiance += st.throughput * mnee_connect<F>(s, sh.p, offset_ray_origin(sh.p, ng_viewer),
+                                                       m, frame, wo, ng_viewer, ls);
     }
   }
 
@@ -573,11 +611,16 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       st.flags &= ~kPathInMedium;
     }
   }
-  if (cfg.mnee) {  // manifold NEE's partition (kPathMneeFrom)
+  if ((F & kFeatureCaustics) && cfg.mnee) {  // manifold NEE's partition (kPathMneeFrom)
     if (!bsdf_is_delta(m, type)) {
       st.flags &= ~(kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeOther);
-      if (cfg.nee && s.light_count > 0) st.flags |= kPathMneeFrom;
-      else st.flags &= ~kPathMneeFrom;
+      if (cfg.nee && s.light_count > 0) {
+        st.flags |= kPathMneeFrom;
+        st.mnee_o = offset_ray_origin(sh.p, ng_viewer);
+        st.mnee_normal = normal_code;
+      } else {
+        st.flags &= ~kPathMneeFrom;
+      }
     } else if (type == MaterialType::kDielectric && side * glm::dot(wo_world, sh.ng) < 0.0f) {
       if (st.flags & kPathMneeRefract2) st.flags |= kPathMneeOther;
       else if (st.flags & kPathMneeRefract1) st.flags = (st.flags & ~kPathMneeRefract1) | kPathMneeRefract2;

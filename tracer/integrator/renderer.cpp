@@ -20,6 +20,7 @@ IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
   cfg.filter = rs.filter;
   cfg.light_sampler = rs.light_sampler;
   cfg.guiding = rs.guiding ? 1u : 0u;
+  cfg.mnee = rs.mnee ? 1u : 0u;
   cfg.filter_radius = rs.filter_radius > 0.0f ? rs.filter_radius : default_filter_radius(rs.filter);
   return cfg;
 }

@@ -50,6 +50,7 @@ struct RenderSettings {
   // kLightSamplerBvh (the light tree; scene/light_tree_view.h)
   uint32_t light_sampler = kLightSamplerBvh;
   bool guiding = false;  // path guiding (integrator/guide.h)
+  bool mnee = false;     // manifold next-event estimation through glass (integrator/manifold.h)
 };
 
 // "random" / "sobol" / "sobol-pairs", as the scene format, the CLI and the workbench spell

@@ -210,6 +210,12 @@ std::vector<Setting> make_table() {
                     "doubling length, then frozen) and sample directions from it and the BSDF by "
                     "one-sample MIS. Unbiased; pays off where light sampling fails (caustics).",
                     E::kImage, [](Scene& s) -> bool& { return s.settings.guiding; }));
+  t.push_back(field("render.mnee", "--mnee", T::kBool, 0, 0, "",
+                    "Manifold next-event estimation: connect each light sample also through "
+                    "smooth glass (two refractions: in and out of one piece, on flat faces or "
+                    "spheres) by Newton's method, where a shadow ray is blocked by the glass. "
+                    "Unbiased; caustics of lights behind glass converge without fireflies.",
+                    E::kImage, [](Scene& s) -> bool& { return s.settings.mnee; }));
   t.push_back(choice<PixelFilter>(
       "render.filter", "--filter", {"box", "tent", "gaussian", "blackman-harris"},
       {PixelFilter::kBox, PixelFilter::kTent, PixelFilter::kGaussian,
