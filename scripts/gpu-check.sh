@@ -45,7 +45,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit | guiding | mpi (the last nine not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit | guiding | caustics | mpi (the last ten not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -269,6 +269,30 @@ if [ "$MODE" = guiding ]; then
   done
   $DIST/cuda_test --gtest_filter='*Guid*' 2>&1 | tail -15
   (cd $D && tar czf "$OUT/guiding.tgz" --exclude='*.exr' .)
+fi
+if [ "$MODE" = caustics ]; then
+  # Manifold NEE (render.mnee; issue 24's caustics): error against time without and with it (and
+  # with guiding beside it) on the lamp behind glass, the glass spheres, the rough materials, the
+  # diffuse Cornell box (no glass: the usual kernels) and Bitterli's water caustic (carry it as
+  # for guiding); then the same-time pictures. Carry $DIST (and the Bitterli folder).
+  D=/tmp/caustics && rm -rf $D && mkdir -p $D
+  B=${BITTERLI:-.devbuild/bitterli}
+  T=${TIME_LIMIT:-10}
+  for sc in ${SCENES:-glass_lamp cornell_spheres rough_materials cornell_box $B/water-caustic/scene-v4.pbrt}; do
+    path=$sc; [ -f "$path" ] || path=$(scene $sc)
+    [ -f "$path" ] || { echo "skipped $sc: $path not found"; continue; }
+    name=$(basename "$(dirname "$path")"); [ "$name" = scenes ] && name=$sc
+    echo "==== bench --error $name"
+    $DIST/pathtracer bench "$path" --error --backend cuda --reference-spp ${REF_SPP:-16384} \
+      --configs ${CONFIGS:-wavefront,wavefront+mnee=on,wavefront+guiding=on+mnee=on} \
+      --time-limit $T --out $D/$name 2>&1 | grep -vE "^\s*$" | tail -10
+    for m in off on; do
+      $DIST/pathtracer render "$path" --backend cuda --mnee $m --time ${PIC_TIME:-2} \
+        --out $D/$name-mnee-$m.png 2>&1 | tail -1
+    done
+  done
+  $DIST/cuda_test --gtest_filter='*Manifold*' 2>&1 | tail -8
+  (cd $D && tar czf "$OUT/caustics.tgz" --exclude='*.exr' .)
 fi
 if [ "$MODE" = mpi ]; then
   # Distributed rendering (issue 25) with the Open MPI carried in .devbuild/dist-mpi
