@@ -102,21 +102,21 @@ TEST(Manifold, SlabAtNormalIncidenceHasTheApparentDistance) {
   ManifoldChain ch = slab();
   const vec3 x(0.0f), y(0.0f, 0.0f, 3.0f);
   seed_on_line(ch, x, y);
-  ASSERT_TRUE(manifold_walk(ch, x, y, 3.0f));
+  ASSERT_TRUE(manifold_walk(ch, x, y));
   // Paraxially, a lateral step at y is the angle at x times 1 + 0.2 / 1.5 + 1.8.
   const double apparent = 1.0 + 0.2 / 1.5 + 1.8;
-  EXPECT_NEAR(manifold_geometry(ch, x, y, vec3(0, 0, -1), 3.0f), 1.0 / (apparent * apparent),
+  EXPECT_NEAR(manifold_geometry(ch, x, y, vec3(0, 0, -1)), 1.0 / (apparent * apparent),
               2e-3 / (apparent * apparent));
   // Without the slab: cos / r^2.
   ManifoldChain none;
-  EXPECT_NEAR(manifold_geometry(none, x, y, vec3(0, 0, -1), 3.0f), 1.0 / 9.0, 1e-3 / 9.0);
+  EXPECT_NEAR(manifold_geometry(none, x, y, vec3(0, 0, -1)), 1.0 / 9.0, 1e-3 / 9.0);
 }
 
 TEST(Manifold, ObliqueSlabSatisfiesSnellAndMatchesTheClosedForm) {
   ManifoldChain ch = slab();
   const vec3 x(0.0f), y(1.0f, 0.4f, 3.0f);
   seed_on_line(ch, x, y);
-  ASSERT_TRUE(manifold_walk(ch, x, y, 3.0f));
+  ASSERT_TRUE(manifold_walk(ch, x, y));
   // The closed form: the offset along the path's azimuth at the entry height, s, solves
   // s + 0.2 tan(theta_glass) + 1.8 tan(theta_air) = |y.xy| with tan(theta_air) = s.
   const double target = std::hypot(1.0, 0.4);
@@ -139,7 +139,7 @@ TEST(Manifold, ObliqueSlabSatisfiesSnellAndMatchesTheClosedForm) {
     EXPECT_NEAR(i == 0 ? si : 1.5f * si, i == 0 ? 1.5f * so : so, 1e-4f);
   }
   // The geometry term against forward tracing.
-  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1), 3.0f);
+  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1));
   const double expected = forward_geometry(ch, x, glm::normalize(ch.p[0] - x), 3.0f);
   ASSERT_GT(expected, 0.0);
   EXPECT_NEAR(g / expected, 1.0, 3e-3) << g << " vs " << expected;
@@ -158,12 +158,12 @@ TEST(Manifold, MirrorBallReflectsTheLightAndMatchesForwardTracing) {
   ch.p[0] = ch.surface[0].project(ch.surface[0].a +
                                    glm::normalize(glm::normalize(x - ch.surface[0].a) +
                                                   glm::normalize(y - ch.surface[0].a)));
-  ASSERT_TRUE(manifold_walk(ch, x, y, 3.0f));
+  ASSERT_TRUE(manifold_walk(ch, x, y));
   const vec3 n = ch.surface[0].normal(ch.p[0]);
   const vec3 wi = glm::normalize(x - ch.p[0]), wo = glm::normalize(y - ch.p[0]);
   EXPECT_NEAR(glm::dot(wi, n), glm::dot(wo, n), 1e-5f);                 // equal angles
   EXPECT_NEAR(glm::dot(glm::cross(wi, wo), n), 0.0f, 1e-5f);             // one plane
-  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1), 3.0f);
+  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1));
   const double expected = forward_geometry(ch, x, glm::normalize(ch.p[0] - x), 3.0f);
   ASSERT_GT(expected, 0.0);
   EXPECT_NEAR(g / expected, 1.0, 3e-3) << g << " vs " << expected;
@@ -187,13 +187,77 @@ TEST(Manifold, GlassBallRefractsTwiceAndMatchesForwardTracing) {
   const float b = glm::dot(oc, d), c = glm::dot(oc, oc) - 0.25f, disc = std::sqrt(b * b - c);
   ch.p[0] = x + (-b - disc) * d;
   ch.p[1] = x + (-b + disc) * d;
-  ASSERT_TRUE(manifold_walk(ch, x, y, 3.0f));
-  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1), 3.0f);
+  ASSERT_TRUE(manifold_walk(ch, x, y));
+  const double g = manifold_geometry(ch, x, y, vec3(0, 0, -1));
   const double expected = forward_geometry(ch, x, glm::normalize(ch.p[0] - x), 3.0f);
   ASSERT_GT(expected, 0.0);
   EXPECT_NEAR(g / expected, 1.0, 3e-3) << g << " vs " << expected;
   // The ball focuses: more solid angle at x than the light would have seen directly.
   EXPECT_GT(g, glm::abs(d.z) / glm::dot(y - x, y - x));
+}
+
+// The analytic Jacobian (manifold_jacobian) against central differences of the constraints over
+// each vertex's tangent-plane step: equal at a solution (a mirror ball, a glass ball's two
+// refractions, a slab), where the geometry term uses it; near one within the residual's size.
+void expect_jacobian_matches_differences(const ManifoldChain& ch, vec3 x, vec3 y, double tol,
+                                         const char* what) {
+  const uint32_t n = 2 * ch.k;
+  float J[4][4];
+  ASSERT_TRUE(manifold_jacobian(ch, x, y, J)) << what;
+  const float h = 1e-3f;
+  for (uint32_t j = 0; j < n; ++j) {
+    float step[4] = {}, cp[4], cm[4];
+    step[j] = h;
+    ASSERT_TRUE(manifold_constraints(manifold_moved(ch, step), x, y, cp));
+    step[j] = -h;
+    ASSERT_TRUE(manifold_constraints(manifold_moved(ch, step), x, y, cm));
+    for (uint32_t i = 0; i < n; ++i) {
+      const double fd = (double(cp[i]) - cm[i]) / (2.0 * h);
+      EXPECT_NEAR(J[i][j], fd, tol * (1.0 + std::abs(fd))) << what << " J[" << i << "][" << j << "]";
+    }
+  }
+}
+
+TEST(Manifold, AnalyticJacobianMatchesDifferences) {
+  ManifoldChain ball;  // a glass ball, solved
+  ball.k = 2;
+  for (uint32_t i = 0; i < 2; ++i) {
+    ball.surface[i].kind = SpecularSurface::kSphere;
+    ball.surface[i].a = vec3(0.0f, 0.0f, 1.5f);
+    ball.surface[i].radius = 0.5f;
+    ball.surface[i].eta = 1.5f;
+  }
+  const vec3 x(0.15f, -0.1f, 0.0f), y(0.05f, 0.02f, 3.0f);
+  ball.p[0] = vec3(0.12f, -0.07f, 1.02f);
+  ball.p[1] = vec3(0.08f, -0.02f, 1.98f);
+  for (uint32_t i = 0; i < 2; ++i) ball.p[i] = ball.surface[i].project(ball.p[i]);
+  ManifoldChain seed = ball;
+  ASSERT_TRUE(manifold_walk(ball, x, y));
+  expect_jacobian_matches_differences(ball, x, y, 2e-3, "glass ball at the solution");
+  // Off the solution the sphere's turning frame adds a term of the residual's size.
+  expect_jacobian_matches_differences(seed, x, y, 0.1, "glass ball at the seed");
+
+  ManifoldChain mirror;  // a mirror ball beside the light's path
+  mirror.k = 1;
+  mirror.surface[0].kind = SpecularSurface::kSphere;
+  mirror.surface[0].a = vec3(1.0f, 0.0f, 1.0f);
+  mirror.surface[0].radius = 0.4f;
+  mirror.surface[0].eta = 0.0f;
+  const vec3 xm(0.0f, 0.1f, 0.0f), ym(0.2f, -0.1f, 3.0f);
+  mirror.p[0] = mirror.surface[0].project(vec3(0.6f, 0.0f, 1.0f));
+  ASSERT_TRUE(manifold_walk(mirror, xm, ym));
+  expect_jacobian_matches_differences(mirror, xm, ym, 2e-3, "mirror ball at the solution");
+
+  ManifoldChain slab;  // a tilted slab: two planes
+  slab.k = 2;
+  slab.surface[0] = plane(1.0f, vec3(0, 0, -1), 1.5f);
+  slab.surface[1] = plane(1.3f, vec3(0, 0, 1), 1.5f);
+  slab.p[0] = vec3(0.3f, 0.1f, 1.0f);
+  slab.p[1] = vec3(0.5f, 0.2f, 1.3f);
+  const vec3 xs(0.0f, 0.0f, 0.0f), ys(1.0f, 0.4f, 3.0f);
+  expect_jacobian_matches_differences(slab, xs, ys, 2e-3, "slab (planes: exact anywhere)");
+  ASSERT_TRUE(manifold_walk(slab, xs, ys));
+  expect_jacobian_matches_differences(slab, xs, ys, 2e-3, "slab at the solution");
 }
 
 TEST(Manifold, RefusesWhatNoSpecularPathJoins) {
@@ -203,13 +267,13 @@ TEST(Manifold, RefusesWhatNoSpecularPathJoins) {
   ch.surface[0] = plane(1.2f, vec3(0, 0, 1), 1.5f);
   const vec3 x(0.0f, 0.0f, 1.1f), y(10.0f, 0.0f, 1.21f);
   ch.p[0] = vec3(5.0f, 0.0f, 1.2f);
-  EXPECT_FALSE(manifold_walk(ch, x, y, 10.0f));
+  EXPECT_FALSE(manifold_walk(ch, x, y));
   // A mirror with both points behind it.
   ManifoldChain m;
   m.k = 1;
   m.surface[0] = plane(1.0f, vec3(0, 0, 1), 0.0f);
   m.p[0] = vec3(0.0f, 0.0f, 1.0f);
-  EXPECT_FALSE(manifold_walk(m, vec3(0.0f), vec3(1.0f, 0.0f, 0.5f), 1.0f));
+  EXPECT_FALSE(manifold_walk(m, vec3(0.0f), vec3(1.0f, 0.0f, 0.5f)));
 }
 
 // Per-pixel statistics of samples [first, first + spp).

@@ -14,7 +14,7 @@
 // unit directions to them and eta_i, eta_o the indices of refraction on their sides (1 and 1 for
 // a mirror), the tangential part of eta_i wi + eta_o wo is zero: the law of reflection, or
 // Snell's law (eta_i sin = eta_o sin, on opposite sides). Newton moves each vertex in its tangent
-// plane by the solve of J d = -C (J by forward differences: 2k x 2k, k <= 2) and puts it back on
+// plane by the solve of J d = -C (J analytic: 2k x 2k, k <= 2) and puts it back on
 // its surface (the plane itself, or the sphere along its radius), halving a step that does not
 // lower |C|.
 #pragma once
@@ -128,24 +128,74 @@ TRACER_HD inline bool manifold_solve(float A[4][4], float* r, uint32_t n, float*
   return true;
 }
 
-// The constraint Jacobian of the chain at its vertices (2k x 2k, by differences of each vertex's
-// tangent-plane step: central, or forward from c, the constraints at the chain, where Newton's
-// direction needs no more); false where a moved chain is invalid.
-TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y, float h,
-                                        float J[4][4], const float* c = nullptr) {
+// The weights of vertex i's half vector h = eta_a wa + eta_b wb (1 and 1 for a mirror; for a
+// refraction the index on each direction's side), as manifold_constraint forms it.
+TRACER_HD inline vec2 manifold_etas(const SpecularSurface& s, vec3 n, vec3 wa, vec3 wb) {
+  if (s.eta == 0.0f) return vec2(1.0f);
+  return vec2(glm::dot(wa, n) > 0.0f ? 1.0f : s.eta, glm::dot(wb, n) > 0.0f ? 1.0f : s.eta);
+}
+
+// The derivative of the 2 components T^T v (T: the frame at vertex i) of eta P (q - p) / L for a
+// unit direction w = (q - p) / L (P = I - w w^T, the change of w) along the frame G of another
+// vertex: the 2x2 block T^T (eta P / L) G.
+TRACER_HD inline void manifold_block(const Frame& T, vec3 w, float eta_over_l, const Frame& G,
+                                     float out[2][2]) {
+  const vec3 g[2] = {G.t, G.b}, t[2] = {T.t, T.b};
+  for (int c = 0; c < 2; ++c) {
+    const vec3 pg = eta_over_l * (g[c] - glm::dot(w, g[c]) * w);
+    for (int r = 0; r < 2; ++r) out[r][c] = glm::dot(t[r], pg);
+  }
+}
+
+// The constraint Jacobian of the chain (2k x 2k) for steps of each vertex in its tangent frame
+// (manifold_moved), analytically (Zeltner et al. 2020, sec. 4.3, in half-vector form): with
+// dh_i = eta_a P_a (da - dp_i) / L_a + eta_b P_b (db - dp_i) / L_b and, on a sphere of radius r,
+// the frame turning with the normal (dn = dp / r), which where h is along n adds -(h.n) dp / r.
+// The frame's turn is exact at a solution (the geometry term's Jacobian) and off it by a term of
+// the size of the residual, which keeps Newton's convergence quadratic. Also dC/dy, the last
+// vertex's 2x3 derivative by the light point (dcdy, optional). False where a vertex is invalid.
+TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y, float J[4][4],
+                                        vec3* dcdy = nullptr) {
   const uint32_t n = 2 * ch.k;
-  for (uint32_t j = 0; j < n; ++j) {
-    float step[2 * kManifoldMaxChain] = {};
-    float cp[2 * kManifoldMaxChain], cm[2 * kManifoldMaxChain];
-    step[j] = h;
-    if (!manifold_constraints(manifold_moved(ch, step), x, y, cp)) return false;
-    if (c) {
-      for (uint32_t i = 0; i < n; ++i) J[i][j] = (cp[i] - c[i]) / h;
-      continue;
+  for (uint32_t i = 0; i < n; ++i)
+    for (uint32_t j = 0; j < n; ++j) J[i][j] = 0.0f;
+  Frame frames[kManifoldMaxChain];
+  for (uint32_t i = 0; i < ch.k; ++i) frames[i] = Frame::from_normal(ch.surface[i].normal(ch.p[i]));
+  for (uint32_t i = 0; i < ch.k; ++i) {
+    const SpecularSurface& s = ch.surface[i];
+    const vec3 a = i == 0 ? x : ch.p[i - 1], b = i + 1 == ch.k ? y : ch.p[i + 1];
+    const vec3 da = a - ch.p[i], db = b - ch.p[i];
+    const float la = glm::length(da), lb = glm::length(db);
+    if (!(la > 0.0f) || !(lb > 0.0f)) return false;
+    const vec3 wa = da / la, wb = db / lb;
+    const vec3 nrm = frames[i].n;
+    const vec2 eta = manifold_etas(s, nrm, wa, wb);
+    const Frame& T = frames[i];
+    float block[2][2];
+    // d/dp_i: -(eta_a P_a / L_a + eta_b P_b / L_b), and the sphere's turning frame.
+    float self[2][2];
+    manifold_block(T, wa, eta.x / la, T, self);
+    manifold_block(T, wb, eta.y / lb, T, block);
+    const float turn = s.kind == SpecularSurface::kSphere
+                           ? glm::dot(eta.x * wa + eta.y * wb, nrm) / s.radius
+                           : 0.0f;
+    for (int r = 0; r < 2; ++r)
+      for (int c = 0; c < 2; ++c)
+        J[2 * i + r][2 * i + c] = -(self[r][c] + block[r][c]) - (r == c ? turn : 0.0f);
+    if (i > 0) {  // a = p_{i-1}
+      manifold_block(T, wa, eta.x / la, frames[i - 1], block);
+      for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 2; ++c) J[2 * i + r][2 * (i - 1) + c] = block[r][c];
     }
-    step[j] = -h;
-    if (!manifold_constraints(manifold_moved(ch, step), x, y, cm)) return false;
-    for (uint32_t i = 0; i < n; ++i) J[i][j] = (cp[i] - cm[i]) / (2.0f * h);
+    if (i + 1 < ch.k) {  // b = p_{i+1}
+      manifold_block(T, wb, eta.y / lb, frames[i + 1], block);
+      for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 2; ++c) J[2 * i + r][2 * (i + 1) + c] = block[r][c];
+    } else if (dcdy) {  // b = y: eta_b P_b / L_b, projected on the frame
+      const vec3 t[2] = {T.t, T.b};
+      for (int r = 0; r < 2; ++r)
+        dcdy[r] = (eta.y / lb) * (t[r] - glm::dot(wb, t[r]) * wb);
+    }
   }
   return true;
 }
@@ -158,16 +208,15 @@ TRACER_HD inline float manifold_norm(const float* c, uint32_t n) {
 
 // Newton's method from the chain's current vertices (the seed) to a chain that joins x and y by
 // its specular laws; false when it does not converge (or a vertex ends on a side its kind cannot
-// join). `scale`: the scene's length scale for the finite differences (|y - x| serves).
-TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y, float scale) {
+// join).
+TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y) {
   const uint32_t n = 2 * ch.k;
   float c[2 * kManifoldMaxChain];
   if (n == 0 || !manifold_constraints(ch, x, y, c)) return false;
   float norm = manifold_norm(c, n);
-  const float h = 1e-3f * scale;
   for (uint32_t it = 0; it < kManifoldIterations && norm > kManifoldTolerance; ++it) {
     float J[4][4];
-    if (!manifold_jacobian(ch, x, y, h, J, c)) return false;
+    if (!manifold_jacobian(ch, x, y, J)) return false;
     float r[2 * kManifoldMaxChain], d[2 * kManifoldMaxChain];
     for (uint32_t i = 0; i < n; ++i) r[i] = -c[i];
     if (!manifold_solve(J, r, n, d)) return false;
@@ -195,21 +244,19 @@ TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y, float sca
 // The generalized geometry term of a solved chain: the solid angle at x that a unit of area at
 // y (in the plane of the light's normal ny) maps to, |d omega_x / d A_y|. By the implicit
 // function theorem: the chain's steps move with y as dP/dy = -J^-1 dC/dy (J the constraint
-// Jacobian at the solution, dC/dy by central differences along the light's tangents), and
-// omega_x follows the first vertex. For an empty chain it is the usual cos_y / r^2.
-TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y, vec3 ny,
-                                         float scale) {
+// Jacobian at the solution), and omega_x follows the first vertex. For an empty chain it is the
+// usual cos_y / r^2.
+TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y, vec3 ny) {
   const Frame f = Frame::from_normal(ny);
-  const float e = 1e-3f * scale;
   if (ch.k == 0) {
-    vec3 w[4];
-    const vec3 offsets[4] = {f.t * e, -f.t * e, f.b * e, -f.b * e};
-    for (int i = 0; i < 4; ++i) w[i] = glm::normalize(y + offsets[i] - x);
-    return glm::length(glm::cross((w[0] - w[1]) / (2.0f * e), (w[2] - w[3]) / (2.0f * e)));
+    const vec3 d = y - x;
+    const float l2 = glm::dot(d, d);
+    return glm::abs(glm::dot(ny, d)) / (l2 * glm::sqrt(l2));
   }
   const uint32_t n = 2 * ch.k;
   float J[4][4];
-  if (!manifold_jacobian(ch, x, y, e, J)) return 0.0f;
+  vec3 dcdy[2];
+  if (!manifold_jacobian(ch, x, y, J, dcdy)) return 0.0f;
   const vec3 d0 = ch.p[0] - x;
   const float l0 = glm::length(d0);
   const vec3 w0 = d0 / l0;
@@ -217,11 +264,9 @@ TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y
   vec3 dw[2];
   for (int axis = 0; axis < 2; ++axis) {
     const vec3 t = axis == 0 ? f.t : f.b;
-    float cp[2 * kManifoldMaxChain], cm[2 * kManifoldMaxChain];
-    if (!manifold_constraints(ch, x, y + e * t, cp) || !manifold_constraints(ch, x, y - e * t, cm))
-      return 0.0f;
-    float r[2 * kManifoldMaxChain], step[2 * kManifoldMaxChain];
-    for (uint32_t i = 0; i < n; ++i) r[i] = -(cp[i] - cm[i]) / (2.0f * e);
+    float r[2 * kManifoldMaxChain] = {}, step[2 * kManifoldMaxChain];
+    r[n - 2] = -glm::dot(dcdy[0], t);
+    r[n - 1] = -glm::dot(dcdy[1], t);
     float A[4][4];
     for (uint32_t i = 0; i < 4; ++i)
       for (uint32_t j = 0; j < 4; ++j) A[i][j] = J[i][j];

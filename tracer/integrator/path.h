@@ -274,7 +274,7 @@ TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, ui
     if (!(r.tmax > 0.0f)) break;
   }
   if (ch.k != 2 || material[0] != material[1]) return false;  // in and out of one glass
-  if (!manifold_walk(ch, o, y, dist)) return false;
+  if (!manifold_walk(ch, o, y)) return false;
   // The solved chain must be what rays see.
   vec3 from = o;
   throughput = vec3(1.0f);
@@ -328,7 +328,7 @@ TRACER_HD inline vec3 mnee_connect(const SceneView& s, vec3 p, vec3 o, const Mat
   const vec3 f = bsdf_eval<F>(m, wo, wi);
   const float d2 = glm::dot(ls.p - p, ls.p - p);
   const float area_pdf = ls.pdf * glm::abs(glm::dot(ls.n, p - ls.p)) / (d2 * glm::sqrt(d2));
-  const float g = manifold_geometry(ch, o, ls.p, ls.n, glm::length(ls.p - o));
+  const float g = manifold_geometry(ch, o, ls.p, ls.n);
   if (!(area_pdf > 0.0f) || !(g > 0.0f)) return vec3(0.0f);
   const vec3 c = f * glm::abs(wi.z) * tr * ls.le * (g / area_pdf);
   return is_finite(c) ? c : vec3(0.0f);
