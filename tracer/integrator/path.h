@@ -227,34 +227,31 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
 // non-delta vertex through smooth glass, where a shadow ray is blocked by the glass and only a
 // BSDF-sampled path could find it. From the vertex's offset origin o (offset_ray_origin of the
 // point to its viewer's side) to a light point y on primitive light_prim (unit normal ny): the
-// two smooth dielectric surfaces the straight segment crosses (in and out of one piece of glass)
-// seed the chain; Newton's method solves it; each of its segments must then be what a ray sees
+// smooth glass the straight segment meets first and the surface where the ray refracted there
+// leaves it (in and out of one piece of glass) seed the chain; Newton's method solves it; each of its segments must then be what a ray sees
 // (the next vertex, on the same material and surface, whose shading normal is the surface's:
 // no interpolated or mapped normals), and the last one free to the light, which must emit
 // towards both o and the chain. Returns the chain and its throughput (the two transmissions:
 // Fresnel, tint, the eta^2 of radiance, Beer-Lambert absorption inside). A function of (o, y)
 // alone, so that a BSDF-sampled path can ask whether this estimator covers it (shade_path).
+// Manifold NEE's seed (Hanika et al.'s): the smooth glass that the ray r meets first (before its
+// tmax, skipping primitive `skip`) and where the ray refracted there leaves that glass again,
+// into the chain from vertex `first` on in the direction `step` (+1: o to y, -1: y to o).
+// *glass: the ray met such glass first.
 template <uint32_t F>
-TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
-                                 ManifoldChain& ch, vec3& throughput) {
-  const float dist = glm::length(y - o);
-  if (!(dist > 0.0f)) return false;
-  uint32_t material[kManifoldMaxChain];
-  Ray r;
-  r.o = o;
-  r.d = (y - o) / dist;
-  r.tmax = dist * (1.0f - 1e-4f);
-  r.pad = 0.0f;
-  ch.k = 0;
-  for (;;) {  // the seed: where the straight segment crosses the glass
-    const Hit h = intersect_closest<F>(s, r, kInvalid);
-    if (!h.valid() || h.prim == light_prim) break;
+TRACER_HD inline bool mnee_seed(const SceneView& s, Ray r, uint32_t skip, ManifoldChain& ch,
+                                uint32_t* material, uint32_t first, int step, bool* glass) {
+  *glass = false;
+  for (int k = 0; k < 2; ++k) {
+    const Hit h = intersect_closest<F>(s, r, k == 0 ? skip : kInvalid);
+    if (!h.valid()) return false;
     const SurfaceHit hs = make_surface_hit<F>(s, r, h);
     const Material& ms = s.materials[hs.material];
-    if (ms.type != MaterialType::kDielectric || ms.roughness > 0.0f || ms.has_textures() ||
-        ch.k == kManifoldMaxChain)
+    if (ms.type != MaterialType::kDielectric || ms.roughness > 0.0f || ms.has_textures())
       return false;
-    SpecularSurface& su = ch.surface[ch.k];
+    *glass = true;
+    const uint32_t i = uint32_t(int(first) + step * k);
+    SpecularSurface& su = ch.surface[i];
     if ((F & kFeatureSpheres) && !prim_is_triangle(s, h.prim) &&
         h.prim - s.tri_count < s.sphere_count) {
       const Sphere& sph = s.spheres[h.prim - s.tri_count];
@@ -267,14 +264,41 @@ TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, ui
       su.n = hs.ng;
     }
     su.eta = ms.ior;
-    material[ch.k] = hs.material;
-    ch.p[ch.k++] = hs.p;
-    r = spawn_ray(hs.p, hs.ng, r.d);
-    r.tmax = (dist - glm::length(hs.p - o)) * (1.0f - 1e-4f);
-    if (!(r.tmax > 0.0f)) break;
+    material[i] = hs.material;
+    ch.p[i] = hs.p;
+    if (k == 1) break;
+    // Refracted into the glass (total internal reflection: no seed).
+    const float c = glm::dot(-r.d, hs.ng);
+    const vec3 nn = c > 0.0f ? hs.ng : -hs.ng;
+    const vec3 t = glm::refract(r.d, nn, c > 0.0f ? 1.0f / ms.ior : ms.ior);
+    if (!(glm::dot(t, t) > 0.0f)) return false;
+    r = spawn_ray(hs.p, hs.ng, glm::normalize(t));
   }
-  if (ch.k != 2 || material[0] != material[1]) return false;  // in and out of one glass
-  if (!manifold_walk(ch, o, y)) return false;
+  ch.k = 2;
+  return material[0] == material[1];  // in and out of one glass
+}
+
+template <uint32_t F>
+TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
+                                 ManifoldChain& ch, vec3& throughput) {
+  const float dist = glm::length(y - o);
+  if (!(dist > 0.0f)) return false;
+  uint32_t material[kManifoldMaxChain];
+  // Seeded from o's side; where glass is in the way but that fails (a way in through one face
+  // of a box that would leave through another by total internal reflection), from the light's.
+  Ray r;
+  r.o = o;
+  r.d = (y - o) / dist;
+  r.tmax = dist * (1.0f - 1e-4f);
+  r.pad = 0.0f;
+  bool glass;
+  bool solved = mnee_seed<F>(s, r, kInvalid, ch, material, 0, 1, &glass) && manifold_walk(ch, o, y);
+  if (!solved && glass) {
+    r.o = offset_ray_origin(y, glm::dot(ny, o - y) > 0.0f ? ny : -ny);
+    r.d = -r.d;
+    solved = mnee_seed<F>(s, r, light_prim, ch, material, 1, -1, &glass) && manifold_walk(ch, o, y);
+  }
+  if (!solved) return false;
   // The solved chain must be what rays see.
   vec3 from = o;
   throughput = vec3(1.0f);
