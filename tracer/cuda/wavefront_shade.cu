@@ -69,7 +69,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     // This vertex sampled the lights (no refraction since): its origin, for the paths' later
     // emission hits (path.h).
     if (kCaustics && go_on && (st.flags & kPathMneeFrom) &&
-        !(st.flags & (kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeOther)))
+        !(st.flags & (kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeOther | kPathMneeMirror)))
       w.mnee[id] = make_float4(st.mnee_o.x, st.mnee_o.y, st.mnee_o.z,
                                __uint_as_float(st.mnee_normal));
 

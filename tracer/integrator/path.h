@@ -122,9 +122,10 @@ enum PathFlags : uint32_t {
   kPathMneeRefract1 = 1u << 5,
   kPathMneeRefract2 = 1u << 6,
   kPathMneeOther = 1u << 7,
+  kPathMneeMirror = 1u << 8,  // ... or exactly one reflection off a mirror sphere
 };
-// The wavefront keeps the flags in 8 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
-static_assert(kPathMneeOther < (1u << 8), "PathFlags must fit in 8 bits");
+// The wavefront keeps the flags in 9 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
+static_assert(kPathMneeMirror < (1u << 9), "PathFlags must fit in 9 bits");
 
 struct PathState {
   Ray ray;
@@ -336,25 +337,88 @@ TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, ui
   return !intersect_any<F>(s, last, light_prim);
 }
 
+// Manifold NEE off mirror spheres: the spheres it tries (the first ones of the scene's list; a
+// scene of many spheres would pay a solve per sphere at every vertex).
+constexpr uint32_t kMneeMaxMirrorSpheres = 16;
+
+// The reflectance of a smooth reflector (a mirror, a smooth conductor) at cosine c, or 0 for a
+// material manifold NEE does not reflect off.
+TRACER_HD inline vec3 mnee_mirror_reflectance(const Material& m, float c) {
+  if (m.has_textures()) return vec3(0.0f);
+  if (m.type == MaterialType::kMirror) return m.albedo;
+  if (m.type == MaterialType::kConductor && bsdf_is_delta(m, m.type))
+    return conductor_fresnel(m, c);
+  return vec3(0.0f);
+}
+
+// The chain from o to light point y (on light_prim, normal ny) by one reflection off sphere
+// `sphere` (its index in s.spheres), as mnee_chain's: seeded where the sphere's normal halves the
+// directions to o and y, solved, checked with rays (the sphere seen first from o at the vertex,
+// the light free from it and emitting towards both), and weighed by the reflectance.
+template <uint32_t F>
+TRACER_HD inline bool mnee_mirror(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
+                                  uint32_t sphere, ManifoldChain& ch, vec3& throughput) {
+  const Sphere& sph = s.spheres[sphere];
+  ch.k = 1;
+  ch.surface[0].kind = SpecularSurface::kSphere;
+  ch.surface[0].a = sph.center;
+  ch.surface[0].radius = sph.radius;
+  ch.surface[0].eta = 0.0f;
+  const vec3 half = glm::normalize(o - sph.center) + glm::normalize(y - sph.center);
+  if (!(glm::dot(half, half) > 1e-12f)) return false;
+  ch.p[0] = sph.center + sph.radius * glm::normalize(half);
+  if (!manifold_walk(ch, o, y)) return false;
+  const vec3 d = ch.p[0] - o;
+  const float len = glm::length(d);
+  if (!(len > 0.0f)) return false;
+  Ray seg;
+  seg.o = o;
+  seg.d = d / len;
+  seg.tmax = len * 1.01f;
+  seg.pad = 0.0f;
+  const Hit h = intersect_closest<F>(s, seg, kInvalid);
+  if (!h.valid() || h.prim != s.tri_count + sphere ||
+      glm::length(seg.o + h.t * seg.d - ch.p[0]) > 1e-3f * (len + glm::length(y - ch.p[0])))
+    return false;
+  const vec3 n = ch.surface[0].normal(ch.p[0]);
+  throughput = mnee_mirror_reflectance(s.materials[sph.material], glm::dot(-seg.d, n));
+  if (is_black(throughput)) return false;
+  if (!(glm::dot(ny, ch.p[0] - y) * glm::dot(ny, o - y) > 0.0f)) return false;  // the same face
+  return !intersect_any<F>(s, spawn_ray_to(ch.p[0], n, y, ny), light_prim);
+}
+
 // Manifold NEE's contribution at vertex p (offset origin o; BSDF m in `frame`, viewer direction
-// wo, the viewer's side ng_viewer) for light sample ls (sampled from p): zero unless mnee_chain
-// joins o and the light point. The light's solid-angle density at p becomes a density of area.
+// wo, the viewer's side ng_viewer) for light sample ls (sampled from p): through glass where
+// mnee_chain joins o and the light point (within `segments` of the depth limit: 3), and off each
+// mirror sphere mnee_mirror reflects it from (2). The light's solid-angle density at p becomes a
+// density of area.
 template <uint32_t F>
 TRACER_HD inline vec3 mnee_connect(const SceneView& s, vec3 p, vec3 o, const Material& m,
                                    const Frame& frame, vec3 wo, vec3 ng_viewer,
-                                   const LightSample& ls) {
-  ManifoldChain ch;
-  vec3 tr;
-  if (!mnee_chain<F>(s, o, ls.p, ls.n, ls.prim, ch, tr)) return vec3(0.0f);
-  const vec3 w1 = glm::normalize(ch.p[0] - o);
-  if (!(glm::dot(w1, ng_viewer) > 0.0f)) return vec3(0.0f);
-  const vec3 wi = frame.to_local(w1);
-  const vec3 f = bsdf_eval<F>(m, wo, wi);
+                                   const LightSample& ls, uint32_t segments) {
   const float d2 = glm::dot(ls.p - p, ls.p - p);
   const float area_pdf = ls.pdf * glm::abs(glm::dot(ls.n, p - ls.p)) / (d2 * glm::sqrt(d2));
-  const float g = manifold_geometry(ch, o, ls.p, ls.n);
-  if (!(area_pdf > 0.0f) || !(g > 0.0f)) return vec3(0.0f);
-  const vec3 c = f * glm::abs(wi.z) * tr * ls.le * (g / area_pdf);
+  if (!(area_pdf > 0.0f)) return vec3(0.0f);
+  vec3 sum(0.0f);
+  // One chain's share: the BSDF towards its first vertex, its throughput, its geometry term.
+  auto add = [&](const ManifoldChain& ch, vec3 tr) {
+    const vec3 w1 = glm::normalize(ch.p[0] - o);
+    if (!(glm::dot(w1, ng_viewer) > 0.0f)) return;
+    const vec3 wi = frame.to_local(w1);
+    const float g = manifold_geometry(ch, o, ls.p, ls.n);
+    if (g > 0.0f) sum += bsdf_eval<F>(m, wo, wi) * glm::abs(wi.z) * tr * (g / area_pdf);
+  };
+  ManifoldChain ch;
+  vec3 tr;
+  if (segments >= 3 && mnee_chain<F>(s, o, ls.p, ls.n, ls.prim, ch, tr)) add(ch, tr);
+  if ((F & kFeatureSpheres) && segments >= 2) {
+    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxMirrorSpheres);
+    for (uint32_t i = 0; i < spheres; ++i)
+      if (!is_black(mnee_mirror_reflectance(s.materials[s.spheres[i].material], 1.0f)) &&
+          mnee_mirror<F>(s, o, ls.p, ls.n, ls.prim, i, ch, tr))
+        add(ch, tr);
+  }
+  const vec3 c = sum * ls.le;
   return is_finite(c) ? c : vec3(0.0f);
 }
 
@@ -478,13 +542,27 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       // NEE's, where from that vertex it finds this path (the chain whose last vertex this
       // segment left from) to this point of a light it could have chosen there. The two
       // estimators so split the paths exactly, also where the solve fails (no bias).
+      const uint32_t mnee_bits = st.flags & (kPathMneeFrom | kPathMneeRefract1 |
+                                             kPathMneeRefract2 | kPathMneeOther | kPathMneeMirror);
       if ((F & kFeatureCaustics) && cfg.mnee && sh.light != kInvalid &&
-          (st.flags & (kPathMneeFrom | kPathMneeRefract2 | kPathMneeOther)) ==
-              (kPathMneeFrom | kPathMneeRefract2)) {
+          (mnee_bits == (kPathMneeFrom | kPathMneeRefract2) ||
+           mnee_bits == (kPathMneeFrom | kPathMneeMirror))) {
         ManifoldChain ch;
         vec3 tr;
-        if (mnee_chain<F>(s, st.mnee_o, sh.p, sh.ng, hit.prim, ch, tr) &&
-            glm::length(ch.p[1] - st.ray.o) <= 1e-3f * glm::length(sh.p - st.mnee_o)) {
+        const float tol = 1e-3f * glm::length(sh.p - st.mnee_o);
+        bool found = false;
+        if (mnee_bits & kPathMneeRefract2) {
+          found = mnee_chain<F>(s, st.mnee_o, sh.p, sh.ng, hit.prim, ch, tr) &&
+                  glm::length(ch.p[1] - st.ray.o) <= tol;
+        } else if (F & kFeatureSpheres) {  // the mirror sphere this segment left
+          const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxMirrorSpheres);
+          for (uint32_t i = 0; i < spheres && !found; ++i)
+            found = glm::abs(glm::length(st.ray.o - s.spheres[i].center) - s.spheres[i].radius) <=
+                        tol &&
+                    mnee_mirror<F>(s, st.mnee_o, sh.p, sh.ng, hit.prim, i, ch, tr) &&
+                    glm::length(ch.p[0] - st.ray.o) <= tol;
+        }
+        if (found) {
           const bool tree = (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh &&
                             s.light_tree.nodes;
           const LightContext from{st.mnee_o,
@@ -557,12 +635,14 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);
         }
       }
-      // Manifold NEE: the same light point through the glass the shadow ray may cross (a path
-      // of 3 more segments, within max_depth as the BSDF's would have to be).
+      // Manifold NEE: the same light point through the glass the shadow ray may cross and off
+      // mirror spheres (paths of 3 and 2 more segments, within max_depth as the BSDF's would
+      // have to be).
       if ((F & kFeatureCaustics) && cfg.mnee && !ls.infinite && !ls.delta &&
-          st.depth + 3 <= cfg.max_depth)
+          st.depth + 2 <= cfg.max_depth)
         st.radiance += st.throughput * mnee_connect<F>(s, sh.p, offset_ray_origin(sh.p, ng_viewer),
-                                                       m, frame, wo, ng_viewer, ls);
+                                                       m, frame, wo, ng_viewer, ls,
+                                                       cfg.max_depth - st.depth);
     }
   }
 
@@ -637,7 +717,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   }
   if ((F & kFeatureCaustics) && cfg.mnee) {  // manifold NEE's partition (kPathMneeFrom)
     if (!bsdf_is_delta(m, type)) {
-      st.flags &= ~(kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeOther);
+      st.flags &= ~(kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeOther | kPathMneeMirror);
       if (cfg.nee && s.light_count > 0) {
         st.flags |= kPathMneeFrom;
         st.mnee_o = offset_ray_origin(sh.p, ng_viewer);
@@ -646,9 +726,14 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
         st.flags &= ~kPathMneeFrom;
       }
     } else if (type == MaterialType::kDielectric && side * glm::dot(wo_world, sh.ng) < 0.0f) {
-      if (st.flags & kPathMneeRefract2) st.flags |= kPathMneeOther;
+      if (st.flags & (kPathMneeRefract2 | kPathMneeMirror)) st.flags |= kPathMneeOther;
       else if (st.flags & kPathMneeRefract1) st.flags = (st.flags & ~kPathMneeRefract1) | kPathMneeRefract2;
       else st.flags |= kPathMneeRefract1;
+    } else if ((F & kFeatureSpheres) && !prim_is_triangle(s, hit.prim) &&
+               hit.prim - s.tri_count < s.sphere_count &&
+               !(st.flags & (kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeMirror)) &&
+               !is_black(mnee_mirror_reflectance(m, 1.0f))) {
+      st.flags |= kPathMneeMirror;  // off a mirror sphere
     } else {
       st.flags |= kPathMneeOther;
     }
