@@ -24,7 +24,7 @@
 namespace tracer {
 
 constexpr uint32_t kManifoldMaxChain = 2;
-constexpr uint32_t kManifoldIterations = 24;
+constexpr uint32_t kManifoldIterations = 12;
 // |C| (a sum of unit vectors' tangential parts) that ends the iteration, and the most a solution
 // may keep when float's rounding stops the iteration before it.
 constexpr float kManifoldTolerance = 1e-6f;
@@ -78,8 +78,14 @@ TRACER_HD inline bool manifold_constraint(const SpecularSurface& s, vec3 p, vec3
 }
 
 // All 2k constraint values of the chain between x and y; false where a vertex is invalid.
+// (The loops over a chain's vertices run to kManifoldMaxChain and stop at k, unrolled, so that
+// every index is a constant and the GPU keeps the chain in registers, not in local memory.)
 TRACER_HD inline bool manifold_constraints(const ManifoldChain& ch, vec3 x, vec3 y, float* c) {
-  for (uint32_t i = 0; i < ch.k; ++i) {
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (uint32_t i = 0; i < kManifoldMaxChain; ++i) {
+    if (i >= ch.k) break;
     const vec3 a = i == 0 ? x : ch.p[i - 1], b = i + 1 == ch.k ? y : ch.p[i + 1];
     if (!manifold_constraint(ch.surface[i], ch.p[i], a, b, c + 2 * i)) return false;
   }
@@ -89,42 +95,47 @@ TRACER_HD inline bool manifold_constraints(const ManifoldChain& ch, vec3 x, vec3
 // The chain with vertex i moved by (du, dv) in its tangent frame and put back on its surface.
 TRACER_HD inline ManifoldChain manifold_moved(const ManifoldChain& ch, const float* step) {
   ManifoldChain m = ch;
-  for (uint32_t i = 0; i < ch.k; ++i) {
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (uint32_t i = 0; i < kManifoldMaxChain; ++i) {
+    if (i >= ch.k) break;
     const Frame f = Frame::from_normal(ch.surface[i].normal(ch.p[i]));
     m.p[i] = ch.surface[i].project(ch.p[i] + step[2 * i] * f.t + step[2 * i + 1] * f.b);
   }
   return m;
 }
 
-// Solves A z = r for n <= 4 unknowns by Gaussian elimination with partial pivoting; false when
-// A is singular. A and r are overwritten.
-TRACER_HD inline bool manifold_solve(float A[4][4], float* r, uint32_t n, float* z) {
-  for (uint32_t col = 0; col < n; ++col) {
-    uint32_t pivot = col;
-    for (uint32_t row = col + 1; row < n; ++row)
-      if (glm::abs(A[row][col]) > glm::abs(A[pivot][col])) pivot = row;
-    if (!(glm::abs(A[pivot][col]) > 1e-20f)) return false;
-    if (pivot != col) {
-      for (uint32_t j = 0; j < n; ++j) {
-        const float t = A[col][j];
-        A[col][j] = A[pivot][j];
-        A[pivot][j] = t;
-      }
-      const float t = r[col];
-      r[col] = r[pivot];
-      r[pivot] = t;
-    }
-    for (uint32_t row = col + 1; row < n; ++row) {
-      const float f = A[row][col] / A[col][col];
-      for (uint32_t j = col; j < n; ++j) A[row][j] -= f * A[col][j];
-      r[row] -= f * r[col];
-    }
-  }
-  for (uint32_t i = n; i-- > 0;) {
-    float s = r[i];
-    for (uint32_t j = i + 1; j < n; ++j) s -= A[i][j] * z[j];
-    z[i] = s / A[i][i];
-  }
+// Solves the 2x2 system [a b; c d] z = r; false when it is singular.
+TRACER_HD inline bool manifold_solve2(float a, float b, float c, float d, float r0, float r1,
+                                      float* z0, float* z1) {
+  const float det = a * d - b * c;
+  if (!(glm::abs(det) > 0.0f)) return false;
+  const float inv = 1.0f / det;
+  *z0 = (d * r0 - b * r1) * inv;
+  *z1 = (a * r1 - c * r0) * inv;
+  return glm::abs(*z0) < 1e30f && glm::abs(*z1) < 1e30f;
+}
+
+// Solves J z = r for n = 2 or 4 unknowns (one or two vertices): for two by the 2x2 blocks
+// [A B; C D] (A, D a vertex's own derivatives, nonsingular at a regular vertex): S = D - C A^-1 B,
+// z2 = S^-1 (r2 - C A^-1 r1), z1 = A^-1 (r1 - B z2). False when a block is singular.
+TRACER_HD inline bool manifold_solve(const float J[4][4], const float* r, uint32_t n, float* z) {
+  if (n == 2) return manifold_solve2(J[0][0], J[0][1], J[1][0], J[1][1], r[0], r[1], &z[0], &z[1]);
+  float x00, x10, x01, x11, y0, y1;  // X = A^-1 B (by columns), y = A^-1 r1
+  if (!manifold_solve2(J[0][0], J[0][1], J[1][0], J[1][1], J[0][2], J[1][2], &x00, &x10) ||
+      !manifold_solve2(J[0][0], J[0][1], J[1][0], J[1][1], J[0][3], J[1][3], &x01, &x11) ||
+      !manifold_solve2(J[0][0], J[0][1], J[1][0], J[1][1], r[0], r[1], &y0, &y1))
+    return false;
+  const float s00 = J[2][2] - (J[2][0] * x00 + J[2][1] * x10);
+  const float s01 = J[2][3] - (J[2][0] * x01 + J[2][1] * x11);
+  const float s10 = J[3][2] - (J[3][0] * x00 + J[3][1] * x10);
+  const float s11 = J[3][3] - (J[3][0] * x01 + J[3][1] * x11);
+  const float t0 = r[2] - (J[2][0] * y0 + J[2][1] * y1);
+  const float t1 = r[3] - (J[3][0] * y0 + J[3][1] * y1);
+  if (!manifold_solve2(s00, s01, s10, s11, t0, t1, &z[2], &z[3])) return false;
+  z[0] = y0 - (x00 * z[2] + x01 * z[3]);
+  z[1] = y1 - (x10 * z[2] + x11 * z[3]);
   return true;
 }
 
@@ -156,12 +167,25 @@ TRACER_HD inline void manifold_block(const Frame& T, vec3 w, float eta_over_l, c
 // vertex's 2x3 derivative by the light point (dcdy, optional). False where a vertex is invalid.
 TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y, float J[4][4],
                                         vec3* dcdy = nullptr) {
-  const uint32_t n = 2 * ch.k;
-  for (uint32_t i = 0; i < n; ++i)
-    for (uint32_t j = 0; j < n; ++j) J[i][j] = 0.0f;
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (uint32_t i = 0; i < 4; ++i)
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+    for (uint32_t j = 0; j < 4; ++j) J[i][j] = 0.0f;
   Frame frames[kManifoldMaxChain];
-  for (uint32_t i = 0; i < ch.k; ++i) frames[i] = Frame::from_normal(ch.surface[i].normal(ch.p[i]));
-  for (uint32_t i = 0; i < ch.k; ++i) {
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (uint32_t i = 0; i < kManifoldMaxChain; ++i)
+    if (i < ch.k) frames[i] = Frame::from_normal(ch.surface[i].normal(ch.p[i]));
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (uint32_t i = 0; i < kManifoldMaxChain; ++i) {
+    if (i >= ch.k) break;
     const SpecularSurface& s = ch.surface[i];
     const vec3 a = i == 0 ? x : ch.p[i - 1], b = i + 1 == ch.k ? y : ch.p[i + 1];
     const vec3 da = a - ch.p[i], db = b - ch.p[i];
@@ -202,7 +226,11 @@ TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y,
 
 TRACER_HD inline float manifold_norm(const float* c, uint32_t n) {
   float s = 0.0f;
-  for (uint32_t i = 0; i < n; ++i) s += c[i] * c[i];
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+  for (uint32_t i = 0; i < 2 * kManifoldMaxChain; ++i)
+    if (i < n) s += c[i] * c[i];
   return glm::sqrt(s);
 }
 
@@ -217,24 +245,33 @@ TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y) {
   for (uint32_t it = 0; it < kManifoldIterations && norm > kManifoldTolerance; ++it) {
     float J[4][4];
     if (!manifold_jacobian(ch, x, y, J)) return false;
-    float r[2 * kManifoldMaxChain], d[2 * kManifoldMaxChain];
-    for (uint32_t i = 0; i < n; ++i) r[i] = -c[i];
+    float r[2 * kManifoldMaxChain], d[2 * kManifoldMaxChain] = {};
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+    for (uint32_t i = 0; i < 2 * kManifoldMaxChain; ++i) r[i] = i < n ? -c[i] : 0.0f;
     if (!manifold_solve(J, r, n, d)) return false;
     // A step that does not lower |C| is halved (up to 8 times).
     bool improved = false;
     for (uint32_t halving = 0; halving < 8 && !improved; ++halving) {
       const ManifoldChain next = manifold_moved(ch, d);
-      float cn[2 * kManifoldMaxChain];
+      float cn[2 * kManifoldMaxChain] = {};
       if (manifold_constraints(next, x, y, cn) && manifold_norm(cn, n) < norm) {
         ch = next;
-        for (uint32_t i = 0; i < n; ++i) c[i] = cn[i];
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+        for (uint32_t i = 0; i < 2 * kManifoldMaxChain; ++i) c[i] = cn[i];
         const float before = norm;
         norm = manifold_norm(cn, n);
         improved = true;
         // Close enough and no longer converging fast: float's rounding has the rest.
         if (norm <= kManifoldAccept && norm > 0.25f * before) return true;
       }
-      for (uint32_t i = 0; i < n; ++i) d[i] *= 0.5f;
+#if defined(__CUDACC__)
+#pragma unroll
+#endif
+      for (uint32_t i = 0; i < 2 * kManifoldMaxChain; ++i) d[i] *= 0.5f;
     }
     if (!improved) break;  // at float's limit: accepted when close enough
   }
@@ -255,7 +292,7 @@ TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y
   }
   const uint32_t n = 2 * ch.k;
   float J[4][4];
-  vec3 dcdy[2];
+  vec3 dcdy[2] = {vec3(0.0f), vec3(0.0f)};
   if (!manifold_jacobian(ch, x, y, J, dcdy)) return 0.0f;
   const vec3 d0 = ch.p[0] - x;
   const float l0 = glm::length(d0);
@@ -265,12 +302,14 @@ TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y
   for (int axis = 0; axis < 2; ++axis) {
     const vec3 t = axis == 0 ? f.t : f.b;
     float r[2 * kManifoldMaxChain] = {}, step[2 * kManifoldMaxChain];
-    r[n - 2] = -glm::dot(dcdy[0], t);
-    r[n - 1] = -glm::dot(dcdy[1], t);
-    float A[4][4];
-    for (uint32_t i = 0; i < 4; ++i)
-      for (uint32_t j = 0; j < 4; ++j) A[i][j] = J[i][j];
-    if (!manifold_solve(A, r, n, step)) return 0.0f;
+    if (ch.k == 1) {
+      r[0] = -glm::dot(dcdy[0], t);
+      r[1] = -glm::dot(dcdy[1], t);
+    } else {
+      r[2] = -glm::dot(dcdy[0], t);
+      r[3] = -glm::dot(dcdy[1], t);
+    }
+    if (!manifold_solve(J, r, n, step)) return 0.0f;
     const vec3 dp = step[0] * f0.t + step[1] * f0.b;  // the first vertex's move per unit of y
     dw[axis] = (dp - glm::dot(dp, w0) * w0) / l0;
   }
