@@ -246,12 +246,18 @@ if [ "$MODE" = subsurface-exit ]; then
   done
   (cd $D && tar czf "$OUT/subsurface-exit.tgz" --exclude='*.exr' .)
 fi
-if [ "$MODE" = guiding ]; then
-  # Path guiding (issue 24): error against time, unguided and guided wavefront, on the caustic
-  # scenes (the lamp behind glass, glass spheres, rough materials, Bitterli's water caustic: copy it to
-  # .devbuild/bitterli/water-caustic and carry it) and the diffuse Cornell box; then the same-time
-  # pictures. Carry $DIST (and the Bitterli folder).
-  D=/tmp/guiding && rm -rf $D && mkdir -p $D
+if [ "$MODE" = guiding ] || [ "$MODE" = caustics ]; then
+  # Path guiding and manifold NEE (issue 24): error against time without and with the technique
+  # (caustics: also with guiding beside it) on the caustic scenes (the lamp behind glass, glass
+  # and mirror spheres, rough materials, Bitterli's water caustic: copy it to
+  # .devbuild/bitterli/water-caustic and carry it) and the diffuse Cornell box; then the
+  # same-time pictures. Carry $DIST (and the Bitterli folder).
+  if [ "$MODE" = guiding ]; then
+    FLAG=--guiding; DEFAULT_CONFIGS=wavefront,wavefront+guiding=on
+  else
+    FLAG=--mnee; DEFAULT_CONFIGS=wavefront,wavefront+mnee=on,wavefront+guiding=on+mnee=on
+  fi
+  D=/tmp/$MODE && rm -rf $D && mkdir -p $D
   B=${BITTERLI:-.devbuild/bitterli}
   T=${TIME_LIMIT:-10}
   for sc in ${SCENES:-glass_lamp cornell_spheres rough_materials cornell_box $B/water-caustic/scene-v4.pbrt}; do
@@ -260,39 +266,16 @@ if [ "$MODE" = guiding ]; then
     name=$(basename "$(dirname "$path")"); [ "$name" = scenes ] && name=$sc
     echo "==== bench --error $name"
     $DIST/pathtracer bench "$path" --error --backend cuda --reference-spp ${REF_SPP:-16384} \
-      --configs ${CONFIGS:-wavefront,wavefront+guiding=on} --time-limit $T --out $D/$name 2>&1 |
+      --configs ${CONFIGS:-$DEFAULT_CONFIGS} --time-limit $T --out $D/$name 2>&1 |
       grep -vE "^\s*$" | tail -10
     for g in off on; do
-      $DIST/pathtracer render "$path" --backend cuda --guiding $g --time ${PIC_TIME:-2} \
-        --out $D/$name-guiding-$g.png 2>&1 | tail -1
+      $DIST/pathtracer render "$path" --backend cuda $FLAG $g --time ${PIC_TIME:-2} \
+        --out $D/$name-${FLAG#--}-$g.png 2>&1 | tail -1
     done
   done
-  $DIST/cuda_test --gtest_filter='*Guid*' 2>&1 | tail -15
-  (cd $D && tar czf "$OUT/guiding.tgz" --exclude='*.exr' .)
-fi
-if [ "$MODE" = caustics ]; then
-  # Manifold NEE (render.mnee; issue 24's caustics): error against time without and with it (and
-  # with guiding beside it) on the lamp behind glass, the glass spheres, the rough materials, the
-  # diffuse Cornell box (no glass: the usual kernels) and Bitterli's water caustic (carry it as
-  # for guiding); then the same-time pictures. Carry $DIST (and the Bitterli folder).
-  D=/tmp/caustics && rm -rf $D && mkdir -p $D
-  B=${BITTERLI:-.devbuild/bitterli}
-  T=${TIME_LIMIT:-10}
-  for sc in ${SCENES:-glass_lamp cornell_spheres rough_materials cornell_box $B/water-caustic/scene-v4.pbrt}; do
-    path=$sc; [ -f "$path" ] || path=$(scene $sc)
-    [ -f "$path" ] || { echo "skipped $sc: $path not found"; continue; }
-    name=$(basename "$(dirname "$path")"); [ "$name" = scenes ] && name=$sc
-    echo "==== bench --error $name"
-    $DIST/pathtracer bench "$path" --error --backend cuda --reference-spp ${REF_SPP:-16384} \
-      --configs ${CONFIGS:-wavefront,wavefront+mnee=on,wavefront+guiding=on+mnee=on} \
-      --time-limit $T --out $D/$name 2>&1 | grep -vE "^\s*$" | tail -10
-    for m in off on; do
-      $DIST/pathtracer render "$path" --backend cuda --mnee $m --time ${PIC_TIME:-2} \
-        --out $D/$name-mnee-$m.png 2>&1 | tail -1
-    done
-  done
-  $DIST/cuda_test --gtest_filter='*Manifold*' 2>&1 | tail -8
-  (cd $D && tar czf "$OUT/caustics.tgz" --exclude='*.exr' .)
+  if [ "$MODE" = guiding ]; then TESTS='*Guid*'; else TESTS='*Manifold*'; fi
+  $DIST/cuda_test --gtest_filter="$TESTS" 2>&1 | tail -15
+  (cd $D && tar czf "$OUT/$MODE.tgz" --exclude='*.exr' .)
 fi
 if [ "$MODE" = mpi ]; then
   # Distributed rendering (issue 25) with the Open MPI carried in .devbuild/dist-mpi

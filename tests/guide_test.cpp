@@ -294,39 +294,6 @@ Scene caustic_box() {
   return s;
 }
 
-// Per-pixel statistics of samples [first, first + spp) with the given settings.
-PixelStats stats_with(const CompiledScene& cs, const IntegratorSettings& cfg, int w, int h,
-                      uint32_t first, uint32_t spp) {
-  PixelStats ps;
-  ps.width = w;
-  ps.height = h;
-  ps.spp = spp;
-  const size_t n = size_t(w) * h;
-  ps.mean.assign(n, vec3(0.0f));
-  ps.var.assign(n, vec3(0.0f));
-  std::atomic<uint32_t> next{0};
-  auto work = [&] {
-    for (uint32_t p; (p = next.fetch_add(1)) < n;) {
-      glm::dvec3 s(0.0), s2(0.0);
-      for (uint32_t k = 0; k < spp; ++k) {
-        glm::dvec3 L(trace_path(cs.view(), cfg, p, first + k));
-        if (!is_finite(vec3(L))) L = glm::dvec3(0.0);
-        s += L;
-        s2 += L * L;
-      }
-      const glm::dvec3 m = s / double(spp);
-      ps.mean[p] = vec3(m);
-      ps.var[p] = vec3(glm::max((s2 - double(spp) * m * m) / double(spp - 1), glm::dvec3(0.0)));
-    }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < std::max(1u, std::thread::hardware_concurrency()); ++t)
-    pool.emplace_back(work);
-  work();
-  for (auto& th : pool) th.join();
-  return ps;
-}
-
 // Trains a guide over the schedule's 255 samples on the CPU (the renderer's own loop).
 void train(const CompiledScene& cs, IntegratorSettings cfg, HostGuide& guide) {
   guide.setup(guide_grid(cs, cfg.width * cfg.height), cfg.width * cfg.height);
@@ -368,9 +335,9 @@ TEST(Guide, TrainedGuideKeepsTheMeanAndLowersCausticNoise) {
   IntegratorSettings guided = cfg;
   guided.guide = guide.view(kGuideTrainSamples + kGuideCalibrationSamples);  // guided
   const auto t0 = std::chrono::steady_clock::now();
-  const PixelStats a = stats_with(cs, cfg, kW, kH, 1000, spp);
+  const PixelStats a = pixel_stats_of(cs, cfg, spp, 1000);
   const auto t1 = std::chrono::steady_clock::now();
-  const PixelStats b = stats_with(cs, guided, kW, kH, 5000, spp);
+  const PixelStats b = pixel_stats_of(cs, guided, spp, 5000);
   const auto t2 = std::chrono::steady_clock::now();
   expect_same_means(b, a, "guided vs unguided");
   // Noise: the summed per-pixel variance, guided against unguided, at equal samples; plain, and

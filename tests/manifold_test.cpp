@@ -276,39 +276,6 @@ TEST(Manifold, RefusesWhatNoSpecularPathJoins) {
   EXPECT_FALSE(manifold_walk(m, vec3(0.0f), vec3(1.0f, 0.0f, 0.5f)));
 }
 
-// Per-pixel statistics of samples [first, first + spp).
-test::PixelStats stats_of(const CompiledScene& cs, const IntegratorSettings& cfg, int w, int h,
-                          uint32_t first, uint32_t spp) {
-  test::PixelStats ps;
-  ps.width = w;
-  ps.height = h;
-  ps.spp = spp;
-  const size_t n = size_t(w) * h;
-  ps.mean.assign(n, vec3(0.0f));
-  ps.var.assign(n, vec3(0.0f));
-  std::atomic<uint32_t> next{0};
-  auto work = [&] {
-    for (uint32_t p; (p = next.fetch_add(1)) < n;) {
-      glm::dvec3 s(0.0), s2(0.0);
-      for (uint32_t k = 0; k < spp; ++k) {
-        glm::dvec3 L(trace_path(cs.view(), cfg, p, first + k));
-        if (!is_finite(vec3(L))) L = glm::dvec3(0.0);
-        s += L;
-        s2 += L * L;
-      }
-      const glm::dvec3 m = s / double(spp);
-      ps.mean[p] = vec3(m);
-      ps.var[p] = vec3(glm::max((s2 - double(spp) * m * m) / double(spp - 1), glm::dvec3(0.0)));
-    }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < std::max(1u, std::thread::hardware_concurrency()); ++t)
-    pool.emplace_back(work);
-  work();
-  for (auto& th : pool) th.join();
-  return ps;
-}
-
 // Manifold NEE against plain path tracing on a scene at equal samples: the means agree (block
 // z-test) and the relative variance per sample (printed with the times) is at most `limit` of
 // plain's. MNEE_SCENE, MNEE_SIZE and MNEE_SPP measure another scene (PERFORMANCE.md rows 110-111).
@@ -330,9 +297,9 @@ void expect_mnee_keeps_the_mean(const std::string& default_scene, int default_si
   IntegratorSettings mnee = plain;
   mnee.mnee = 1;
   const auto t0 = std::chrono::steady_clock::now();
-  const test::PixelStats a = stats_of(cs, plain, kW, kH, 0, spp);
+  const test::PixelStats a = test::pixel_stats_of(cs, plain, spp, 0);
   const auto t1 = std::chrono::steady_clock::now();
-  const test::PixelStats b = stats_of(cs, mnee, kW, kH, 100000, spp);
+  const test::PixelStats b = test::pixel_stats_of(cs, mnee, spp, 100000);
   const auto t2 = std::chrono::steady_clock::now();
   test::expect_same_means(b, a, "mnee vs plain");
   double va = 0.0, vb = 0.0, ra = 0.0, rb = 0.0;

@@ -171,16 +171,15 @@ struct PixelStats {
   }
 };
 
-// Renders with the shared trace_path and keeps per-pixel sample variance, for z-tests.
-inline PixelStats render_pixel_stats(const Scene& scene, const RenderSettings& rs, uint32_t spp,
-                                     uint32_t first_sample = 0) {
-  const CompiledScene cs(scene, rs.width, rs.height);
-  const IntegratorSettings cfg = make_integrator_settings(rs);
+// Per-pixel statistics of samples [first_sample, first_sample + spp) of a compiled scene with the
+// given settings (cfg.width x cfg.height), by the shared trace_path on all cores.
+inline PixelStats pixel_stats_of(const CompiledScene& cs, const IntegratorSettings& cfg,
+                                 uint32_t spp, uint32_t first_sample = 0) {
   PixelStats ps;
-  ps.width = rs.width;
-  ps.height = rs.height;
+  ps.width = int(cfg.width);
+  ps.height = int(cfg.height);
   ps.spp = spp;
-  const size_t n = size_t(rs.width) * rs.height;
+  const size_t n = size_t(cfg.width) * cfg.height;
   ps.mean.assign(n, vec3(0.0f));
   ps.var.assign(n, vec3(0.0f));
   std::atomic<uint32_t> next{0};
@@ -211,6 +210,13 @@ inline PixelStats render_pixel_stats(const Scene& scene, const RenderSettings& r
   for (auto& th : pool) th.join();
   ps.nonfinite = bad;
   return ps;
+}
+
+// Renders with the shared trace_path and keeps per-pixel sample variance, for z-tests.
+inline PixelStats render_pixel_stats(const Scene& scene, const RenderSettings& rs, uint32_t spp,
+                                     uint32_t first_sample = 0) {
+  const CompiledScene cs(scene, rs.width, rs.height);
+  return pixel_stats_of(cs, make_integrator_settings(rs), spp, first_sample);
 }
 
 // A room (scene mesh), a light, a sphere and three instanced meshes placed eleven times: moved,
