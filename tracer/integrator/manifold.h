@@ -5,7 +5,8 @@
 // refraction), found by Newton's method on the specular surfaces, and the generalized geometry
 // term that turns the light sample's area density into a density of directions at x.
 //
-// Used by path.h's mnee_connect (an experiment: CPU only, IntegratorSettings::mnee). The
+// Used by path.h's mnee_chain, mnee_mirror and mnee_connect (render.mnee: the CPU and the
+// wavefront's caustic shade kernels). The
 // surfaces are the two analytic kinds the target scenes' casters are made of, a plane (a flat
 // face of a box or mesh) and a sphere; a mesh with interpolated normals needs its vertices moved
 // along the mesh (re-projected by a ray, as Hanika does).
