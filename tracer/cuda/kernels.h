@@ -37,7 +37,7 @@ enum PathStatus : uint8_t {
 struct WavefrontState {
   uint32_t n = 0;
   float4* ray_o = nullptr;       // origin, prev_pdf
-  float4* ray_d = nullptr;       // direction, depth | flags << 16 | prev_normal << 20 (bits)
+  float4* ray_d = nullptr;       // direction, depth | flags << 11 | prev_normal << 20 (bits)
   float4* throughput = nullptr;  // xyz
   float4* radiance = nullptr;    // xyz
   float4* hit = nullptr;         // t, prim (bits), u, v
