@@ -212,6 +212,20 @@ inline PixelStats pixel_stats_of(const CompiledScene& cs, const IntegratorSettin
   return ps;
 }
 
+// The summed per-pixel variance of b against a at equal samples: plain (.x) and relative to a's
+// mean as relMSE weighs it (.y: var / (mean^2 + 0.01)); .z and .w the relative sums of b and a.
+inline glm::dvec4 variance_ratios(const PixelStats& b, const PixelStats& a) {
+  double va = 0.0, vb = 0.0, ra = 0.0, rb = 0.0;
+  for (size_t i = 0; i < a.var.size(); ++i) {
+    va += luminance(a.var[i]);
+    vb += luminance(b.var[i]);
+    const double m = luminance(a.mean[i]);
+    ra += luminance(a.var[i]) / (m * m + 1e-2);
+    rb += luminance(b.var[i]) / (m * m + 1e-2);
+  }
+  return glm::dvec4(vb / va, rb / ra, rb, ra);
+}
+
 // Renders with the shared trace_path and keeps per-pixel sample variance, for z-tests.
 inline PixelStats render_pixel_stats(const Scene& scene, const RenderSettings& rs, uint32_t spp,
                                      uint32_t first_sample = 0) {
