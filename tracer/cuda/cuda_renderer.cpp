@@ -159,6 +159,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<float4> cached_hits;
   DeviceBuffer<float4> mnee_state;  // WavefrontState::mnee, with render.mnee only
   DeviceBuffer<float4> mnee_requests;  // ... and its mnee_requests
+  DeviceBuffer<uint32_t> mnee_queue;
   DeviceBuffer<uint8_t> alive;
   // queue: CUB's output, or (compaction in the shade kernel) the queues of even bounces, and
   // queue_odd those of odd ones: a bounce reads one while its shade kernel fills the other.
@@ -328,17 +329,20 @@ struct CudaRenderer::Impl {
     w.finish_counts = shadow_counts.get() + shadow_stride;
     const bool caustics = (eff.shade_spec & kSpecCaustics) != 0;
     if (caustics && mnee_requests.size() != size_t(kMneeRequestWords) * n())
-      require_device_memory(size_t(n()) * (kMneeRequestWords + 1) * sizeof(float4), 0,
+      require_device_memory(size_t(n()) * ((kMneeRequestWords + 1) * sizeof(float4) + 4),
+                            mnee_state.bytes() + mnee_requests.bytes() + mnee_queue.bytes(),
                             "manifold NEE (render.mnee) on a " + std::to_string(cfg.width) + "x" +
                                 std::to_string(cfg.height) + " image",
                             "its requests and path state, " +
-                                std::to_string((kMneeRequestWords + 1) * sizeof(float4)) +
+                                std::to_string((kMneeRequestWords + 1) * sizeof(float4) + 4) +
                                 " bytes per pixel",
                             prop.name);
     mnee_state.resize(caustics ? n() : 0);
     mnee_requests.resize(caustics ? size_t(kMneeRequestWords) * n() : 0);
+    mnee_queue.resize(caustics ? n() : 0);
     w.mnee = mnee_state.get();
     w.mnee_requests = mnee_requests.get();
+    w.mnee_queue = mnee_queue.get();
     w.mnee_counts = shadow_counts.get() + 2 * shadow_stride;
     return w;
   }

@@ -67,9 +67,10 @@ struct WavefrontState {
   // and mnee_normal (bits), at its id.
   float4* mnee = nullptr;
   // ... and the shade kernel's MneeRequests for the mnee stage (launch_mnee): kMneeRequestWords
-  // arrays of n float4 (word j of slot k at [j * n + k]), filled from slot 0 on, their number
-  // per bounce in mnee_counts.
+  // arrays of n float4 (word j of path id at [j * n + id]); the ids of the paths with one in
+  // mnee_queue, their number per bounce in mnee_counts.
   float4* mnee_requests = nullptr;
+  uint32_t* mnee_queue = nullptr;
   uint32_t* mnee_counts = nullptr;
 };
 constexpr uint32_t kMneeRequestWords = 21;

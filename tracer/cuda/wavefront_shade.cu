@@ -29,18 +29,18 @@ __device__ __forceinline__ void store_shadow_ray(const WavefrontState& w, uint32
   w.shadow_c[k] = make_float4(sr.contribution.x, sr.contribution.y, sr.contribution.z, 1.0f);
 }
 
-// A manifold NEE request (path.h, MneeRequest) into slot k of w.mnee_requests (layout below);
-// only the words of its parts.
-__device__ __forceinline__ void store_mnee_request(const WavefrontState& w, uint32_t k, uint32_t id,
+// Path id's manifold NEE request (path.h, MneeRequest) into w.mnee_requests (layout below); only
+// the words of its parts.
+__device__ __forceinline__ void store_mnee_request(const WavefrontState& w, uint32_t id,
                                                    const MneeRequest& q) {
-  float4* r = w.mnee_requests + k;
+  float4* r = w.mnee_requests + id;
   const size_t n = w.n;
   auto put = [&](uint32_t j, vec3 v, uint32_t x) {
     r[j * n] = make_float4(v.x, v.y, v.z, __uint_as_float(x));
   };
   const uint32_t bits = q.depth | (q.connect ? 1u << 28 : 0u) | (q.partition ? 1u << 29 : 0u) |
                         (q.mirror ? 1u << 30 : 0u);
-  put(0, q.p, id);
+  put(0, q.p, 0u);
   put(1, q.ng_viewer, bits);
   if (q.connect) {
     put(2, q.frame_n, q.segments);
@@ -64,9 +64,8 @@ __device__ __forceinline__ void store_mnee_request(const WavefrontState& w, uint
 static_assert(7 + sizeof(Material) / 16 == 16 && kMneeRequestWords == 21,
               "the request's words: 0-6, the material's 7-15, the partition's 16-20");
 
-__device__ __forceinline__ MneeRequest load_mnee_request(const WavefrontState& w, uint32_t k,
-                                                         uint32_t* id) {
-  const float4* r = w.mnee_requests + k;
+__device__ __forceinline__ MneeRequest load_mnee_request(const WavefrontState& w, uint32_t id) {
+  const float4* r = w.mnee_requests + id;
   const size_t n = w.n;
   MneeRequest q;
   auto get = [&](uint32_t j, vec3& v) {
@@ -74,7 +73,7 @@ __device__ __forceinline__ MneeRequest load_mnee_request(const WavefrontState& w
     v = vec3(x.x, x.y, x.z);
     return __float_as_uint(x.w);
   };
-  *id = get(0, q.p);
+  get(0, q.p);
   const uint32_t bits = get(1, q.ng_viewer);
   q.depth = bits & 0x0fffffffu;
   q.connect = (bits >> 28) & 1u;
@@ -127,7 +126,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   const uint32_t id = queued_path(w, queue, i, queue_total(w, queue, count));
   const uint32_t ri = w.rays_at_slots ? i : id;  // where its ray and hit are
   constexpr bool kCaustics = (features_of<Spec>() & kFeatureCaustics) != 0;
-  bool go_on = false, shadow_valid = false;
+  bool go_on = false, shadow_valid = false, mnee_asks = false;
   ShadowRequest sr;
   PathState st;
   MneeRequest mq;  // manifold NEE's solves, left to the mnee stage (launch_mnee)
@@ -140,6 +139,8 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     }
     const Hit hit = load_hit(w, ri);
     go_on = shade_path<features_of<Spec>(), kCaustics>(s, cfg, st, hit, sr, &mq);
+    mnee_asks = kCaustics && (mq.connect || mq.partition);
+    if (mnee_asks) store_mnee_request(w, id, mq);  // at its id: mq's registers free from here
     store_path(w, id, st);
     // This vertex sampled the lights (no refraction since): its origin, for the paths' later
     // emission hits (path.h).
@@ -175,14 +176,13 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   const unsigned below = (1u << lane) - 1u;
   if (lane == 0 && ballot_shadow)
     atomicAdd(&w.counters[kCounterShadow], (unsigned long long)__popc(ballot_shadow));
-  if (kCaustics) {  // the requests, in consecutive slots (one atomic per warp)
-    const bool asks = id != kInvalid && (mq.connect || mq.partition);
-    const unsigned ballot_mnee = __ballot_sync(0xffffffffu, asks);
+  if (kCaustics) {  // the paths with a request, into the mnee queue (one atomic per warp)
+    const unsigned ballot_mnee = __ballot_sync(0xffffffffu, mnee_asks);
     if (ballot_mnee) {
       uint32_t base = 0;
       if (lane == 0) base = atomicAdd(&w.mnee_counts[bounce], uint32_t(__popc(ballot_mnee)));
       base = __shfl_sync(0xffffffffu, base, 0);
-      if (asks) store_mnee_request(w, base + __popc(ballot_mnee & below), id, mq);
+      if (mnee_asks) w.mnee_queue[base + __popc(ballot_mnee & below)] = id;
     }
   }
   uint32_t* next_count = &w.alive_counts[bounce + 1];
@@ -245,8 +245,8 @@ __global__ void __launch_bounds__(kBlock) mnee_kernel(SceneView view,
   const uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= w.mnee_counts[bounce]) return;
   const SceneView s = with_flat_params(view, flat);
-  uint32_t id;
-  const MneeRequest q = load_mnee_request(w, k, &id);
+  const uint32_t id = w.mnee_queue[k];
+  const MneeRequest q = load_mnee_request(w, id);
   const vec3 c = mnee_resolve<features_of<Spec>() | kFeatureFlatList>(s, cfg, q);
   if (is_black(c)) return;
   float4 r = w.radiance[id];  // (one request per path and bounce)
