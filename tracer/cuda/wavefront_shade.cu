@@ -389,15 +389,7 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
                                                       next_queue, shadow_queue)
   if (spec & kSpecCaustics) {  // manifold NEE (features.h, caustic_shade_spec)
-    switch (spec) {
-      case kSpecCaustics | kSpecGuiding | kSpecSpecular:
-        CALL(kSpecCaustics | kSpecGuiding | kSpecSpecular);
-        break;
-      case kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular:
-        CALL(kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular);
-        break;
-      default: CALL(kGuidedSpec | kSpecCaustics); break;
-    }
+    TRACER_CAUSTIC_SWITCH(spec, CALL)
   } else if (spec & kSpecGuiding) {  // path guiding (features.h, guided_shade_spec)
     switch (spec) {
       case kSpecGuiding: CALL(kSpecGuiding); break;
@@ -429,15 +421,7 @@ void launch_mnee(uint32_t spec, const SceneView& s, const FlatParams& flat,
                  const WavefrontState& w, cudaStream_t stream) {
 #define CALL(S) \
   mnee_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, cfg, sample, bounce, w)
-  switch (spec) {  // the caustic shade kernels' variants (launch_shade)
-    case kSpecCaustics | kSpecGuiding | kSpecSpecular:
-      CALL(kSpecCaustics | kSpecGuiding | kSpecSpecular);
-      break;
-    case kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular:
-      CALL(kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular);
-      break;
-    default: CALL(kGuidedSpec | kSpecCaustics); break;
-  }
+  TRACER_CAUSTIC_SWITCH(spec, CALL)  // the caustic shade kernels' variants
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("mnee_kernel");
 }
