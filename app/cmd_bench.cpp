@@ -57,6 +57,7 @@ struct Result {
   std::vector<uint32_t> alive;
   std::vector<uint32_t> shadows;  // shadow rays per bounce (queued by the shade kernel), or empty
   std::vector<uint32_t> finished;  // paths that ended without one, per bounce (the same)
+  std::vector<uint32_t> mnee;      // manifold NEE's requests per bounce (render.mnee), or empty
 };
 
 // Bytes each wavefront stage reads and writes per path it processes (see the wavefront kernels' layout);
@@ -112,6 +113,7 @@ Result run_config(tracer::Renderer& r, const tracer::CompiledScene& cs,
       res.alive = st.alive_per_bounce;
       res.shadows = st.shadow_per_bounce;
       res.finished = st.finished_per_bounce;
+      res.mnee = st.mnee_per_bounce;
       res.kernel = st.kernel;
       res.specialization = st.specialization;
       res.note = st.note;
@@ -145,7 +147,8 @@ nlohmann::json bounce_json(const tracer::StageTimes& t) {
   nlohmann::json a = nlohmann::json::array();
   for (const tracer::BounceTimes& b : t.bounces)
     a.push_back({{"intersect", b.intersect}, {"sort", b.sort}, {"shade", b.shade},
-                 {"shadow", b.shadow}, {"trace", b.trace}, {"compact", b.compact}});
+                 {"shadow", b.shadow}, {"trace", b.trace}, {"compact", b.compact},
+                 {"mnee", b.mnee}});
   return a;
 }
 
@@ -163,11 +166,12 @@ nlohmann::json to_json(const Result& r) {
                         {"intersect_camera_rays", r.stages.intersect_first},
                         {"sort", r.stages.sort}, {"shade", r.stages.shade},
                         {"shadow", r.stages.shadow}, {"trace", r.stages.trace},
-                        {"compact", r.stages.compact},
+                        {"compact", r.stages.compact}, {"mnee", r.stages.mnee},
                         {"megakernel", r.stages.megakernel}}},
           {"alive_per_bounce", r.alive},
           {"shadow_rays_per_bounce", r.shadows},
           {"finished_without_shadow_ray_per_bounce", r.finished},
+          {"mnee_requests_per_bounce", r.mnee},
           {"tail_from_bounce", r.stages.tail_from},
           {"rays_at_slots", r.stages.rays_at_slots},
           {"fused_trace", r.stages.fused_trace},
@@ -395,6 +399,14 @@ int run_bench(const BenchOptions& o) {
       if (r.stages.shadow > 0 || r.stages.trace == 0)
         row("shadow", r.stages.shadow, shadow_bytes - (trace_bytes - sb.intersect() * trace_rays));
       if (r.stages.trace > 0) row("trace", r.stages.trace, trace_bytes);
+      if (r.stages.mnee > 0) {  // its solves and rays, not its bytes, bound it
+        double requests = 0;
+        for (uint32_t a : r.mnee) requests += a;
+        std::printf("  %-10s %8.3f ms %5.1f%%  %.2f M requests (manifold NEE's solves), "
+                    "%.1f M requests/s\n",
+                    "mnee", r.stages.mnee, total > 0 ? 100.0 * r.stages.mnee / total : 0.0,
+                    requests / 1e6, requests / (r.stages.mnee * 1e-3) / 1e6);
+      }
       // The intersect, shadow and trace stages together: all extension and shadow rays, the
       // same bytes with and without the fused stage.
       row("all rays", r.stages.intersect + r.stages.shadow + r.stages.trace,
@@ -455,6 +467,11 @@ int run_bench(const BenchOptions& o) {
         for (uint32_t a : r.shadows) std::printf(" %u", a);
         std::printf("\n  paths ended without one (finished by the shadow stage):");
         for (uint32_t a : r.finished) std::printf(" %u", a);
+        std::printf("\n");
+      }
+      if (!r.mnee.empty()) {
+        std::printf("  manifold NEE requests per bounce:");
+        for (uint32_t a : r.mnee) std::printf(" %u", a);
         std::printf("\n");
       }
       if (!queued || r.stages.bounces.size() != timed_bounces) continue;

@@ -1115,6 +1115,9 @@ TEST(Gpu, ManifoldNeeKeepsTheMeanAndLowersNoise) {
   render_gpu(*gpu, s, mnee_rs, 4, mega, &st);
   EXPECT_EQ(st.kernel, "wavefront");
   EXPECT_NE(st.specialization.find("manifold NEE"), std::string::npos) << st.specialization;
+  // The mnee stage ran: nearly every camera vertex (diffuse, under the lamp) queued a request.
+  ASSERT_FALSE(st.mnee_per_bounce.empty());
+  EXPECT_GT(st.mnee_per_bounce[0], uint32_t(rs.width * rs.height / 2));
   double noise[2] = {0, 0};
   for (int on = 0; on < 2; ++on) {
     std::vector<ImageRGB> batches;

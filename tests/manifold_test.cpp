@@ -356,4 +356,56 @@ TEST(Manifold, GlassAndMirrorBallsKeepTheirMeanWithLessNoise) {
   expect_mnee_keeps_the_mean("cornell_spheres.json", 32, 1024, 0.8);
 }
 
+// The wavefront's mnee stage (shade_path with kDeferMnee, then mnee_resolve) adds what the
+// inline solves add: path by path, the same radiance within rounding (the sums' order differs),
+// on the lamp (chains through glass; emission the partition drops) and the balls (mirror ball).
+TEST(Manifold, DeferredRequestsAddWhatInlineSolvesAdd) {
+  for (const char* name : {"glass_lamp.json", "cornell_spheres.json"}) {
+    const Scene scene = load_scene(std::string(TRACER_SOURCE_DIR) + "/assets/scenes/" + name);
+    constexpr int kW = 24;
+    const CompiledScene cs(scene, kW, kW);
+    RenderSettings rs;
+    rs.width = rs.height = kW;
+    IntegratorSettings cfg = make_integrator_settings(rs);
+    cfg.mnee = 1;
+    const SceneView& s = cs.view();
+    uint32_t connects = 0, partitions = 0, dropped = 0, kept = 0, compared = 0;
+    double worst = 0.0;
+    for (uint32_t pixel = 0; pixel < kW * kW; ++pixel) {
+      for (uint32_t sample = 0; sample < 16; ++sample) {
+        const vec3 inline_L = trace_path(s, cfg, pixel, sample);
+        PathState st;
+        generate_path(s, cfg, pixel, sample, st);
+        for (;;) {
+          const Hit hit = intersect_closest(s, st.ray, st.origin_prim);
+          ShadowRequest shadow;
+          MneeRequest q;
+          const bool go_on = shade_path<kAllFeatures, true>(s, cfg, st, hit, shadow, &q);
+          if (q.connect || q.partition) {
+            const vec3 c = mnee_resolve<kAllFeatures>(s, cfg, q);
+            connects += q.connect;
+            partitions += q.partition;
+            if (q.partition && !q.connect) (glm::length(c) == 0.0f ? dropped : kept)++;
+            st.radiance += c;
+          }
+          if (shadow.valid &&
+              !intersect_any(s, shadow.ray, shadow.target_prim, shadow.origin_prim))
+            st.radiance += shadow.contribution;
+          if (!go_on) break;
+        }
+        const double scale = std::max(1e-3, double(glm::length(inline_L)));
+        worst = std::max(worst, double(glm::length(st.radiance - inline_L)) / scale);
+        ++compared;
+      }
+    }
+    std::printf("  %s: %u paths, %u connect and %u partition requests (%u dropped, %u kept); "
+                "largest difference %.2g\n",
+                name, compared, connects, partitions, dropped, kept, worst);
+    EXPECT_LT(worst, 1e-4) << name;
+    EXPECT_GT(connects, 1000u) << name;
+    EXPECT_GT(partitions, 0u) << name;
+    EXPECT_GT(dropped, 0u) << name;
+  }
+}
+
 }  // namespace

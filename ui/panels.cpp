@@ -579,6 +579,7 @@ void stats_panel(Workbench& wb, PanelState& ps) {
                        t.compact, t.megakernel);
     if (t.trace > 0)
       ImGui::TextWrapped("  trace %.3f (shadow rays with the next bounce's rays)", t.trace);
+    if (t.mnee > 0) ImGui::TextWrapped("  mnee %.3f (manifold NEE's solves)", t.mnee);
     if (t.tail_from > 0)
       ImGui::TextWrapped("  tail %.3f (the megakernel from bounce %u on)", t.tail, t.tail_from);
   }

@@ -47,7 +47,7 @@ void require_device_memory(size_t need, size_t held, const std::string& what,
 
 enum Stage {
   kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kIntersectFirst, kTail,
-  kTrace, kStageCount
+  kTrace, kMnee, kStageCount
 };
 }
 
@@ -158,13 +158,16 @@ struct CudaRenderer::Impl {
   DeviceBuffer<float4> ray_o_odd, ray_d_odd;
   DeviceBuffer<float4> cached_hits;
   DeviceBuffer<float4> mnee_state;  // WavefrontState::mnee, with render.mnee only
+  DeviceBuffer<float4> mnee_requests;  // ... and its mnee_requests
+  DeviceBuffer<uint32_t> mnee_queue;
   DeviceBuffer<uint8_t> alive;
   // queue: CUB's output, or (compaction in the shade kernel) the queues of even bounces, and
   // queue_odd those of odd ones: a bounce reads one while its shade kernel fills the other.
   DeviceBuffer<uint32_t> queue, queue_odd, sorted, sort_keys, sort_bins, alive_counts, count, fetch;
   // With compaction in the shade kernel: each bounce's paths with a shadow ray (and at the far
   // end those that end without one), and their numbers per bounce: shadow_counts holds the
-  // shadow rays of bounces [0, stride), then the paths to finish (WavefrontState).
+  // shadow rays of bounces [0, stride), then the paths to finish, then manifold NEE's requests
+  // (WavefrontState).
   DeviceBuffer<uint32_t> shadow_queue, shadow_counts;
   uint32_t shadow_stride = 0;
   DeviceBuffer<uint8_t> cub_temp;
@@ -324,8 +327,23 @@ struct CudaRenderer::Impl {
     w.alive_counts = alive_counts.get();
     w.shadow_counts = shadow_counts.get();
     w.finish_counts = shadow_counts.get() + shadow_stride;
-    mnee_state.resize(eff.shade_spec & kSpecCaustics ? n() : 0);
+    const bool caustics = (eff.shade_spec & kSpecCaustics) != 0;
+    if (caustics && mnee_requests.size() != size_t(kMneeRequestWords) * n())
+      require_device_memory(size_t(n()) * ((kMneeRequestWords + 1) * sizeof(float4) + 4),
+                            mnee_state.bytes() + mnee_requests.bytes() + mnee_queue.bytes(),
+                            "manifold NEE (render.mnee) on a " + std::to_string(cfg.width) + "x" +
+                                std::to_string(cfg.height) + " image",
+                            "its requests and path state, " +
+                                std::to_string((kMneeRequestWords + 1) * sizeof(float4) + 4) +
+                                " bytes per pixel",
+                            prop.name);
+    mnee_state.resize(caustics ? n() : 0);
+    mnee_requests.resize(caustics ? size_t(kMneeRequestWords) * n() : 0);
+    mnee_queue.resize(caustics ? n() : 0);
     w.mnee = mnee_state.get();
+    w.mnee_requests = mnee_requests.get();
+    w.mnee_queue = mnee_queue.get();
+    w.mnee_counts = shadow_counts.get() + 2 * shadow_stride;
     return w;
   }
 
@@ -357,7 +375,7 @@ struct CudaRenderer::Impl {
     fetch.resize(1);
     alive_counts.resize(cfg.max_depth + 2);
     shadow_stride = cfg.max_depth + 2;
-    shadow_counts.resize(2 * shadow_stride);
+    shadow_counts.resize(3 * shadow_stride);
     count.resize(1);
     cub_temp.resize(std::max<size_t>(1, compaction_temp_bytes(count_pixels)));
     counters.resize(kCounterCount);
@@ -386,7 +404,7 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaEventSynchronize(marks.back().first));
     double* slot[kStageCount] = {&t.generate, &t.intersect,  &t.sort,      &t.shade,
                                  &t.shadow,   &t.compact,    &t.megakernel, &t.intersect_first,
-                                 &t.tail,     &t.trace};
+                                 &t.tail,     &t.trace,      &t.mnee};
     for (size_t i = 1; i < marks.size(); ++i) {
       float ms = 0.0f;
       TRACER_CUDA_CHECK(cudaEventElapsedTime(&ms, marks[i - 1].first, marks[i].first));
@@ -405,6 +423,7 @@ struct CudaRenderer::Impl {
       if (stage == kShade) b.shade += ms;
       if (stage == kShadow) b.shadow += ms;
       if (stage == kCompact) b.compact += ms;
+      if (stage == kMnee) b.mnee += ms;
     }
     marks.clear();
   }
@@ -436,17 +455,19 @@ struct CudaRenderer::Impl {
     if (alive_counts.size() < iterations + 2) alive_counts.resize(iterations + 2);
     if (shadow_stride < iterations + 2) {
       shadow_stride = iterations + 2;
-      shadow_counts.resize(2 * shadow_stride);
+      shadow_counts.resize(3 * shadow_stride);
     }
     w.alive_counts = alive_counts.get();
     w.shadow_counts = shadow_counts.get();
     w.finish_counts = shadow_counts.get() + shadow_stride;
+    w.mnee_counts = shadow_counts.get() + 2 * shadow_stride;
+    const bool mnee = (eff.shade_spec & kSpecCaustics) != 0;
     TRACER_CUDA_CHECK(cudaMemsetAsync(w.alive_counts, 0, alive_counts.bytes(), stream));
     // Compaction in the shade kernel: bounce b reads the queue its predecessor's shade kernel
     // wrote (its length: alive_counts[b]) and writes the next one into the other buffer.
     const bool queue_in_shade = eff.queues_in_shade();
     // ... and then a shadow queue too.
-    if (queue_in_shade)
+    if (queue_in_shade || mnee)
       TRACER_CUDA_CHECK(cudaMemsetAsync(w.shadow_counts, 0, shadow_counts.bytes(), stream));
     uint32_t* const shadows = queue_in_shade ? shadow_queue.get() : nullptr;
     auto bounce_queue = [&](uint32_t b) { return (b & 1) ? queue_odd.get() : queue.get(); };
@@ -501,6 +522,10 @@ struct CudaRenderer::Impl {
                    queue_in_shade && b + 1 < iterations ? bounce_queue(b + 1) : nullptr, shadows,
                    stream);
       mark(timed, kShade);
+      if (mnee) {  // manifold NEE's solves, before the shadow stage ends paths in the film
+        launch_mnee(eff.shade_spec, view, flat_params, cfg, sample, b, w, stream);
+        mark(timed, kMnee);
+      }
       // Fused: this bounce's shadow rays with the next bounce's extension rays, if there is a
       // next bounce (also the tail's, with fused_tail: it then starts by shading their hits).
       traced = fuse && b + 1 < iterations && (eff.fused_tail || b + 1 != tail_from);
@@ -871,6 +896,12 @@ FrameStats CudaRenderer::render(uint32_t spp) {
                 counts.begin(), counts.begin() + m.shadow_stride));
             st.finished_per_bounce = trimmed(std::vector<uint32_t>(
                 counts.begin() + m.shadow_stride, counts.begin() + 2 * m.shadow_stride));
+          }
+          if (m.eff.shade_spec & kSpecCaustics) {
+            std::vector<uint32_t> counts;
+            m.shadow_counts.download(counts);
+            while (counts.size() > 2 * m.shadow_stride && counts.back() == 0) counts.pop_back();
+            st.mnee_per_bounce.assign(counts.begin() + 2 * m.shadow_stride, counts.end());
           }
         }
       }

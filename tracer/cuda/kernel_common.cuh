@@ -179,6 +179,19 @@ inline uint32_t blocks(uint32_t n) { return (n + kBlock - 1) / kBlock; }
     default: CALL(15); break;                               \
   }
 
+// Runs F<Spec> for the caustic variant spec (features.h, caustic_shade_spec): the shade and
+// mnee stages' three.
+#define TRACER_CAUSTIC_SWITCH(spec, CALL)                               \
+  switch (spec) {                                                       \
+    case kSpecCaustics | kSpecGuiding | kSpecSpecular:                  \
+      CALL(kSpecCaustics | kSpecGuiding | kSpecSpecular);               \
+      break;                                                            \
+    case kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular:   \
+      CALL(kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular); \
+      break;                                                            \
+    default: CALL(kGuidedSpec | kSpecCaustics); break;                  \
+  }
+
 // Enough resident blocks to fill every multiprocessor once (persistent threads).
 template <typename Kernel>
 uint32_t persistent_blocks(Kernel kernel, uint32_t n) {

@@ -66,7 +66,14 @@ struct WavefrontState {
   // Manifold NEE (render.mnee; the caustic shade kernels only): each path's PathState::mnee_o
   // and mnee_normal (bits), at its id.
   float4* mnee = nullptr;
+  // ... and the shade kernel's MneeRequests for the mnee stage (launch_mnee): kMneeRequestWords
+  // arrays of n float4 (word j of path id at [j * n + id]); the ids of the paths with one in
+  // mnee_queue, their number per bounce in mnee_counts.
+  float4* mnee_requests = nullptr;
+  uint32_t* mnee_queue = nullptr;
+  uint32_t* mnee_counts = nullptr;
 };
+constexpr uint32_t kMneeRequestWords = 21;
 
 // The flat primitive list's entries (SceneView::flat_loop) passed by value to the kernels that
 // loop over them, at most kFlatMaxCost entries of 48 bytes (3 KiB of the 4 KiB of parameters).
@@ -156,6 +163,12 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
                   uint32_t sample, uint32_t bounce, const WavefrontState& w,
                   const uint32_t* queue, const uint32_t* count, uint32_t* next_queue,
                   uint32_t* shadow_queue, cudaStream_t stream);
+// Manifold NEE's stage (render.mnee): solves the requests the shade kernel of bounce `bounce`
+// queued (w.mnee_requests, mnee_counts[bounce] of them) and adds what they find to the paths'
+// radiance (and to their guide records' gathered radiance); between the shade and shadow stages.
+void launch_mnee(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                 const IntegratorSettings& cfg, uint32_t sample, uint32_t bounce,
+                 const WavefrontState& w, cudaStream_t stream);
 // Without shadow_queue: over the bounce's queue (every path shaded, with a shadow ray or not);
 // with it: the shadow rays, then the paths to finish, of the shade kernel's shadow queue.
 void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,

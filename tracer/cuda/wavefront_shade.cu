@@ -29,6 +29,79 @@ __device__ __forceinline__ void store_shadow_ray(const WavefrontState& w, uint32
   w.shadow_c[k] = make_float4(sr.contribution.x, sr.contribution.y, sr.contribution.z, 1.0f);
 }
 
+// Path id's manifold NEE request (path.h, MneeRequest) into w.mnee_requests (layout below); only
+// the words of its parts.
+__device__ __forceinline__ void store_mnee_request(const WavefrontState& w, uint32_t id,
+                                                   const MneeRequest& q) {
+  float4* r = w.mnee_requests + id;
+  const size_t n = w.n;
+  auto put = [&](uint32_t j, vec3 v, uint32_t x) {
+    r[j * n] = make_float4(v.x, v.y, v.z, __uint_as_float(x));
+  };
+  const uint32_t bits = q.depth | (q.connect ? 1u << 28 : 0u) | (q.partition ? 1u << 29 : 0u) |
+                        (q.mirror ? 1u << 30 : 0u);
+  put(0, q.p, 0u);
+  put(1, q.ng_viewer, bits);
+  if (q.connect) {
+    put(2, q.frame_n, q.segments);
+    put(3, q.wo, q.ls.prim);
+    r[4 * n] = make_float4(q.ls.p.x, q.ls.p.y, q.ls.p.z, q.ls.pdf);
+    put(5, q.ls.n, 0u);
+    put(6, q.ls.le, 0u);
+    float4 m[sizeof(Material) / 16];
+    memcpy(m, &q.m, sizeof(Material));
+#pragma unroll
+    for (uint32_t j = 0; j < sizeof(Material) / 16; ++j) r[(7 + j) * n] = m[j];
+  }
+  if (q.partition) {
+    put(16, q.from_o, q.from_normal);
+    put(17, q.hit_p, q.hit_prim);
+    put(18, q.hit_ng, q.hit_light);
+    put(19, q.seg_o, 0u);
+    put(20, q.contribution, 0u);
+  }
+}
+static_assert(7 + sizeof(Material) / 16 == 16 && kMneeRequestWords == 21,
+              "the request's words: 0-6, the material's 7-15, the partition's 16-20");
+
+__device__ __forceinline__ MneeRequest load_mnee_request(const WavefrontState& w, uint32_t id) {
+  const float4* r = w.mnee_requests + id;
+  const size_t n = w.n;
+  MneeRequest q;
+  auto get = [&](uint32_t j, vec3& v) {
+    const float4 x = r[j * n];
+    v = vec3(x.x, x.y, x.z);
+    return __float_as_uint(x.w);
+  };
+  get(0, q.p);
+  const uint32_t bits = get(1, q.ng_viewer);
+  q.depth = bits & 0x0fffffffu;
+  q.connect = (bits >> 28) & 1u;
+  q.partition = (bits >> 29) & 1u;
+  q.mirror = (bits >> 30) & 1u;
+  if (q.connect) {
+    q.segments = get(2, q.frame_n);
+    q.ls.prim = get(3, q.wo);
+    q.ls.pdf = __uint_as_float(get(4, q.ls.p));
+    get(5, q.ls.n);
+    get(6, q.ls.le);
+    q.ls.valid = true;
+    q.ls.infinite = q.ls.delta = false;
+    float4 m[sizeof(Material) / 16];
+#pragma unroll
+    for (uint32_t j = 0; j < sizeof(Material) / 16; ++j) m[j] = r[(7 + j) * n];
+    memcpy(&q.m, m, sizeof(Material));
+  }
+  if (q.partition) {
+    q.from_normal = get(16, q.from_o);
+    q.hit_prim = get(17, q.hit_p);
+    q.hit_light = get(18, q.hit_ng);
+    get(19, q.seg_o);
+    get(20, q.contribution);
+  }
+  return q;
+}
+
 // Shades the queued paths; with next_queue (compaction in the shade kernel) each block appends
 // its paths that go on to the next bounce's queue, in slot order, with one atomic on the next
 // bounce's path count (alive_counts[bounce + 1]). The block's 8 warp counts are summed in shared
@@ -52,19 +125,22 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
   const uint32_t id = queued_path(w, queue, i, queue_total(w, queue, count));
   const uint32_t ri = w.rays_at_slots ? i : id;  // where its ray and hit are
-  bool go_on = false, shadow_valid = false;
+  constexpr bool kCaustics = (features_of<Spec>() & kFeatureCaustics) != 0;
+  bool go_on = false, shadow_valid = false, mnee_asks = false;
   ShadowRequest sr;
   PathState st;
+  MneeRequest mq;  // manifold NEE's solves, left to the mnee stage (launch_mnee)
   if (id != kInvalid) {
     st = load_state(w, id, ri, sample);
-    constexpr bool kCaustics = (features_of<Spec>() & kFeatureCaustics) != 0;
     if (kCaustics && (st.flags & kPathMneeFrom)) {
       const float4 m = w.mnee[id];
       st.mnee_o = vec3(m.x, m.y, m.z);
       st.mnee_normal = __float_as_uint(m.w);
     }
     const Hit hit = load_hit(w, ri);
-    go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr);
+    go_on = shade_path<features_of<Spec>(), kCaustics>(s, cfg, st, hit, sr, &mq);
+    mnee_asks = kCaustics && (mq.connect || mq.partition);
+    if (mnee_asks) store_mnee_request(w, id, mq);  // at its id: mq's registers free from here
     store_path(w, id, st);
     // This vertex sampled the lights (no refraction since): its origin, for the paths' later
     // emission hits (path.h).
@@ -97,8 +173,18 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   const bool finish = id != kInvalid && !go_on && !shadow_valid;
   const unsigned ballot_finish = __ballot_sync(0xffffffffu, finish);
   const uint32_t lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  const unsigned below = (1u << lane) - 1u;
   if (lane == 0 && ballot_shadow)
     atomicAdd(&w.counters[kCounterShadow], (unsigned long long)__popc(ballot_shadow));
+  if (kCaustics) {  // the paths with a request, into the mnee queue (one atomic per warp)
+    const unsigned ballot_mnee = __ballot_sync(0xffffffffu, mnee_asks);
+    if (ballot_mnee) {
+      uint32_t base = 0;
+      if (lane == 0) base = atomicAdd(&w.mnee_counts[bounce], uint32_t(__popc(ballot_mnee)));
+      base = __shfl_sync(0xffffffffu, base, 0);
+      if (mnee_asks) w.mnee_queue[base + __popc(ballot_mnee & below)] = id;
+    }
+  }
   uint32_t* next_count = &w.alive_counts[bounce + 1];
   if (!next_queue && !shadow_queue) {
     if (lane == 0 && ballot_alive) atomicAdd(next_count, uint32_t(__popc(ballot_alive)));
@@ -135,7 +221,6 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
     }
   }
   __syncthreads();
-  const unsigned below = (1u << lane) - 1u;
   if (next_queue && go_on) {
     const uint32_t slot = warp_start[kWarps] + warp_start[warp] + __popc(ballot_alive & below);
     next_queue[slot] = id;
@@ -149,6 +234,27 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
   if (shadow_queue && finish)
     shadow_queue[w.n - 1 - (finish_start[kWarps] + finish_start[warp] +
                             __popc(ballot_finish & below))] = id;
+}
+
+// Manifold NEE's stage: one thread per request of the bounce (launch_mnee).
+template <uint32_t Spec>
+__global__ void __launch_bounds__(kBlock) mnee_kernel(SceneView view,
+                                                      const __grid_constant__ FlatParams flat,
+                                                      IntegratorSettings cfg, uint32_t sample,
+                                                      uint32_t bounce, WavefrontState w) {
+  const uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= w.mnee_counts[bounce]) return;
+  const SceneView s = with_flat_params(view, flat);
+  const uint32_t id = w.mnee_queue[k];
+  const MneeRequest q = load_mnee_request(w, id);
+  const vec3 c = mnee_resolve<features_of<Spec>() | kFeatureFlatList>(s, cfg, q);
+  if (is_black(c)) return;
+  float4 r = w.radiance[id];  // (one request per path and bounce)
+  r.x += c.x;
+  r.y += c.y;
+  r.z += c.z;
+  w.radiance[id] = r;
+  guide_add_gathered(cfg.guide, id, sample, q.depth, luminance(c));
 }
 
 // The sample's extension rays, the paths that entered a bounce after the first (alive_counts[1..
@@ -283,15 +389,7 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   shade_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, cfg, sample, bounce, w, queue, count, \
                                                       next_queue, shadow_queue)
   if (spec & kSpecCaustics) {  // manifold NEE (features.h, caustic_shade_spec)
-    switch (spec) {
-      case kSpecCaustics | kSpecGuiding | kSpecSpecular:
-        CALL(kSpecCaustics | kSpecGuiding | kSpecSpecular);
-        break;
-      case kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular:
-        CALL(kSpecCaustics | kSpecGuiding | kSpecSpheres | kSpecSpecular);
-        break;
-      default: CALL(kGuidedSpec | kSpecCaustics); break;
-    }
+    TRACER_CAUSTIC_SWITCH(spec, CALL)
   } else if (spec & kSpecGuiding) {  // path guiding (features.h, guided_shade_spec)
     switch (spec) {
       case kSpecGuiding: CALL(kSpecGuiding); break;
@@ -316,6 +414,16 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
   }
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("shade_kernel");
+}
+
+void launch_mnee(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                 const IntegratorSettings& cfg, uint32_t sample, uint32_t bounce,
+                 const WavefrontState& w, cudaStream_t stream) {
+#define CALL(S) \
+  mnee_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, cfg, sample, bounce, w)
+  TRACER_CAUSTIC_SWITCH(spec, CALL)  // the caustic shade kernels' variants
+#undef CALL
+  TRACER_CUDA_CHECK_LAUNCH("mnee_kernel");
 }
 
 void launch_guide_train(const GuideView& g, const float4* radiance, uint32_t n, uint32_t sample,

@@ -176,6 +176,16 @@ TRACER_HD TRACER_INLINE void guide_record(const GuideView& g, uint32_t pixel, ui
       GuideRecord{key, 1.0f / (pdf * t), gathered, sample, f_cos, pdf_guide, pdf_bsdf, pdf};
 }
 
+// Radiance (luminance lum) that the path's vertex at `depth` gathered after guide_record wrote
+// its record (manifold NEE's deferred stage): counted as gathered before the vertex's direction,
+// as it would have been had it been added in time.
+TRACER_HD TRACER_INLINE void guide_add_gathered(const GuideView& g, uint32_t pixel,
+                                                uint32_t sample, uint32_t depth, float lum) {
+  if (!g.records || depth == 0 || depth > kGuideRecords) return;
+  GuideRecord& r = g.records[size_t(pixel) * kGuideRecords + (depth - 1)];
+  if (r.sample == sample) r.gathered += lum;
+}
+
 // x += v for a float that other threads also add to.
 TRACER_HD TRACER_INLINE void guide_atomic_add(float* x, float v) {
 #if defined(__CUDA_ARCH__)

@@ -422,14 +422,83 @@ TRACER_HD inline vec3 mnee_connect(const SceneView& s, vec3 p, vec3 o, const Mat
   return is_finite(c) ? c : vec3(0.0f);
 }
 
+// Whether manifold NEE from the vertex whose offset origin is from_o (its normal's light-tree
+// code from_normal) finds the path that reached light point p (primitive prim, geometric normal
+// ng) through the segment leaving seg_o: through glass (two refractions), or with `mirror` off
+// a mirror sphere; and whether it could have chosen that light there. Emission found so is
+// manifold NEE's to count, and BSDF sampling drops it (shade_path). light: the light the
+// primitive belongs to (SurfaceHit::light).
+template <uint32_t F>
+TRACER_HD inline bool mnee_covers(const SceneView& s, const IntegratorSettings& cfg, vec3 from_o,
+                                  uint32_t from_normal, vec3 p, vec3 ng, uint32_t prim,
+                                  uint32_t light, vec3 seg_o, bool mirror) {
+  ManifoldChain ch;
+  vec3 tr;
+  const float tol = 1e-3f * glm::length(p - from_o);
+  bool found = false;
+  if (!mirror) {
+    found = mnee_chain<F>(s, from_o, p, ng, prim, ch, tr) && glm::length(ch.p[1] - seg_o) <= tol;
+  } else if (F & kFeatureSpheres) {  // the mirror sphere the segment left
+    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxMirrorSpheres);
+    for (uint32_t i = 0; i < spheres && !found; ++i)
+      found = glm::abs(glm::length(seg_o - s.spheres[i].center) - s.spheres[i].radius) <= tol &&
+              mnee_mirror<F>(s, from_o, p, ng, prim, i, ch, tr) &&
+              glm::length(ch.p[0] - seg_o) <= tol;
+  }
+  if (!found) return false;
+  const bool tree =
+      (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
+  const LightContext from{from_o, tree ? unpack_light_normal(from_normal) : vec3(0.0f)};
+  return light_choice_pmf<F>(s, cfg.light_sampler, from, light) > 0.0f;
+}
+
+// Manifold NEE's work at one vertex, kept for a stage of its own (the wavefront's mnee kernel:
+// the solves and their rays in full warps, out of the shade kernel's registers): shade_path with
+// kDeferMnee fills it instead of solving, and mnee_resolve later returns the radiance the path
+// gains, the same that shade_path would have added.
+struct MneeRequest {
+  bool connect = false;    // mnee_connect's arguments follow
+  bool partition = false;  // an emission hit whose contribution mnee_covers may drop
+  bool mirror = false;     // ... reached off a mirror sphere (else through two refractions)
+  uint32_t depth = 0;      // the vertex's depth (PathState::depth when it was shaded)
+  // connect: the vertex, its viewer's side, the frame's normal and wo in it, its BSDF, the light
+  // sample (le: times the path's throughput) and the segments left (mnee_connect's `segments`).
+  vec3 p, ng_viewer, frame_n, wo;
+  Material m;
+  LightSample ls;
+  uint32_t segments = 0;
+  // partition: mnee_covers' arguments and what the emission adds unless covered.
+  vec3 from_o, hit_p, hit_ng, seg_o, contribution;
+  uint32_t from_normal = 0, hit_prim = kInvalid, hit_light = kInvalid;
+};
+
+template <uint32_t F>
+TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings& cfg,
+                                   const MneeRequest& q) {
+  vec3 c(0.0f);
+  if (q.partition && !mnee_covers<F>(s, cfg, q.from_o, q.from_normal, q.hit_p, q.hit_ng,
+                                     q.hit_prim, q.hit_light, q.seg_o, q.mirror))
+    c += q.contribution;
+  if (q.connect) {
+    const MaterialType type = (F & kFeatureSpecular) ? q.m.type : MaterialType::kDiffuse;
+    c += mnee_connect<F>(s, q.p, offset_ray_origin(q.p, q.ng_viewer), q.m,
+                         bsdf_frame(q.m, type, q.frame_n), q.wo, q.ng_viewer, q.ls, q.segments);
+  }
+  return c;
+}
+
 // Shades the hit of st.ray. Adds emission to st.radiance, may fill `shadow`, and returns whether
 // the path continues, in which case st.ray is the next segment. Forced inline: nvcc outlines it
 // in the specular kernels once the material switch is large, and the call then passes the scene,
 // the path state and the hit through local memory (2.6x slower; PERFORMANCE.md).
-template <uint32_t F = kAllFeatures>
+// With kDeferMnee manifold NEE's solves are not run here: *mnee receives them (MneeRequest;
+// mnee_resolve gives what they add to st.radiance).
+template <uint32_t F = kAllFeatures, bool kDeferMnee = false>
 TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSettings& cfg,
-                                        PathState& st, const Hit& hit, ShadowRequest& shadow) {
+                                        PathState& st, const Hit& hit, ShadowRequest& shadow,
+                                        MneeRequest* mnee = nullptr) {
   shadow.valid = false;
+  if (kDeferMnee) mnee->connect = mnee->partition = false;
   if ((F & kFeatureSubsurface) && (st.flags & kPathInMedium) && hit.valid()) {
     const SurfaceHit b = make_surface_hit<F>(s, st.ray, hit);
     // The walk's last point lay outside the boundary within rounding: the path has in fact left
@@ -547,27 +616,23 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       if ((F & kFeatureCaustics) && cfg.mnee && sh.light != kInvalid &&
           (mnee_bits == (kPathMneeFrom | kPathMneeRefract2) ||
            mnee_bits == (kPathMneeFrom | kPathMneeMirror))) {
-        ManifoldChain ch;
-        vec3 tr;
-        const float tol = 1e-3f * glm::length(sh.p - st.mnee_o);
-        bool found = false;
-        if (mnee_bits & kPathMneeRefract2) {
-          found = mnee_chain<F>(s, st.mnee_o, sh.p, sh.ng, hit.prim, ch, tr) &&
-                  glm::length(ch.p[1] - st.ray.o) <= tol;
-        } else if (F & kFeatureSpheres) {  // the mirror sphere this segment left
-          const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxMirrorSpheres);
-          for (uint32_t i = 0; i < spheres && !found; ++i)
-            found = glm::abs(glm::length(st.ray.o - s.spheres[i].center) - s.spheres[i].radius) <=
-                        tol &&
-                    mnee_mirror<F>(s, st.mnee_o, sh.p, sh.ng, hit.prim, i, ch, tr) &&
-                    glm::length(ch.p[0] - st.ray.o) <= tol;
-        }
-        if (found) {
-          const bool tree = (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh &&
-                            s.light_tree.nodes;
-          const LightContext from{st.mnee_o,
-                                  tree ? unpack_light_normal(st.mnee_normal) : vec3(0.0f)};
-          if (light_choice_pmf<F>(s, cfg.light_sampler, from, sh.light) > 0.0f) w = 0.0f;
+        const bool mirror = (mnee_bits & kPathMneeMirror) != 0;
+        if (kDeferMnee) {
+          mnee->partition = w > 0.0f;
+          mnee->mirror = mirror;
+          mnee->depth = st.depth;
+          mnee->from_o = st.mnee_o;
+          mnee->from_normal = st.mnee_normal;
+          mnee->hit_p = sh.p;
+          mnee->hit_ng = sh.ng;
+          mnee->hit_prim = hit.prim;
+          mnee->hit_light = sh.light;
+          mnee->seg_o = st.ray.o;
+          mnee->contribution = st.throughput * le * w;
+          w = 0.0f;  // added by the mnee stage unless covered
+        } else if (mnee_covers<F>(s, cfg, st.mnee_o, st.mnee_normal, sh.p, sh.ng, hit.prim,
+                                  sh.light, st.ray.o, mirror)) {
+          w = 0.0f;
         }
       }
       st.radiance += st.throughput * le * w;
@@ -639,10 +704,24 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       // mirror spheres (paths of 3 and 2 more segments, within max_depth as the BSDF's would
       // have to be).
       if ((F & kFeatureCaustics) && cfg.mnee && !ls.infinite && !ls.delta &&
-          st.depth + 2 <= cfg.max_depth)
-        st.radiance += st.throughput * mnee_connect<F>(s, sh.p, offset_ray_origin(sh.p, ng_viewer),
-                                                       m, frame, wo, ng_viewer, ls,
-                                                       cfg.max_depth - st.depth);
+          st.depth + 2 <= cfg.max_depth) {
+        if (kDeferMnee) {
+          mnee->connect = true;
+          mnee->depth = st.depth;
+          mnee->p = sh.p;
+          mnee->ng_viewer = ng_viewer;
+          mnee->frame_n = frame.n;
+          mnee->wo = wo;
+          mnee->m = m;
+          mnee->ls = ls;
+          mnee->ls.le = st.throughput * ls.le;
+          mnee->segments = cfg.max_depth - st.depth;
+        } else {
+          st.radiance +=
+              st.throughput * mnee_connect<F>(s, sh.p, offset_ray_origin(sh.p, ng_viewer), m,
+                                              frame, wo, ng_viewer, ls, cfg.max_depth - st.depth);
+        }
+      }
     }
   }
 

@@ -26,6 +26,7 @@ uint32_t wavefront_tail_bounce(const std::vector<uint32_t>& estimate, float frac
 // Milliseconds per stage of one wavefront bounce.
 struct BounceTimes {
   double intersect = 0, sort = 0, shade = 0, shadow = 0, compact = 0;
+  double mnee = 0;  // manifold NEE's stage (render.mnee)
   // The fused trace stage that traced this bounce's extension rays together with the previous
   // bounce's shadow rays (EffectiveGpuOptions::fused_trace; then intersect is 0 here and the
   // previous bounce's shadow is 0).
@@ -38,6 +39,7 @@ struct StageTimes {
   double intersect_first = 0;  // the camera rays' share of `intersect`
   // Fused trace stages (a bounce's shadow rays with the next bounce's extension rays).
   double trace = 0;
+  double mnee = 0;  // manifold NEE's stage (render.mnee): its solves and their rays
   std::vector<BounceTimes> bounces;  // the same per bounce (wavefront only)
   double tail = 0;         // the wavefront's tail kernel
   uint32_t tail_from = 0;  // the bounce its tail began at (0: none)
@@ -46,7 +48,8 @@ struct StageTimes {
   double megakernel = 0;
   // The whole sample (intersect includes intersect_first).
   double total() const {
-    return generate + intersect + sort + shade + shadow + trace + compact + tail + megakernel;
+    return generate + intersect + sort + shade + shadow + trace + compact + mnee + tail +
+           megakernel;
   }
 };
 
@@ -65,6 +68,8 @@ struct FrameStats {
   // ... and the paths that ended without a shadow ray, which the shadow stage's last lanes add
   // to the film (same wave, same condition).
   std::vector<uint32_t> finished_per_bounce;
+  // Manifold NEE's requests per bounce (same wave; render.mnee on the GPU only).
+  std::vector<uint32_t> mnee_per_bounce;
   std::string kernel;                      // "wavefront", "megakernel", "cpu"
   std::string specialization;              // which compiled variant ran
   std::string note;                        // e.g. why the first-bounce cache is off
