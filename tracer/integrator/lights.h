@@ -18,6 +18,9 @@ struct LightSample {
   vec3 n;     // its geometric normal
   vec3 le;    // radiance emitted towards the reference point (a delta light: its irradiance,
               // for a point light I / d^2)
+  // An area light's radiance on the side of its normal (with two-sided emission: on both), for
+  // manifold NEE, whose chains may reach the light from the side le was not evaluated for.
+  vec3 emitted = vec3(0.0f);
   float pdf;  // solid-angle pdf at the reference point, including the choice of light (a delta
               // light: the choice alone)
   uint32_t prim;
@@ -241,13 +244,14 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
     if (cos_l <= 0.0f || d2 <= 0.0f) return ls;
     ls.pdf = fast_div(select * d2, cos_l * light.area);
     const Material& lm = s.materials[material];
-    ls.le = material_emission(lm, glm::dot(ls.n, to_ref) > 0.0f);
+    ls.emitted = lm.emission;
     // The same textured radiance a path that hits this point sees (shade_path), or MIS breaks.
     // The light's selection power stays untextured: any positive power is unbiased.
     if ((F & kFeatureTextures) && lm.emissive_tex != kInvalid) {
       const vec2 uv = triangle_uv(s, light.prim, b.y, 1.0f - b.x - b.y);
-      ls.le *= vec3(lookup_texture(s, lm.emissive_tex, uv));
+      ls.emitted *= vec3(lookup_texture(s, lm.emissive_tex, uv));
     }
+    ls.le = material_emits(lm, glm::dot(ls.n, to_ref) > 0.0f) ? ls.emitted : vec3(0.0f);
   } else {
     const Sphere& sph = s.spheres[light.prim - s.tri_count];
     material = sph.material;
@@ -277,7 +281,7 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
       ls.n = f.to_world(vec3(sin_alpha * glm::cos(phi), sin_alpha * glm::sin(phi), cos_alpha));
       ls.p = sph.center + sph.radius * ls.n;
       ls.pdf = select / (2.0f * kPi * one_minus_cos_max);
-      ls.le = material_emission(s.materials[material], true);
+      ls.le = ls.emitted = material_emission(s.materials[material], true);
     } else {
       // Inside the sphere: sample its area uniformly; only its back face is visible.
       ls.n = sample_uniform_sphere(u);
@@ -287,7 +291,7 @@ TRACER_HD inline LightSample sample_chosen_light(const SceneView& s, uint32_t li
       const float cos_l = glm::abs(glm::dot(ls.n, to_ref)) / glm::sqrt(d2);
       if (cos_l <= 0.0f || d2 <= 0.0f) return ls;
       ls.pdf = select * d2 / (cos_l * light.area);
-      ls.le = material_emission(s.materials[material], false);
+      ls.le = ls.emitted = material_emission(s.materials[material], false);
     }
   }
   ls.valid = ls.pdf > 0.0f && is_finite(ls.pdf);

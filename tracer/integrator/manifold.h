@@ -5,11 +5,13 @@
 // refraction), found by Newton's method on the specular surfaces, and the generalized geometry
 // term that turns the light sample's area density into a density of directions at x.
 //
-// Used by path.h's mnee_chain, mnee_mirror and mnee_connect (render.mnee: the CPU and the
-// wavefront's caustic shade kernels). The
-// surfaces are the two analytic kinds the target scenes' casters are made of, a plane (a flat
-// face of a box or mesh) and a sphere; a mesh with interpolated normals needs its vertices moved
-// along the mesh (re-projected by a ray, as Hanika does).
+// Used by path.h's mnee_chain, mnee_sphere_chains, mnee_mirror and mnee_connect (render.mnee:
+// the CPU and the wavefront's mnee stage). The surfaces are the two analytic kinds the target
+// scenes' casters are made of, a plane (a flat face of a box or mesh) and a sphere; a mesh with
+// interpolated normals needs its vertices moved along the mesh (re-projected by a ray, as Hanika
+// does). Through one sphere the chains are found exactly instead (sphere_refraction_chains,
+// sphere_reflection_chain, at the end): Newton from one seed finds one chain of several, or none
+// near the sphere's rim, and what it misses stays BSDF sampling's noise.
 //
 // The constraint at vertex i with neighbours a (towards x) and b (towards y): with wi and wo the
 // unit directions to them and eta_i, eta_o the indices of refraction on their sides (1 and 1 for
@@ -315,6 +317,195 @@ TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y
     dw[axis] = (dp - glm::dot(dp, w0) * w0) / l0;
   }
   return glm::length(glm::cross(dw[0], dw[1]));
+}
+
+// Chains through one sphere, found exactly instead of by Newton from a seed. A path reflected or
+// refracted by a sphere stays in the plane of its two end points and the centre, so there the
+// chain is a function of one angle: the vertex on the circle where it meets the sphere first.
+// In that plane (origin at the centre, x's direction along +u, y on the side of +v):
+struct SpherePlane {
+  vec3 u = vec3(0.0f), v = vec3(0.0f);
+  vec2 x = vec2(0.0f), y = vec2(0.0f);
+};
+
+// False where x, y and the centre c are (nearly) in a line: the plane is not defined, and the
+// chains there form a ring of measure zero.
+TRACER_HD inline bool sphere_plane(vec3 c, vec3 x, vec3 y, SpherePlane& pl) {
+  const vec3 a = x - c, b = y - c;
+  const float la = glm::length(a);
+  if (!(la > 0.0f)) return false;
+  pl.u = a / la;
+  const vec3 w = b - glm::dot(b, pl.u) * pl.u;
+  const float lw = glm::length(w);
+  if (!(lw > 1e-5f * glm::length(b))) return false;
+  pl.v = w / lw;
+  pl.x = vec2(la, 0.0f);
+  pl.y = vec2(glm::dot(b, pl.u), lw);
+  return true;
+}
+
+TRACER_HD inline float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
+
+// Snell's refraction of unit direction d at unit normal n facing against it, eta the ratio of the
+// indices (incident over transmitted); false at total internal reflection.
+TRACER_HD inline bool refract2(vec2 d, vec2 n, float eta, vec2& t) {
+  const float ci = -glm::dot(d, n);
+  const float k = 1.0f - eta * eta * (1.0f - ci * ci);
+  if (!(k >= 0.0f)) return false;
+  t = eta * d + (eta * ci - glm::sqrt(k)) * n;
+  return true;
+}
+
+// The ray from x refracted into the sphere (radius r, index eta) and out again, by its angle of
+// incidence: (cos, sin) = ci (sin < 0: passing the centre on the -v side). By symmetry it leaves
+// along a line as far from the centre as it came in (b = r sin), turned towards the centre by
+// twice the angle between incidence and refraction. Returns the signed distance of y from that
+// line (zero at a chain) and the leaving direction; false where it leaves away from y.
+TRACER_HD inline bool sphere_refraction_miss(const SpherePlane& pl, float r, float eta, vec2 ci,
+                                             vec2& d, vec2& t, float& miss) {
+  const float b = r * ci.y;
+  const float sa = b / pl.x.x;  // the direction from x: (-cos a, sin a), b = cross2(x, d)
+  d = vec2(-glm::sqrt(glm::max(0.0f, 1.0f - sa * sa)), sa);
+  const float si = glm::abs(ci.y), st = si / eta, ct = glm::sqrt(1.0f - st * st);
+  const float c = ci.x * ct + si * st, s = si * ct - ci.x * st;  // the angle i - t
+  const vec2 towards = ci.y >= 0.0f ? vec2(-d.y, d.x) : vec2(d.y, -d.x);
+  t = (c * c - s * s) * d + (2.0f * s * c) * towards;
+  if (!(glm::dot(t, pl.y) > r * ci.x)) return false;  // y beyond the exit point
+  miss = cross2(pl.y, t) - b;
+  return true;
+}
+
+// The number of angles of incidence, over (-90, 90) degrees, where sphere_refraction_chains
+// looks for changes of sign, and for a fold of the caustic (a pair of chains between two angles:
+// the miss's extremum between them crossing zero). Chains it still misses stay BSDF sampling's
+// in manifold NEE's split.
+constexpr int kSphereScan = 16;
+// Bisection steps on a sign change before Newton's method (manifold_walk) takes over: the root
+// to within 1/256 of a scan step, where Newton converges in a step or two; and golden-section
+// steps that look for a fold's extremum.
+constexpr int kSphereBisections = 8;
+constexpr int kSphereFoldSteps = 10;
+
+// Every two-refraction chain from x to y through the sphere (centre c, radius r, index eta inside;
+// x and y outside): the sign changes of sphere_refraction_miss over the angles of incidence and
+// the folds' pairs, each narrowed by bisection. Calls found(chain) for each, its surfaces set, to
+// be polished by manifold_walk.
+template <typename Found>
+TRACER_HD inline void sphere_refraction_chains(vec3 c, float r, float eta, vec3 x, vec3 y,
+                                               Found&& found) {
+  SpherePlane pl;
+  if (!sphere_plane(c, x, y, pl) || !(pl.x.x > r) || !(glm::length(pl.y) > r)) return;
+  vec2 d, t;
+  auto miss_at = [&](float a, float& m) {
+    return sphere_refraction_miss(pl, r, eta, vec2(glm::cos(a), glm::sin(a)), d, t, m);
+  };
+  // The chain between angles a (miss m_a) and b, whose misses differ in sign.
+  auto root = [&](float a, float b, float m_a) {
+    float m;
+    for (int it = 0; it < kSphereBisections; ++it) {
+      const float mid = 0.5f * (a + b);
+      if (!miss_at(mid, m)) return;
+      if ((m > 0.0f) == (m_a > 0.0f)) {
+        a = mid;
+        m_a = m;
+      } else {
+        b = mid;
+      }
+    }
+    const float mid = 0.5f * (a + b);
+    if (!miss_at(mid, m)) return;
+    // The vertices: where the lines in and out meet the circle (at distance b from the centre).
+    const float dist = r * glm::sin(mid), half = r * glm::cos(mid);
+    const vec2 p1 = dist * vec2(d.y, -d.x) - half * d, p2 = dist * vec2(t.y, -t.x) + half * t;
+    ManifoldChain ch;
+    ch.k = 2;
+    for (int j = 0; j < 2; ++j) {
+      ch.surface[j].kind = SpecularSurface::kSphere;
+      ch.surface[j].a = c;
+      ch.surface[j].radius = r;
+      ch.surface[j].eta = eta;
+    }
+    ch.p[0] = c + p1.x * pl.u + p1.y * pl.v;
+    ch.p[1] = c + p2.x * pl.u + p2.y * pl.v;
+    found(ch);
+  };
+  // The scan's (cos, sin) of incidence by rotation, one step at a time (no trigonometry).
+  const float th = 0.5f * kPi * (1.0f - 1e-4f), step = 2.0f * th / float(kSphereScan);
+  const vec2 rot(glm::cos(step), glm::sin(step));
+  vec2 ci(glm::cos(th), -glm::sin(th));
+  float m1 = 0.0f, m2 = 0.0f;  // the misses one and two steps back
+  bool ok1 = false, ok2 = false;
+  for (int i = 0; i <= kSphereScan; ++i) {
+    const float a = -th + step * float(i);
+    float m;
+    const bool ok = sphere_refraction_miss(pl, r, eta, ci, d, t, m);
+    if (ok && ok1 && (m > 0.0f) != (m1 > 0.0f)) {
+      root(a - step, a, m1);
+    } else if (ok && ok1 && ok2 && (m > 0.0f) == (m1 > 0.0f) && (m1 > 0.0f) == (m2 > 0.0f) &&
+               (m1 > 0.0f ? m1 < glm::min(m, m2) : m1 > glm::max(m, m2))) {
+      // |miss| smallest one step back: a fold, if its extremum crosses zero. Golden section for
+      // the extremum of s * miss (s: the sign), then a root on either side.
+      const float sgn = m1 > 0.0f ? 1.0f : -1.0f, g = 0.381966f;
+      float lo = a - 2.0f * step, hi = a, x1 = lo + g * (hi - lo), x2 = hi - g * (hi - lo), f1, f2;
+      bool fine = miss_at(x1, f1) && miss_at(x2, f2);
+      for (int it = 0; it < kSphereFoldSteps && fine && sgn * f1 > 0.0f && sgn * f2 > 0.0f; ++it) {
+        if (sgn * f1 < sgn * f2) {
+          hi = x2;
+          x2 = x1;
+          f2 = f1;
+          x1 = lo + g * (hi - lo);
+          fine = miss_at(x1, f1);
+        } else {
+          lo = x1;
+          x1 = x2;
+          f1 = f2;
+          x2 = hi - g * (hi - lo);
+          fine = miss_at(x2, f2);
+        }
+      }
+      if (fine && (sgn * f1 <= 0.0f || sgn * f2 <= 0.0f)) {
+        const float xm = sgn * f1 <= sgn * f2 ? x1 : x2, fm = sgn * f1 <= sgn * f2 ? f1 : f2;
+        root(a - 2.0f * step, xm, m2);
+        root(xm, a, fm);
+      }
+    }
+    m2 = m1;
+    ok2 = ok1;
+    m1 = m;
+    ok1 = ok;
+    ci = vec2(ci.x * rot.x - ci.y * rot.y, ci.x * rot.y + ci.y * rot.x);
+  }
+}
+
+// The reflection off a mirror sphere (centre c, radius r) from x to y (both outside): on the arc
+// between the directions of x and y the normal halves the directions to x and y at exactly one
+// point, narrowed by bisection, to be polished by manifold_walk (which refuses it where x or y
+// does not see it).
+TRACER_HD inline bool sphere_reflection_chain(vec3 c, float r, vec3 x, vec3 y, ManifoldChain& ch) {
+  SpherePlane pl;
+  if (!sphere_plane(c, x, y, pl) || !(pl.x.x > r)) return false;
+  const float ly = glm::length(pl.y);
+  if (!(ly > r)) return false;
+  auto miss = [&](vec2 n) {
+    const vec2 p = r * n;
+    return cross2(n, glm::normalize(pl.x - p)) + cross2(n, glm::normalize(pl.y - p));
+  };
+  // Bisection on the arc from x's direction (miss >= 0) to y's (<= 0; y on the side of +v, so
+  // the arc is under pi), its midpoint the normalised sum of its ends.
+  vec2 lo(1.0f, 0.0f), hi = pl.y / ly;
+  for (int it = 0; it < kSphereBisections; ++it) {
+    const vec2 mid = glm::normalize(lo + hi);
+    if (miss(mid) > 0.0f) lo = mid;
+    else hi = mid;
+  }
+  const vec2 n = glm::normalize(lo + hi);
+  ch.k = 1;
+  ch.surface[0].kind = SpecularSurface::kSphere;
+  ch.surface[0].a = c;
+  ch.surface[0].radius = r;
+  ch.surface[0].eta = 0.0f;
+  ch.p[0] = c + r * (n.x * pl.u + n.y * pl.v);
+  return true;
 }
 
 }  // namespace tracer

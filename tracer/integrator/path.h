@@ -227,14 +227,21 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
 // Manifold next-event estimation (render.mnee; integrator/manifold.h): light reaches a
 // non-delta vertex through smooth glass, where a shadow ray is blocked by the glass and only a
 // BSDF-sampled path could find it. From the vertex's offset origin o (offset_ray_origin of the
-// point to its viewer's side) to a light point y on primitive light_prim (unit normal ny): the
-// smooth glass the straight segment meets first and the surface where the ray refracted there
-// leaves it (in and out of one piece of glass) seed the chain; Newton's method solves it; each of its segments must then be what a ray sees
-// (the next vertex, on the same material and surface, whose shading normal is the surface's:
-// no interpolated or mapped normals), and the last one free to the light, which must emit
-// towards both o and the chain. Returns the chain and its throughput (the two transmissions:
-// Fresnel, tint, the eta^2 of radiance, Beer-Lambert absorption inside). A function of (o, y)
-// alone, so that a BSDF-sampled path can ask whether this estimator covers it (shade_path).
+// point to its viewer's side) to a light point y on primitive light_prim (unit normal ny):
+// - mnee_chain, through flat glass (faces of meshes and boxes): the smooth glass the straight
+//   segment meets first and the surface where the ray refracted there leaves it (in and out of one
+//   piece of glass) seed the chain, and Newton's method solves it;
+// - mnee_sphere_chains, through each glass sphere: every chain, found in the plane of o, y and the
+//   centre (sphere_refraction_chains);
+// - mnee_mirror, off each mirror sphere: the one reflection (sphere_reflection_chain).
+// Each chain's segments must then be what a ray sees (mnee_check_chain), and the light must emit
+// towards its last vertex. Each is a function of (o, y) alone, so that a BSDF-sampled path can
+// ask whether this estimator covers it (mnee_covers).
+// Whether manifold NEE refracts through material m: smooth glass without textures.
+TRACER_HD inline bool mnee_glass(const Material& m) {
+  return m.type == MaterialType::kDielectric && m.roughness <= 0.0f && !m.has_textures();
+}
+
 // Manifold NEE's seed (Hanika et al.'s): the smooth glass that the ray r meets first (before its
 // tmax, skipping primitive `skip`) and where the ray refracted there leaves that glass again,
 // into the chain from vertex `first` on in the direction `step` (+1: o to y, -1: y to o).
@@ -248,22 +255,17 @@ TRACER_HD inline bool mnee_seed(const SceneView& s, Ray r, uint32_t skip, Manifo
     if (!h.valid()) return false;
     const SurfaceHit hs = make_surface_hit<F>(s, r, h);
     const Material& ms = s.materials[hs.material];
-    if (ms.type != MaterialType::kDielectric || ms.roughness > 0.0f || ms.has_textures())
-      return false;
+    if (!mnee_glass(ms)) return false;
     *glass = true;
+    // Glass spheres' chains are all found by mnee_sphere_chains instead.
+    if ((F & kFeatureSpheres) && !prim_is_triangle(s, h.prim) &&
+        h.prim - s.tri_count < s.sphere_count)
+      return false;
     const uint32_t i = uint32_t(int(first) + step * k);
     SpecularSurface& su = ch.surface[i];
-    if ((F & kFeatureSpheres) && !prim_is_triangle(s, h.prim) &&
-        h.prim - s.tri_count < s.sphere_count) {
-      const Sphere& sph = s.spheres[h.prim - s.tri_count];
-      su.kind = SpecularSurface::kSphere;
-      su.a = sph.center;
-      su.radius = sph.radius;
-    } else {  // a triangle (also of an instance): its plane
-      su.kind = SpecularSurface::kPlane;
-      su.a = hs.p;
-      su.n = hs.ng;
-    }
+    su.kind = SpecularSurface::kPlane;  // a triangle (also of an instance): its plane
+    su.a = hs.p;
+    su.n = hs.ng;
     su.eta = ms.ior;
     material[i] = hs.material;
     ch.p[i] = hs.p;
@@ -279,28 +281,30 @@ TRACER_HD inline bool mnee_seed(const SceneView& s, Ray r, uint32_t skip, Manifo
   return material[0] == material[1];  // in and out of one glass
 }
 
+// Whether the light at y (primitive light_prim, unit normal ny) emits towards q, the last vertex
+// of a chain from o: a one-sided light from its front only. A sphere light's point must also
+// face o, whose cone of the sphere is all that sample_light draws points from.
 template <uint32_t F>
-TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
-                                 ManifoldChain& ch, vec3& throughput) {
+TRACER_HD inline bool mnee_light_faces(const SceneView& s, uint32_t light_prim, vec3 y, vec3 ny,
+                                       vec3 o, vec3 q) {
+  const bool sphere = (F & kFeatureSpheres) && light_prim >= s.tri_count;  // as sample_light
+  const uint32_t material = sphere ? s.spheres[light_prim - s.tri_count].material
+                                   : s.tri_shading[light_prim].material;
+  return material_emits(s.materials[material], glm::dot(ny, q - y) > 0.0f) &&
+         (!sphere || glm::dot(ny, o - y) > 0.0f);
+}
+
+// A solved two-refraction chain from o to light point y (on light_prim, normal ny) must be what
+// rays see: each segment reaches the next vertex, on the same material (material[i]) and surface,
+// whose shading normal is the surface's (no interpolated or mapped normals), and the last one is
+// free to the light, which must emit towards the chain (mnee_light_faces). Its throughput: the two
+// transmissions as the BSDF weighs them (Fresnel, tint, the eta^2 of radiance, Beer-Lambert
+// absorption inside).
+template <uint32_t F>
+TRACER_HD inline bool mnee_check_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny,
+                                       uint32_t light_prim, const ManifoldChain& ch,
+                                       const uint32_t* material, vec3& throughput) {
   const float dist = glm::length(y - o);
-  if (!(dist > 0.0f)) return false;
-  uint32_t material[kManifoldMaxChain];
-  // Seeded from o's side; where glass is in the way but that fails (a way in through one face
-  // of a box that would leave through another by total internal reflection), from the light's.
-  Ray r;
-  r.o = o;
-  r.d = (y - o) / dist;
-  r.tmax = dist * (1.0f - 1e-4f);
-  r.pad = 0.0f;
-  bool glass;
-  bool solved = mnee_seed<F>(s, r, kInvalid, ch, material, 0, 1, &glass) && manifold_walk(ch, o, y);
-  if (!solved && glass) {
-    r.o = offset_ray_origin(y, glm::dot(ny, o - y) > 0.0f ? ny : -ny);
-    r.d = -r.d;
-    solved = mnee_seed<F>(s, r, light_prim, ch, material, 1, -1, &glass) && manifold_walk(ch, o, y);
-  }
-  if (!solved) return false;
-  // The solved chain must be what rays see.
   vec3 from = o;
   throughput = vec3(1.0f);
   for (uint32_t i = 0; i < ch.k; ++i) {
@@ -328,8 +332,7 @@ TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, ui
     throughput *= mi.albedo * ((1.0f - material_fresnel(mi, glm::abs(c), eta)) / (eta * eta));
     from = spawn_ray(hs.p, hs.ng, seg.d).o;
   }
-  const vec3 to_end = from - y;
-  if (!(glm::dot(ny, to_end) * glm::dot(ny, o - y) > 0.0f)) return false;  // the same face
+  if (!mnee_light_faces<F>(s, light_prim, y, ny, o, from)) return false;
   const Ray last = spawn_ray_to(from, glm::dot(y - from, ch.surface[1].normal(ch.p[1])) > 0.0f
                                           ? ch.surface[1].normal(ch.p[1])
                                           : -ch.surface[1].normal(ch.p[1]),
@@ -337,9 +340,50 @@ TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, ui
   return !intersect_any<F>(s, last, light_prim);
 }
 
-// Manifold NEE off mirror spheres: the spheres it tries (the first ones of the scene's list; a
-// scene of many spheres would pay a solve per sphere at every vertex).
-constexpr uint32_t kMneeMaxMirrorSpheres = 16;
+template <uint32_t F>
+TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
+                                 ManifoldChain& ch, vec3& throughput) {
+  const float dist = glm::length(y - o);
+  if (!(dist > 0.0f)) return false;
+  uint32_t material[kManifoldMaxChain];
+  // Seeded from o's side; where glass is in the way but that fails (a way in through one face
+  // of a box that would leave through another by total internal reflection), from the light's.
+  Ray r;
+  r.o = o;
+  r.d = (y - o) / dist;
+  r.tmax = dist * (1.0f - 1e-4f);
+  r.pad = 0.0f;
+  bool glass;
+  bool solved = mnee_seed<F>(s, r, kInvalid, ch, material, 0, 1, &glass) && manifold_walk(ch, o, y);
+  if (!solved && glass) {
+    r.o = offset_ray_origin(y, glm::dot(ny, o - y) > 0.0f ? ny : -ny);
+    r.d = -r.d;
+    solved = mnee_seed<F>(s, r, light_prim, ch, material, 1, -1, &glass) && manifold_walk(ch, o, y);
+  }
+  return solved && mnee_check_chain<F>(s, o, y, ny, light_prim, ch, material, throughput);
+}
+
+// Manifold NEE through glass spheres and off mirror spheres: the spheres it tries (the first ones
+// of the scene's list; a scene of many spheres would pay a solve per sphere at every vertex).
+constexpr uint32_t kMneeMaxSpheres = 16;
+
+// Every two-refraction chain from o to light point y (on light_prim, normal ny) through glass
+// sphere `sphere` (its index in s.spheres): all that sphere_refraction_chains finds in the plane
+// of o, y and the centre, polished by Newton in 3D and checked by mnee_check_chain. Calls
+// found(chain, throughput) for each.
+template <uint32_t F, typename Found>
+TRACER_HD inline void mnee_sphere_chains(const SceneView& s, vec3 o, vec3 y, vec3 ny,
+                                         uint32_t light_prim, uint32_t sphere, Found&& found) {
+  const Sphere& sph = s.spheres[sphere];
+  const uint32_t material[kManifoldMaxChain] = {sph.material, sph.material};
+  sphere_refraction_chains(sph.center, sph.radius, s.materials[sph.material].ior, o, y,
+                           [&](ManifoldChain& ch) {
+                             vec3 tr;
+                             if (manifold_walk(ch, o, y) &&
+                                 mnee_check_chain<F>(s, o, y, ny, light_prim, ch, material, tr))
+                               found(ch, tr);
+                           });
+}
 
 // The reflectance of a smooth reflector (a mirror, a smooth conductor) at cosine c, or 0 for a
 // material manifold NEE does not reflect off.
@@ -352,22 +396,15 @@ TRACER_HD inline vec3 mnee_mirror_reflectance(const Material& m, float c) {
 }
 
 // The chain from o to light point y (on light_prim, normal ny) by one reflection off sphere
-// `sphere` (its index in s.spheres), as mnee_chain's: seeded where the sphere's normal halves the
-// directions to o and y, solved, checked with rays (the sphere seen first from o at the vertex,
-// the light free from it and emitting towards both), and weighed by the reflectance.
+// `sphere` (its index in s.spheres): the one reflection point sphere_reflection_chain finds,
+// polished by Newton in 3D, checked with rays (the sphere seen first from o at the vertex, the
+// light free from it and emitting towards it), and weighed by the reflectance.
 template <uint32_t F>
 TRACER_HD inline bool mnee_mirror(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
                                   uint32_t sphere, ManifoldChain& ch, vec3& throughput) {
   const Sphere& sph = s.spheres[sphere];
-  ch.k = 1;
-  ch.surface[0].kind = SpecularSurface::kSphere;
-  ch.surface[0].a = sph.center;
-  ch.surface[0].radius = sph.radius;
-  ch.surface[0].eta = 0.0f;
-  const vec3 half = glm::normalize(o - sph.center) + glm::normalize(y - sph.center);
-  if (!(glm::dot(half, half) > 1e-12f)) return false;
-  ch.p[0] = sph.center + sph.radius * glm::normalize(half);
-  if (!manifold_walk(ch, o, y)) return false;
+  if (!sphere_reflection_chain(sph.center, sph.radius, o, y, ch) || !manifold_walk(ch, o, y))
+    return false;
   const vec3 d = ch.p[0] - o;
   const float len = glm::length(d);
   if (!(len > 0.0f)) return false;
@@ -383,7 +420,7 @@ TRACER_HD inline bool mnee_mirror(const SceneView& s, vec3 o, vec3 y, vec3 ny, u
   const vec3 n = ch.surface[0].normal(ch.p[0]);
   throughput = mnee_mirror_reflectance(s.materials[sph.material], glm::dot(-seg.d, n));
   if (is_black(throughput)) return false;
-  if (!(glm::dot(ny, ch.p[0] - y) * glm::dot(ny, o - y) > 0.0f)) return false;  // the same face
+  if (!mnee_light_faces<F>(s, light_prim, y, ny, o, ch.p[0])) return false;
   return !intersect_any<F>(s, spawn_ray_to(ch.p[0], n, y, ny), light_prim);
 }
 
@@ -412,11 +449,15 @@ TRACER_HD inline vec3 mnee_connect(const SceneView& s, vec3 p, vec3 o, const Mat
   vec3 tr;
   if (segments >= 3 && mnee_chain<F>(s, o, ls.p, ls.n, ls.prim, ch, tr)) add(ch, tr);
   if ((F & kFeatureSpheres) && segments >= 2) {
-    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxMirrorSpheres);
-    for (uint32_t i = 0; i < spheres; ++i)
-      if (!is_black(mnee_mirror_reflectance(s.materials[s.spheres[i].material], 1.0f)) &&
-          mnee_mirror<F>(s, o, ls.p, ls.n, ls.prim, i, ch, tr))
+    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
+    for (uint32_t i = 0; i < spheres; ++i) {
+      const Material& mi = s.materials[s.spheres[i].material];
+      if (segments >= 3 && mnee_glass(mi))
+        mnee_sphere_chains<F>(s, o, ls.p, ls.n, ls.prim, i, add);
+      else if (!is_black(mnee_mirror_reflectance(mi, 1.0f)) &&
+               mnee_mirror<F>(s, o, ls.p, ls.n, ls.prim, i, ch, tr))
         add(ch, tr);
+    }
   }
   const vec3 c = sum * ls.le;
   return is_finite(c) ? c : vec3(0.0f);
@@ -436,14 +477,23 @@ TRACER_HD inline bool mnee_covers(const SceneView& s, const IntegratorSettings& 
   vec3 tr;
   const float tol = 1e-3f * glm::length(p - from_o);
   bool found = false;
-  if (!mirror) {
+  // The sphere the segment left, if any (of those manifold NEE tries).
+  uint32_t sphere = kInvalid;
+  if (F & kFeatureSpheres) {
+    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
+    for (uint32_t i = 0; i < spheres && sphere == kInvalid; ++i)
+      if (glm::abs(glm::length(seg_o - s.spheres[i].center) - s.spheres[i].radius) <= tol)
+        sphere = i;
+  }
+  if (mirror) {
+    found = sphere != kInvalid && mnee_mirror<F>(s, from_o, p, ng, prim, sphere, ch, tr) &&
+            glm::length(ch.p[0] - seg_o) <= tol;
+  } else if (sphere != kInvalid && mnee_glass(s.materials[s.spheres[sphere].material])) {
+    mnee_sphere_chains<F>(s, from_o, p, ng, prim, sphere, [&](const ManifoldChain& c, vec3) {
+      found = found || glm::length(c.p[1] - seg_o) <= tol;
+    });
+  } else {
     found = mnee_chain<F>(s, from_o, p, ng, prim, ch, tr) && glm::length(ch.p[1] - seg_o) <= tol;
-  } else if (F & kFeatureSpheres) {  // the mirror sphere the segment left
-    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxMirrorSpheres);
-    for (uint32_t i = 0; i < spheres && !found; ++i)
-      found = glm::abs(glm::length(seg_o - s.spheres[i].center) - s.spheres[i].radius) <= tol &&
-              mnee_mirror<F>(s, from_o, p, ng, prim, i, ch, tr) &&
-              glm::length(ch.p[0] - seg_o) <= tol;
   }
   if (!found) return false;
   const bool tree =
@@ -667,7 +717,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     const LightContext ctx = light_tree ? vertex_light_context(sh.p, ng_viewer, normal_code)
                                         : LightContext{sh.p, ng_viewer};
     const LightSample ls = sample_light_2d<F>(s, cfg.light_sampler, ctx, sh.p, sh.ng, u.light());
-    if (ls.valid && !is_black(ls.le)) {
+    if (ls.valid && !is_black(ls.le)) {  // (manifold NEE's below also where ls.le is 0)
       // A light at infinity gives a direction; the others a point (point and spot lights: their
       // position, whose shadow ray ends just short of it, as an area light's).
       const bool at_infinity = (F & kFeatureInfiniteLights) && ls.infinite;
@@ -700,27 +750,30 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           shadow.valid = shadow.ray.tmax > 0.0f && is_finite(shadow.contribution);
         }
       }
-      // Manifold NEE: the same light point through the glass the shadow ray may cross and off
-      // mirror spheres (paths of 3 and 2 more segments, within max_depth as the BSDF's would
-      // have to be).
-      if ((F & kFeatureCaustics) && cfg.mnee && !ls.infinite && !ls.delta &&
-          st.depth + 2 <= cfg.max_depth) {
-        if (kDeferMnee) {
-          mnee->connect = true;
-          mnee->depth = st.depth;
-          mnee->p = sh.p;
-          mnee->ng_viewer = ng_viewer;
-          mnee->frame_n = frame.n;
-          mnee->wo = wo;
-          mnee->m = m;
-          mnee->ls = ls;
-          mnee->ls.le = st.throughput * ls.le;
-          mnee->segments = cfg.max_depth - st.depth;
-        } else {
-          st.radiance +=
-              st.throughput * mnee_connect<F>(s, sh.p, offset_ray_origin(sh.p, ng_viewer), m,
-                                              frame, wo, ng_viewer, ls, cfg.max_depth - st.depth);
-        }
+    }
+    // Manifold NEE: the same light point through the glass the shadow ray may cross and off
+    // mirror spheres (paths of 3 and 2 more segments, within max_depth as the BSDF's would have
+    // to be), with the light's radiance towards the chain: also from behind a one-sided light,
+    // which the chain may reach from its front (a ceiling lit by the light's image in a ball).
+    if ((F & kFeatureCaustics) && cfg.mnee && ls.valid && !ls.infinite && !ls.delta &&
+        !is_black(ls.emitted) && st.depth + 2 <= cfg.max_depth) {
+      if (kDeferMnee) {
+        mnee->connect = true;
+        mnee->depth = st.depth;
+        mnee->p = sh.p;
+        mnee->ng_viewer = ng_viewer;
+        mnee->frame_n = frame.n;
+        mnee->wo = wo;
+        mnee->m = m;
+        mnee->ls = ls;
+        mnee->ls.le = st.throughput * ls.emitted;
+        mnee->segments = cfg.max_depth - st.depth;
+      } else {
+        LightSample front = ls;
+        front.le = ls.emitted;
+        st.radiance += st.throughput * mnee_connect<F>(s, sh.p, offset_ray_origin(sh.p, ng_viewer),
+                                                       m, frame, wo, ng_viewer, front,
+                                                       cfg.max_depth - st.depth);
       }
     }
   }

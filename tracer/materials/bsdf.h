@@ -514,10 +514,14 @@ TRACER_HD inline BsdfSample bsdf_sample(const Material& m, vec3 wo, vec2 u, floa
   return s;
 }
 
-// Radiance emitted towards a viewer on the `front` side (geometric normal side) or behind it.
+// Whether m emits towards a viewer on the `front` side (geometric normal side) or behind it, and
+// the radiance it emits there.
+TRACER_HD TRACER_INLINE bool material_emits(const Material& m, bool front) {
+  return front || (m.flags & kMaterialTwoSidedEmission);
+}
+
 TRACER_HD TRACER_INLINE vec3 material_emission(const Material& m, bool front) {
-  if (front || (m.flags & kMaterialTwoSidedEmission)) return m.emission;
-  return vec3(0.0f);
+  return material_emits(m, front) ? m.emission : vec3(0.0f);
 }
 
 }  // namespace tracer
