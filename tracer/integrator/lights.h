@@ -19,8 +19,9 @@ struct LightSample {
   vec3 le;    // radiance emitted towards the reference point (a delta light: its irradiance,
               // for a point light I / d^2)
   // An area light's radiance on the side of its normal (with two-sided emission: on both), for
-  // manifold NEE, whose chains may reach the light from the side le was not evaluated for.
-  vec3 emitted = vec3(0.0f);
+  // manifold NEE, whose chains may reach the light from the side le was not evaluated for. Set
+  // by the area lights' samples only (no initializer: the struct stays trivial for the GPU).
+  vec3 emitted;
   float pdf;  // solid-angle pdf at the reference point, including the choice of light (a delta
               // light: the choice alone)
   uint32_t prim;
