@@ -237,6 +237,7 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
 // Each chain's segments must then be what a ray sees (mnee_check_chain), and the light must emit
 // towards its last vertex. Each is a function of (o, y) alone, so that a BSDF-sampled path can
 // ask whether this estimator covers it (mnee_covers).
+
 // Whether manifold NEE refracts through material m: smooth glass without textures.
 TRACER_HD inline bool mnee_glass(const Material& m) {
   return m.type == MaterialType::kDielectric && m.roughness <= 0.0f && !m.has_textures();
