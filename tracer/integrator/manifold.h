@@ -321,8 +321,9 @@ TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y
 
 // Chains through one sphere, found exactly instead of by Newton from a seed. A path reflected or
 // refracted by a sphere stays in the plane of its two end points and the centre, so there the
-// chain is a function of one angle: the vertex on the circle where it meets the sphere first.
-// In that plane (origin at the centre, x's direction along +u, y on the side of +v):
+// chain is a function of one angle (of incidence for a refraction, of the reflection point's
+// normal for a mirror), and its roots can all be looked for. In that plane (origin at the centre,
+// x's direction along +u, y on the side of +v):
 struct SpherePlane {
   vec3 u = vec3(0.0f), v = vec3(0.0f);
   vec2 x = vec2(0.0f), y = vec2(0.0f);
@@ -345,16 +346,6 @@ TRACER_HD inline bool sphere_plane(vec3 c, vec3 x, vec3 y, SpherePlane& pl) {
 }
 
 TRACER_HD inline float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
-
-// Snell's refraction of unit direction d at unit normal n facing against it, eta the ratio of the
-// indices (incident over transmitted); false at total internal reflection.
-TRACER_HD inline bool refract2(vec2 d, vec2 n, float eta, vec2& t) {
-  const float ci = -glm::dot(d, n);
-  const float k = 1.0f - eta * eta * (1.0f - ci * ci);
-  if (!(k >= 0.0f)) return false;
-  t = eta * d + (eta * ci - glm::sqrt(k)) * n;
-  return true;
-}
 
 // The ray from x refracted into the sphere (radius r, index eta) and out again, by its angle of
 // incidence: (cos, sin) = ci (sin < 0: passing the centre on the -v side). By symmetry it leaves
