@@ -327,6 +327,43 @@ TEST(Manifold, SphereChainsAreTheForwardTracedOnes) {
   EXPECT_GE(matched, int(0.99 * expected));
 }
 
+// Degenerate and extreme input: an end at the centre, inside the ball or on its surface, the ends
+// and the centre in a line, an index below 1 (a bubble: reflected at grazing entry), a tiny or a
+// far ball. Nothing crashes, and every chain found is finite and joins its ends by Snell's law.
+TEST(Manifold, SphereChainsSurviveDegenerateInput) {
+  struct Case {
+    vec3 c;
+    float r, eta;
+    vec3 x, y;
+  };
+  const Case cases[] = {
+      {vec3(0.0f), 1.0f, 1.5f, vec3(0.0f), vec3(0.0f, 0.0f, 3.0f)},            // x at the centre
+      {vec3(0.0f), 1.0f, 1.5f, vec3(0.2f, 0.1f, 0.0f), vec3(0.0f, 0.0f, 3.0f)},  // x inside
+      {vec3(0.0f), 1.0f, 1.5f, vec3(1.0f, 0.0f, 0.0f), vec3(0.0f, 0.0f, 3.0f)},  // x on it
+      {vec3(0.0f), 1.0f, 1.5f, vec3(0.0f, 0.0f, -3.0f), vec3(0.0f, 0.0f, 3.0f)}, // in a line
+      {vec3(0.0f), 1.0f, 0.75f, vec3(0.3f, 0.0f, -3.0f), vec3(0.0f, 0.2f, 3.0f)},  // a bubble
+      {vec3(0.0f), 1e-6f, 1.5f, vec3(0.3f, 0.0f, -3.0f), vec3(0.0f, 0.2f, 3.0f)},  // tiny
+      {vec3(1e6f, -1e6f, 5e5f), 10.0f, 1.5f, vec3(1e6f + 30.0f, -1e6f, 5e5f),
+       vec3(1e6f - 40.0f, -1e6f + 5.0f, 5e5f)},                                  // far away
+      {vec3(0.0f), 1.0f, 1.5f, vec3(0.3f, 0.0f, -3.0f), vec3(NAN, 0.0f, 3.0f)},  // NaN
+  };
+  int chains = 0;
+  for (const Case& k : cases) {
+    sphere_refraction_chains(k.c, k.r, k.eta, k.x, k.y, [&](ManifoldChain& ch) {
+      if (!manifold_walk(ch, k.x, k.y)) return;
+      ++chains;
+      float cv[4];
+      ASSERT_TRUE(manifold_constraints(ch, k.x, k.y, cv));
+      EXPECT_LE(manifold_norm(cv, 4), kManifoldAccept);
+      for (int i = 0; i < 2; ++i) EXPECT_TRUE(std::isfinite(ch.p[i].x + ch.p[i].y + ch.p[i].z));
+    });
+    ManifoldChain ch;
+    if (sphere_reflection_chain(k.c, k.r, k.x, k.y, ch) && manifold_walk(ch, k.x, k.y))
+      EXPECT_TRUE(std::isfinite(ch.p[0].x + ch.p[0].y + ch.p[0].z));
+  }
+  std::printf("  %d chains among the degenerate cases\n", chains);
+}
+
 // sphere_reflection_chain finds the reflection off a mirror ball between two points that both see
 // it, by the law of reflection checked with forward tracing, and where both see the ball.
 TEST(Manifold, SphereReflectionIsTheForwardTracedOne) {

@@ -357,7 +357,9 @@ TRACER_HD inline bool sphere_refraction_miss(const SpherePlane& pl, float r, flo
   const float b = r * ci.y;
   const float sa = b / pl.x.x;  // the direction from x: (-cos a, sin a), b = cross2(x, d)
   d = vec2(-glm::sqrt(glm::max(0.0f, 1.0f - sa * sa)), sa);
-  const float si = glm::abs(ci.y), st = si / eta, ct = glm::sqrt(1.0f - st * st);
+  const float si = glm::abs(ci.y), st = si / eta;
+  if (!(st < 1.0f)) return false;  // reflected, not refracted, into a sphere of index below 1
+  const float ct = glm::sqrt(1.0f - st * st);
   const float c = ci.x * ct + si * st, s = si * ct - ci.x * st;  // the angle i - t
   const vec2 towards = ci.y >= 0.0f ? vec2(-d.y, d.x) : vec2(d.y, -d.x);
   t = (c * c - s * s) * d + (2.0f * s * c) * towards;
