@@ -46,11 +46,11 @@ void seed_on_line(ManifoldChain& ch, vec3 x, vec3 y) {
   }
 }
 
-// Forward tracing: from x along d through the chain's surfaces (intersected in order, each
-// reflecting or refracting), to the plane z = light_z; false where a surface is missed or light is
-// totally reflected.
-bool trace_forward(const ManifoldChain& ch, vec3 x, vec3 d, float light_z, vec3* hit) {
-  vec3 o = x;
+// Forward tracing: from o along d through the chain's surfaces (intersected in order, each
+// reflecting or refracting), leaving o at the last one and d the direction it leaves in; false
+// where a surface is missed or light is totally reflected. A hit nearer than min_t is the surface
+// the ray starts on.
+bool trace_chain(const ManifoldChain& ch, vec3& o, vec3& d, double min_t) {
   for (uint32_t i = 0; i < ch.k; ++i) {
     const SpecularSurface& s = ch.surface[i];
     double t;
@@ -62,9 +62,9 @@ bool trace_forward(const ManifoldChain& ch, vec3 x, vec3 d, float light_z, vec3*
       const double disc = b * b - c;
       if (disc < 0) return false;
       t = -b - std::sqrt(disc);
-      if (t <= 1e-6) t = -b + std::sqrt(disc);
+      if (t <= min_t) t = -b + std::sqrt(disc);
     }
-    if (!(t > 1e-6)) return false;
+    if (!(t > min_t)) return false;
     o = o + float(t) * d;
     vec3 n = s.normal(o);
     if (s.eta == 0.0f) {
@@ -78,7 +78,13 @@ bool trace_forward(const ManifoldChain& ch, vec3 x, vec3 d, float light_z, vec3*
       d = glm::normalize(r);
     }
   }
-  if (!(d.z != 0.0f)) return false;
+  return true;
+}
+
+// trace_chain from x along d, on to the plane z = light_z.
+bool trace_forward(const ManifoldChain& ch, vec3 x, vec3 d, float light_z, vec3* hit) {
+  vec3 o = x;
+  if (!trace_chain(ch, o, d, 1e-6) || !(d.z != 0.0f)) return false;
   const float t = (light_z - o.z) / d.z;
   if (!(t > 0.0f)) return false;
   *hit = o + t * d;
@@ -239,24 +245,7 @@ vec3 random_direction(Pcg32& rng) {
 // distance of y from the leaving line, and whether y lies ahead on it.
 float forward_miss(const ManifoldChain& ch, vec3 x, vec3 y) {
   vec3 o = x, d = glm::normalize(ch.p[0] - x);
-  for (uint32_t i = 0; i < ch.k; ++i) {
-    const SpecularSurface& su = ch.surface[i];
-    const vec3 oc = o - su.a;
-    const float b = glm::dot(oc, d), c = glm::dot(oc, oc) - su.radius * su.radius;
-    const float disc = b * b - c;
-    if (disc < 0.0f) return 1e30f;
-    float t = -b - std::sqrt(disc);
-    if (t <= 1e-5f) t = -b + std::sqrt(disc);
-    o += t * d;
-    const vec3 n = su.normal(o);
-    if (su.eta == 0.0f) {
-      d = glm::reflect(d, n);
-    } else {
-      const bool entering = glm::dot(d, n) < 0.0f;
-      d = glm::normalize(glm::refract(d, entering ? n : -n, entering ? 1.0f / su.eta : su.eta));
-    }
-  }
-  if (!(glm::dot(y - o, d) > 0.0f)) return 1e30f;
+  if (!trace_chain(ch, o, d, 1e-5) || !(glm::dot(y - o, d) > 0.0f)) return 1e30f;
   return glm::length(glm::cross(y - o, d));
 }
 
