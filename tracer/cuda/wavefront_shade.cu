@@ -138,7 +138,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
       st.mnee_normal = __float_as_uint(m.w);
     }
     const Hit hit = load_hit(w, ri);
-    go_on = shade_path<features_of<Spec>(), kCaustics>(s, cfg, st, hit, sr, &mq);
+    go_on = shade_path<features_of<Spec>()>(s, cfg, st, hit, sr, &mq);
     mnee_asks = kCaustics && (mq.connect || mq.partition);
     if (mnee_asks) store_mnee_request(w, id, mq);  // at its id: mq's registers free from here
     store_path(w, id, st);

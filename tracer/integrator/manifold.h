@@ -5,7 +5,7 @@
 // refraction), found by Newton's method on the specular surfaces, and the generalized geometry
 // term that turns the light sample's area density into a density of directions at x.
 //
-// Used by path.h's mnee_chain, mnee_sphere_chains, mnee_mirror and mnee_connect (render.mnee:
+// Used by path.h's mnee_chain, mnee_sphere_chains, mnee_mirror and mnee_resolve (render.mnee:
 // the CPU and the wavefront's mnee stage). The surfaces are the two analytic kinds the target
 // scenes' casters are made of, a plane (a flat face of a box or mesh) and a sphere; a mesh with
 // interpolated normals needs its vertices moved along the mesh (re-projected by a ray, as Hanika
@@ -271,6 +271,9 @@ TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y) {
         // Close enough and no longer converging fast: float's rounding has the rest.
         if (norm <= kManifoldAccept && norm > 0.25f * before) return true;
       }
+      // Already acceptable: a full step that does not lower |C| meets float's rounding, which
+      // shorter steps do not beat either.
+      if (!improved && norm <= kManifoldAccept) return true;
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
@@ -430,7 +433,7 @@ TRACER_HD inline void sphere_refraction_chains(vec3 c, float r, float eta, vec3 
   bool ok1 = false, ok2 = false;
   for (int i = 0; i <= kSphereScan; ++i) {
     const float a = -th + step * float(i);
-    float m;
+    float m = 0.0f;
     const bool ok = sphere_refraction_miss(pl, r, eta, ci, d, t, m);
     if (ok && ok1 && (m > 0.0f) != (m1 > 0.0f)) {
       root(a - step, a, m1);

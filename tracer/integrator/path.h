@@ -236,7 +236,7 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
 // - mnee_mirror, off each mirror sphere: the one reflection (sphere_reflection_chain).
 // Each chain's segments must then be what a ray sees (mnee_check_chain), and the light must emit
 // towards its last vertex. Each is a function of (o, y) alone, so that a BSDF-sampled path can
-// ask whether this estimator covers it (mnee_covers).
+// ask whether this estimator covers it (mnee_resolve's partition).
 
 // Whether manifold NEE refracts through material m: smooth glass without textures.
 TRACER_HD inline bool mnee_glass(const Material& m) {
@@ -349,19 +349,25 @@ TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, ui
   uint32_t material[kManifoldMaxChain];
   // Seeded from o's side; where glass is in the way but that fails (a way in through one face
   // of a box that would leave through another by total internal reflection), from the light's.
+  // One loop for both seeds: on the GPU one copy of the seed's rays and of Newton's method.
   Ray r;
   r.o = o;
   r.d = (y - o) / dist;
   r.tmax = dist * (1.0f - 1e-4f);
   r.pad = 0.0f;
-  bool glass;
-  bool solved = mnee_seed<F>(s, r, kInvalid, ch, material, 0, 1, &glass) && manifold_walk(ch, o, y);
-  if (!solved && glass) {
-    r.o = offset_ray_origin(y, glm::dot(ny, o - y) > 0.0f ? ny : -ny);
-    r.d = -r.d;
-    solved = mnee_seed<F>(s, r, light_prim, ch, material, 1, -1, &glass) && manifold_walk(ch, o, y);
+  for (int side = 0; side < 2; ++side) {
+    if (side == 1) {
+      r.o = offset_ray_origin(y, glm::dot(ny, o - y) > 0.0f ? ny : -ny);
+      r.d = -r.d;
+    }
+    bool glass;
+    if (mnee_seed<F>(s, r, side == 0 ? kInvalid : light_prim, ch, material, side, side ? -1 : 1,
+                     &glass) &&
+        manifold_walk(ch, o, y))
+      return mnee_check_chain<F>(s, o, y, ny, light_prim, ch, material, throughput);
+    if (!glass) return false;
   }
-  return solved && mnee_check_chain<F>(s, o, y, ny, light_prim, ch, material, throughput);
+  return false;
 }
 
 // Manifold NEE through glass spheres and off mirror spheres: the spheres it tries (the first ones
@@ -425,115 +431,130 @@ TRACER_HD inline bool mnee_mirror(const SceneView& s, vec3 o, vec3 y, vec3 ny, u
   return !intersect_any<F>(s, spawn_ray_to(ch.p[0], n, y, ny), light_prim);
 }
 
-// Manifold NEE's contribution at vertex p (offset origin o; BSDF m in `frame`, viewer direction
-// wo, the viewer's side ng_viewer) for light sample ls (sampled from p): through glass where
-// mnee_chain joins o and the light point (within `segments` of the depth limit: 3), and off each
-// mirror sphere mnee_mirror reflects it from (2). The light's solid-angle density at p becomes a
-// density of area.
-template <uint32_t F>
-TRACER_HD inline vec3 mnee_connect(const SceneView& s, vec3 p, vec3 o, const Material& m,
-                                   const Frame& frame, vec3 wo, vec3 ng_viewer,
-                                   const LightSample& ls, uint32_t segments) {
-  const float d2 = glm::dot(ls.p - p, ls.p - p);
-  const float area_pdf = ls.pdf * glm::abs(glm::dot(ls.n, p - ls.p)) / (d2 * glm::sqrt(d2));
-  if (!(area_pdf > 0.0f)) return vec3(0.0f);
-  vec3 sum(0.0f);
-  // One chain's share: the BSDF towards its first vertex, its throughput, its geometry term.
-  auto add = [&](const ManifoldChain& ch, vec3 tr) {
-    const vec3 w1 = glm::normalize(ch.p[0] - o);
-    if (!(glm::dot(w1, ng_viewer) > 0.0f)) return;
-    const vec3 wi = frame.to_local(w1);
-    const float g = manifold_geometry(ch, o, ls.p, ls.n);
-    if (g > 0.0f) sum += bsdf_eval<F>(m, wo, wi) * glm::abs(wi.z) * tr * (g / area_pdf);
-  };
+// Which casters mnee_chains solves: every one it tries, or the one a BSDF-sampled path left
+// (mnee_resolve's partition): flat glass, or one sphere (its index in s.spheres).
+constexpr uint32_t kMneeEveryCaster = kInvalid;
+constexpr uint32_t kMneeFlatGlass = kInvalid - 1;
+constexpr uint32_t kMneeNoCaster = kInvalid - 2;
+
+// Every chain manifold NEE finds from o to light point y (on light_prim, unit normal ny) within
+// `segments` of the depth limit, of the casters `only` names: through flat glass (mnee_chain,
+// 3 segments), through each glass sphere (mnee_sphere_chains, 3) and off each mirror sphere
+// (mnee_mirror, 2) of the first kMneeMaxSpheres. Calls found(chain, throughput) for each.
+template <uint32_t F, typename Found>
+TRACER_HD inline void mnee_chains(const SceneView& s, vec3 o, vec3 y, vec3 ny,
+                                  uint32_t light_prim, uint32_t segments, uint32_t only,
+                                  Found&& found) {
   ManifoldChain ch;
   vec3 tr;
-  if (segments >= 3 && mnee_chain<F>(s, o, ls.p, ls.n, ls.prim, ch, tr)) add(ch, tr);
-  if ((F & kFeatureSpheres) && segments >= 2) {
-    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
-    for (uint32_t i = 0; i < spheres; ++i) {
-      const Material& mi = s.materials[s.spheres[i].material];
-      if (segments >= 3 && mnee_glass(mi))
-        mnee_sphere_chains<F>(s, o, ls.p, ls.n, ls.prim, i, add);
-      else if (!is_black(mnee_mirror_reflectance(mi, 1.0f)) &&
-               mnee_mirror<F>(s, o, ls.p, ls.n, ls.prim, i, ch, tr))
-        add(ch, tr);
-    }
+  if (segments >= 3 && (only == kMneeEveryCaster || only == kMneeFlatGlass) &&
+      mnee_chain<F>(s, o, y, ny, light_prim, ch, tr))
+    found(ch, tr);
+  if (!(F & kFeatureSpheres) || segments < 2) return;
+  const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
+  for (uint32_t i = 0; i < spheres; ++i) {
+    if (only != kMneeEveryCaster && only != i) continue;
+    const Material& mi = s.materials[s.spheres[i].material];
+    if (segments >= 3 && mnee_glass(mi))
+      mnee_sphere_chains<F>(s, o, y, ny, light_prim, i, found);
+    else if (!is_black(mnee_mirror_reflectance(mi, 1.0f)) &&
+             mnee_mirror<F>(s, o, y, ny, light_prim, i, ch, tr))
+      found(ch, tr);
   }
-  const vec3 c = sum * ls.le;
-  return is_finite(c) ? c : vec3(0.0f);
 }
 
-// Whether manifold NEE from the vertex whose offset origin is from_o (its normal's light-tree
-// code from_normal) finds the path that reached light point p (primitive prim, geometric normal
-// ng) through the segment leaving seg_o: through glass (two refractions), or with `mirror` off
-// a mirror sphere; and whether it could have chosen that light there. Emission found so is
-// manifold NEE's to count, and BSDF sampling drops it (shade_path). light: the light the
-// primitive belongs to (SurfaceHit::light).
-template <uint32_t F>
-TRACER_HD inline bool mnee_covers(const SceneView& s, const IntegratorSettings& cfg, vec3 from_o,
-                                  uint32_t from_normal, vec3 p, vec3 ng, uint32_t prim,
-                                  uint32_t light, vec3 seg_o, bool mirror) {
-  ManifoldChain ch;
-  vec3 tr;
-  const float tol = 1e-3f * glm::length(p - from_o);
-  bool found = false;
-  // The sphere the segment left, if any (of those manifold NEE tries).
-  uint32_t sphere = kInvalid;
-  if (F & kFeatureSpheres) {
-    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
-    for (uint32_t i = 0; i < spheres && sphere == kInvalid; ++i)
-      if (glm::abs(glm::length(seg_o - s.spheres[i].center) - s.spheres[i].radius) <= tol)
-        sphere = i;
-  }
-  if (mirror) {
-    found = sphere != kInvalid && mnee_mirror<F>(s, from_o, p, ng, prim, sphere, ch, tr) &&
-            glm::length(ch.p[0] - seg_o) <= tol;
-  } else if (sphere != kInvalid && mnee_glass(s.materials[s.spheres[sphere].material])) {
-    mnee_sphere_chains<F>(s, from_o, p, ng, prim, sphere, [&](const ManifoldChain& c, vec3) {
-      found = found || glm::length(c.p[1] - seg_o) <= tol;
-    });
-  } else {
-    found = mnee_chain<F>(s, from_o, p, ng, prim, ch, tr) && glm::length(ch.p[1] - seg_o) <= tol;
-  }
-  if (!found) return false;
-  const bool tree =
-      (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
-  const LightContext from{from_o, tree ? unpack_light_normal(from_normal) : vec3(0.0f)};
-  return light_choice_pmf<F>(s, cfg.light_sampler, from, light) > 0.0f;
-}
-
-// Manifold NEE's work at one vertex, kept for a stage of its own (the wavefront's mnee kernel:
-// the solves and their rays in full warps, out of the shade kernel's registers): shade_path with
-// kDeferMnee fills it instead of solving, and mnee_resolve later returns the radiance the path
-// gains, the same that shade_path would have added.
+// Manifold NEE's work at one vertex (shade_path fills it; mnee_resolve does it): on the CPU
+// right after shading, in the wavefront in a stage of its own (the mnee kernel: the solves and
+// their rays in full warps, out of the shade kernel's registers).
 struct MneeRequest {
-  bool connect = false;    // mnee_connect's arguments follow
-  bool partition = false;  // an emission hit whose contribution mnee_covers may drop
+  bool connect = false;    // the connection's arguments follow
+  bool partition = false;  // an emission hit whose contribution manifold NEE may own
   bool mirror = false;     // ... reached off a mirror sphere (else through two refractions)
   uint32_t depth = 0;      // the vertex's depth (PathState::depth when it was shaded)
   // connect: the vertex, its viewer's side, the frame's normal and wo in it, its BSDF, the light
-  // sample (le: times the path's throughput) and the segments left (mnee_connect's `segments`).
+  // sample (le: the light's front radiance times the path's throughput) and the segments left
+  // before the depth limit.
   vec3 p, ng_viewer, frame_n, wo;
   Material m;
   LightSample ls;
   uint32_t segments = 0;
-  // partition: mnee_covers' arguments and what the emission adds unless covered.
+  // partition: the vertex that sampled the lights (its offset origin and its normal's light-tree
+  // code), the light point reached (primitive, geometric normal, the light it belongs to), the
+  // origin of the segment that reached it and what the emission adds unless manifold NEE owns it.
   vec3 from_o, hit_p, hit_ng, seg_o, contribution;
   uint32_t from_normal = 0, hit_prim = kInvalid, hit_light = kInvalid;
 };
 
+// The radiance a request adds to its path.
+// - connect: every chain from the vertex's offset origin o to the light sample's point
+//   (mnee_chains), each weighed by the BSDF towards its first vertex, its throughput and its
+//   generalized geometry term over the light sample's density of area.
+// - partition: the emission unless manifold NEE owns that path: the solve from the vertex that
+//   sampled the lights finds a chain to this light point whose last vertex is where the segment
+//   left (the same path: the chain is fixed by its ends and last vertex), of the caster that
+//   segment left, and the vertex could have chosen this light. The two estimators so split the
+//   paths exactly, also where the solve fails (no bias).
+// Both solves run in one loop, so that in a kernel threads with either request run one copy of
+// the solves' code (with fewer instructions to fetch, and a warp's threads together).
 template <uint32_t F>
 TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings& cfg,
                                    const MneeRequest& q) {
+  const vec3 o_connect = offset_ray_origin(q.p, q.ng_viewer);
+  const float d2 = glm::dot(q.ls.p - q.p, q.ls.p - q.p);
+  const float area_pdf = q.ls.pdf * glm::abs(glm::dot(q.ls.n, q.p - q.ls.p)) / (d2 * glm::sqrt(d2));
+  const MaterialType type = (F & kFeatureSpecular) ? q.m.type : MaterialType::kDiffuse;
+  const Frame frame = bsdf_frame(q.m, type, q.frame_n);
+  const float tol = 1e-3f * glm::length(q.hit_p - q.from_o);
+  // The caster the partition's segment left: the sphere whose surface seg_o lies on (of those
+  // manifold NEE tries) where it is glass, or for a mirror path a mirror; else flat glass, which
+  // a mirror path cannot have left (kMneeNoCaster: manifold NEE does not own it).
+  uint32_t caster = q.mirror ? kMneeNoCaster : kMneeFlatGlass;
+  if (F & kFeatureSpheres) {
+    const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
+    for (uint32_t i = 0; i < spheres; ++i) {
+      const Sphere& sph = s.spheres[i];
+      if (glm::abs(glm::length(q.seg_o - sph.center) - sph.radius) > tol) continue;
+      const Material& mi = s.materials[sph.material];
+      if (q.mirror ? !is_black(mnee_mirror_reflectance(mi, 1.0f)) : mnee_glass(mi)) caster = i;
+      break;
+    }
+  }
+  bool covered = false;
+  vec3 sum(0.0f);
+  for (int task = 0; task < 2; ++task) {
+    const bool part = task == 0;
+    if (part ? !q.partition || caster == kMneeNoCaster
+             : !q.connect || !(area_pdf > 0.0f))
+      continue;
+    const vec3 o = part ? q.from_o : o_connect;
+    mnee_chains<F>(s, o, part ? q.hit_p : q.ls.p, part ? q.hit_ng : q.ls.n,
+                   part ? q.hit_prim : q.ls.prim, part ? 3u : q.segments,
+                   part ? caster : kMneeEveryCaster, [&](const ManifoldChain& ch, vec3 tr) {
+                     if (part) {
+                       covered = covered || glm::length(ch.p[ch.k - 1] - q.seg_o) <= tol;
+                       return;
+                     }
+                     const vec3 w1 = glm::normalize(ch.p[0] - o);
+                     if (!(glm::dot(w1, q.ng_viewer) > 0.0f)) return;
+                     const vec3 wi = frame.to_local(w1);
+                     const float g = manifold_geometry(ch, o, q.ls.p, q.ls.n);
+                     if (g > 0.0f)
+                       sum += bsdf_eval<F>(q.m, q.wo, wi) * glm::abs(wi.z) * tr * (g / area_pdf);
+                   });
+  }
   vec3 c(0.0f);
-  if (q.partition && !mnee_covers<F>(s, cfg, q.from_o, q.from_normal, q.hit_p, q.hit_ng,
-                                     q.hit_prim, q.hit_light, q.seg_o, q.mirror))
-    c += q.contribution;
   if (q.connect) {
-    const MaterialType type = (F & kFeatureSpecular) ? q.m.type : MaterialType::kDiffuse;
-    c += mnee_connect<F>(s, q.p, offset_ray_origin(q.p, q.ng_viewer), q.m,
-                         bsdf_frame(q.m, type, q.frame_n), q.wo, q.ng_viewer, q.ls, q.segments);
+    const vec3 l = sum * q.ls.le;
+    if (is_finite(l)) c += l;
+  }
+  if (q.partition) {
+    if (covered) {  // and the vertex could have chosen this light
+      const bool tree =
+          (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
+      const LightContext from{q.from_o, tree ? unpack_light_normal(q.from_normal) : vec3(0.0f)};
+      covered = light_choice_pmf<F>(s, cfg.light_sampler, from, q.hit_light) > 0.0f;
+    }
+    if (!covered) c += q.contribution;
   }
   return c;
 }
@@ -542,14 +563,14 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
 // the path continues, in which case st.ray is the next segment. Forced inline: nvcc outlines it
 // in the specular kernels once the material switch is large, and the call then passes the scene,
 // the path state and the hit through local memory (2.6x slower; PERFORMANCE.md).
-// With kDeferMnee manifold NEE's solves are not run here: *mnee receives them (MneeRequest;
-// mnee_resolve gives what they add to st.radiance).
-template <uint32_t F = kAllFeatures, bool kDeferMnee = false>
+// Manifold NEE's solves (F with kFeatureCaustics, cfg.mnee) are not run here: *mnee receives
+// them, and mnee_resolve gives what they add to st.radiance.
+template <uint32_t F = kAllFeatures>
 TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSettings& cfg,
                                         PathState& st, const Hit& hit, ShadowRequest& shadow,
                                         MneeRequest* mnee = nullptr) {
   shadow.valid = false;
-  if (kDeferMnee) mnee->connect = mnee->partition = false;
+  if ((F & kFeatureCaustics) && mnee) mnee->connect = mnee->partition = false;
   if ((F & kFeatureSubsurface) && (st.flags & kPathInMedium) && hit.valid()) {
     const SurfaceHit b = make_surface_hit<F>(s, st.ray, hit);
     // The walk's last point lay outside the boundary within rounding: the path has in fact left
@@ -664,13 +685,12 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       // estimators so split the paths exactly, also where the solve fails (no bias).
       const uint32_t mnee_bits = st.flags & (kPathMneeFrom | kPathMneeRefract1 |
                                              kPathMneeRefract2 | kPathMneeOther | kPathMneeMirror);
-      if ((F & kFeatureCaustics) && cfg.mnee && sh.light != kInvalid &&
+      if ((F & kFeatureCaustics) && cfg.mnee && mnee && sh.light != kInvalid &&
           (mnee_bits == (kPathMneeFrom | kPathMneeRefract2) ||
            mnee_bits == (kPathMneeFrom | kPathMneeMirror))) {
-        const bool mirror = (mnee_bits & kPathMneeMirror) != 0;
-        if (kDeferMnee) {
+        {
           mnee->partition = w > 0.0f;
-          mnee->mirror = mirror;
+          mnee->mirror = (mnee_bits & kPathMneeMirror) != 0;
           mnee->depth = st.depth;
           mnee->from_o = st.mnee_o;
           mnee->from_normal = st.mnee_normal;
@@ -680,10 +700,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           mnee->hit_light = sh.light;
           mnee->seg_o = st.ray.o;
           mnee->contribution = st.throughput * le * w;
-          w = 0.0f;  // added by the mnee stage unless covered
-        } else if (mnee_covers<F>(s, cfg, st.mnee_o, st.mnee_normal, sh.p, sh.ng, hit.prim,
-                                  sh.light, st.ray.o, mirror)) {
-          w = 0.0f;
+          w = 0.0f;  // added by mnee_resolve unless manifold NEE owns the path
         }
       }
       st.radiance += st.throughput * le * w;
@@ -756,26 +773,18 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     // mirror spheres (paths of 3 and 2 more segments, within max_depth as the BSDF's would have
     // to be), with the light's radiance towards the chain: also from behind a one-sided light,
     // which the chain may reach from its front (a ceiling lit by the light's image in a ball).
-    if ((F & kFeatureCaustics) && cfg.mnee && ls.valid && !ls.infinite && !ls.delta &&
+    if ((F & kFeatureCaustics) && cfg.mnee && mnee && ls.valid && !ls.infinite && !ls.delta &&
         !is_black(ls.emitted) && st.depth + 2 <= cfg.max_depth) {
-      if (kDeferMnee) {
-        mnee->connect = true;
-        mnee->depth = st.depth;
-        mnee->p = sh.p;
-        mnee->ng_viewer = ng_viewer;
-        mnee->frame_n = frame.n;
-        mnee->wo = wo;
-        mnee->m = m;
-        mnee->ls = ls;
-        mnee->ls.le = st.throughput * ls.emitted;
-        mnee->segments = cfg.max_depth - st.depth;
-      } else {
-        LightSample front = ls;
-        front.le = ls.emitted;
-        st.radiance += st.throughput * mnee_connect<F>(s, sh.p, offset_ray_origin(sh.p, ng_viewer),
-                                                       m, frame, wo, ng_viewer, front,
-                                                       cfg.max_depth - st.depth);
-      }
+      mnee->connect = true;
+      mnee->depth = st.depth;
+      mnee->p = sh.p;
+      mnee->ng_viewer = ng_viewer;
+      mnee->frame_n = frame.n;
+      mnee->wo = wo;
+      mnee->m = m;
+      mnee->ls = ls;
+      mnee->ls.le = st.throughput * ls.emitted;
+      mnee->segments = cfg.max_depth - st.depth;
     }
   }
 
@@ -929,7 +938,10 @@ TRACER_HD inline vec3 trace_path(const SceneView& s, const IntegratorSettings& c
     const Hit hit = intersect_closest<F>(s, st.ray, st.origin_prim);
     if (counts) (st.depth == 1 ? counts->camera : counts->extension)++;
     ShadowRequest shadow;
-    const bool go_on = shade_path<F>(s, cfg, st, hit, shadow);
+    MneeRequest mnee;
+    const bool go_on = shade_path<F>(s, cfg, st, hit, shadow, &mnee);
+    if ((F & kFeatureCaustics) && (mnee.connect || mnee.partition))
+      st.radiance += mnee_resolve<F>(s, cfg, mnee);
     if (shadow.valid) {
       if (counts) counts->shadow++;
       if (!intersect_any<F>(s, shadow.ray, shadow.target_prim, shadow.origin_prim))
