@@ -236,12 +236,13 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
                             __popc(ballot_finish & below))] = id;
 }
 
-// Manifold NEE's stage: one thread per request of the bounce (launch_mnee).
+// Manifold NEE's stage: one thread per request of the bounce (launch_mnee). Two blocks per
+// multiprocessor (128 registers, some spilled) run it faster than one, which the lamp's
+// variant would otherwise need for its 255 registers (PERFORMANCE.md row 115).
 template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock) mnee_kernel(SceneView view,
-                                                      const __grid_constant__ FlatParams flat,
-                                                      IntegratorSettings cfg, uint32_t sample,
-                                                      uint32_t bounce, WavefrontState w) {
+__global__ void __launch_bounds__(kBlock, 2)
+    mnee_kernel(SceneView view, const __grid_constant__ FlatParams flat, IntegratorSettings cfg,
+                uint32_t sample, uint32_t bounce, WavefrontState w) {
   const uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= w.mnee_counts[bounce]) return;
   const SceneView s = with_flat_params(view, flat);
