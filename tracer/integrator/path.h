@@ -499,17 +499,23 @@ struct MneeRequest {
 template <uint32_t F>
 TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings& cfg,
                                    const MneeRequest& q) {
-  const vec3 o_connect = offset_ray_origin(q.p, q.ng_viewer);
-  const float d2 = glm::dot(q.ls.p - q.p, q.ls.p - q.p);
-  const float area_pdf = q.ls.pdf * glm::abs(glm::dot(q.ls.n, q.p - q.ls.p)) / (d2 * glm::sqrt(d2));
-  const MaterialType type = (F & kFeatureSpecular) ? q.m.type : MaterialType::kDiffuse;
-  const Frame frame = bsdf_frame(q.m, type, q.frame_n);
+  // The connection's origin, frame and the light sample's density of area (its fields are set
+  // only with connect).
+  vec3 o_connect(0.0f);
+  float area_pdf = 0.0f;
+  Frame frame;
+  if (q.connect) {
+    o_connect = offset_ray_origin(q.p, q.ng_viewer);
+    const float d2 = glm::dot(q.ls.p - q.p, q.ls.p - q.p);
+    area_pdf = q.ls.pdf * glm::abs(glm::dot(q.ls.n, q.p - q.ls.p)) / (d2 * glm::sqrt(d2));
+    frame = bsdf_frame(q.m, (F & kFeatureSpecular) ? q.m.type : MaterialType::kDiffuse, q.frame_n);
+  }
   const float tol = 1e-3f * glm::length(q.hit_p - q.from_o);
   // The caster the partition's segment left: the sphere whose surface seg_o lies on (of those
   // manifold NEE tries) where it is glass, or for a mirror path a mirror; else flat glass, which
   // a mirror path cannot have left (kMneeNoCaster: manifold NEE does not own it).
   uint32_t caster = q.mirror ? kMneeNoCaster : kMneeFlatGlass;
-  if (F & kFeatureSpheres) {
+  if ((F & kFeatureSpheres) && q.partition) {
     const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
     for (uint32_t i = 0; i < spheres; ++i) {
       const Sphere& sph = s.spheres[i];
@@ -688,20 +694,18 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       if ((F & kFeatureCaustics) && cfg.mnee && mnee && sh.light != kInvalid &&
           (mnee_bits == (kPathMneeFrom | kPathMneeRefract2) ||
            mnee_bits == (kPathMneeFrom | kPathMneeMirror))) {
-        {
-          mnee->partition = w > 0.0f;
-          mnee->mirror = (mnee_bits & kPathMneeMirror) != 0;
-          mnee->depth = st.depth;
-          mnee->from_o = st.mnee_o;
-          mnee->from_normal = st.mnee_normal;
-          mnee->hit_p = sh.p;
-          mnee->hit_ng = sh.ng;
-          mnee->hit_prim = hit.prim;
-          mnee->hit_light = sh.light;
-          mnee->seg_o = st.ray.o;
-          mnee->contribution = st.throughput * le * w;
-          w = 0.0f;  // added by mnee_resolve unless manifold NEE owns the path
-        }
+        mnee->partition = w > 0.0f;
+        mnee->mirror = (mnee_bits & kPathMneeMirror) != 0;
+        mnee->depth = st.depth;
+        mnee->from_o = st.mnee_o;
+        mnee->from_normal = st.mnee_normal;
+        mnee->hit_p = sh.p;
+        mnee->hit_ng = sh.ng;
+        mnee->hit_prim = hit.prim;
+        mnee->hit_light = sh.light;
+        mnee->seg_o = st.ray.o;
+        mnee->contribution = st.throughput * le * w;
+        w = 0.0f;  // added by mnee_resolve unless manifold NEE owns the path
       }
       st.radiance += st.throughput * le * w;
     }
@@ -934,11 +938,11 @@ TRACER_HD inline vec3 trace_path(const SceneView& s, const IntegratorSettings& c
                                  uint32_t sample, RayCounts* counts = nullptr) {
   PathState st;
   generate_path<F>(s, cfg, pixel, sample, st);
+  MneeRequest mnee;  // once per path: shade_path clears what it asks for at each vertex
   for (;;) {
     const Hit hit = intersect_closest<F>(s, st.ray, st.origin_prim);
     if (counts) (st.depth == 1 ? counts->camera : counts->extension)++;
     ShadowRequest shadow;
-    MneeRequest mnee;
     const bool go_on = shade_path<F>(s, cfg, st, hit, shadow, &mnee);
     if ((F & kFeatureCaustics) && (mnee.connect || mnee.partition))
       st.radiance += mnee_resolve<F>(s, cfg, mnee);
