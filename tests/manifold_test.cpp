@@ -151,6 +151,56 @@ TEST(Manifold, ObliqueSlabSatisfiesSnellAndMatchesTheClosedForm) {
   EXPECT_NEAR(g / expected, 1.0, 3e-3) << g << " vs " << expected;
 }
 
+// manifold_slab (the one-dimensional solve through parallel faces) lands on the chain that
+// forward tracing from x reaches y by, from either side and at any angle up to grazing, in the
+// tolerance the walk accepts; and declines what is not such a crossing, leaving the chain as it
+// was.
+TEST(Manifold, SlabSolveInOneDimensionMatchesForwardTracing) {
+  int tried = 0;
+  for (int flip = 0; flip < 2; ++flip) {
+    for (const vec3 d0 : {vec3(0.0f, 0.0f, 1.0f), vec3(0.01f, 0.0f, 1.0f), vec3(0.3f, -0.2f, 1.0f),
+                          vec3(1.0f, 0.7f, 1.0f), vec3(4.0f, 1.0f, 1.0f), vec3(-20.0f, 3.0f, 1.0f)}) {
+      ManifoldChain ch = slab();
+      vec3 x(0.2f, -0.1f, 0.0f), d = glm::normalize(d0);
+      if (flip) {  // from above: the faces in the other order
+        std::swap(ch.surface[0], ch.surface[1]);
+        x.z = 2.0f;
+        d.z = -d.z;
+      }
+      vec3 o = x, dir = d;
+      ASSERT_TRUE(trace_chain(ch, o, dir, 0.0)) << d0.x;
+      const float to_light = ((flip ? -0.5f : 3.0f) - o.z) / dir.z;  // the light's plane
+      const vec3 y = o + to_light * dir;
+      ch.p[0] = ch.p[1] = vec3(0.0f);
+      ASSERT_TRUE(manifold_slab(ch, x, y)) << d0.x;
+      ++tried;
+      float c[4];
+      ASSERT_TRUE(manifold_constraints(ch, x, y, c));
+      EXPECT_LE(manifold_norm(c, 4), kManifoldAccept) << d0.x << " flip " << flip;
+      EXPECT_NEAR(glm::length(glm::normalize(ch.p[0] - x) - d), 0.0f, 2e-5f) << d0.x;
+      EXPECT_NEAR(glm::length(ch.p[1] - o), 0.0f, 1e-4f * glm::length(y - x)) << d0.x;
+      const ManifoldChain solved = ch;
+      ASSERT_TRUE(manifold_walk(ch, x, y));
+      EXPECT_NEAR(glm::length(ch.p[0] - solved.p[0]), 0.0f, 1e-5f * glm::length(y - x));
+    }
+  }
+  EXPECT_EQ(tried, 12);
+  // Not such a crossing: x between the faces, y on x's side, a tilted face, a mirror.
+  const vec3 below(0.0f, 0.0f, -1.0f), above(0.3f, 0.2f, 3.0f);
+  ManifoldChain ch = slab();
+  ch.p[0] = vec3(7.0f);
+  EXPECT_FALSE(manifold_slab(ch, vec3(0.0f, 0.0f, 1.1f), above));
+  EXPECT_FALSE(manifold_slab(ch, below, vec3(1.0f, 0.0f, 0.5f)));
+  EXPECT_FALSE(manifold_slab(ch, above, below));  // the faces met in the other order
+  ManifoldChain tilted = slab();
+  tilted.surface[1].n = glm::normalize(vec3(0.1f, 0.0f, 1.0f));
+  EXPECT_FALSE(manifold_slab(tilted, below, above));
+  ManifoldChain mirror = slab();
+  mirror.surface[0].eta = mirror.surface[1].eta = 0.0f;
+  EXPECT_FALSE(manifold_slab(mirror, below, above));
+  EXPECT_EQ(ch.p[0], vec3(7.0f));
+}
+
 // In through a box's side face and out through its top (perpendicular planes: the corner of a
 // pool or of a glass block): Snell at both faces and the geometry term of forward tracing.
 TEST(Manifold, PerpendicularFacesMatchForwardTracing) {

@@ -361,9 +361,10 @@ TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, ui
       r.d = -r.d;
     }
     bool glass;
+    // Through parallel faces (a pane, a slab) the chain is solved in one dimension first.
     if (mnee_seed<F>(s, r, side == 0 ? kInvalid : light_prim, ch, material, side, side ? -1 : 1,
                      &glass) &&
-        manifold_walk(ch, o, y))
+        (manifold_slab(ch, o, y), manifold_walk(ch, o, y)))
       return mnee_check_chain<F>(s, o, y, ny, light_prim, ch, material, throughput);
     if (!glass) return false;
   }
