@@ -256,6 +256,26 @@ TEST(Manifold, MirrorBallReflectsTheLightAndMatchesForwardTracing) {
   EXPECT_LT(g, 0.2 * glm::abs(glm::normalize(x - y).z) / glm::dot(y - x, y - x));
 }
 
+// Off a flat reflector (a mirror, a glass face's reflection) the chain is the line to the light's
+// mirror image, and the geometry term is the image's cos / r^2; Newton from anywhere on the plane
+// agrees, and forward tracing agrees.
+TEST(Manifold, FlatReflectionIsTheMirrorImage) {
+  ManifoldChain ch;
+  ch.k = 1;
+  ch.surface[0] = plane(0.0f, vec3(0, 0, 1), 0.0f);
+  const vec3 x(0.3f, 0.1f, 1.0f), y(-0.4f, 0.6f, 2.0f), ny(0.0f, 0.0f, -1.0f);
+  const vec3 image(y.x, y.y, -y.z);
+  const vec3 expected_p = x + (x.z / (x.z - image.z)) * (image - x);
+  ch.p[0] = vec3(1.0f, -1.0f, 0.0f);
+  ASSERT_TRUE(manifold_walk(ch, x, y));
+  EXPECT_NEAR(glm::length(ch.p[0] - expected_p), 0.0f, 1e-5f);
+  const double r2 = glm::dot(x - image, x - image);
+  const double g = manifold_geometry(ch, x, y, ny);
+  EXPECT_NEAR(g * r2 / (glm::abs(glm::normalize(x - image).z)), 1.0, 1e-4);
+  const double forward = forward_geometry(ch, x, glm::normalize(ch.p[0] - x), 2.0f);
+  EXPECT_NEAR(g / forward, 1.0, 3e-3) << g << " vs " << forward;
+}
+
 TEST(Manifold, GlassBallRefractsTwiceAndMatchesForwardTracing) {
   ManifoldChain ch;
   ch.k = 2;

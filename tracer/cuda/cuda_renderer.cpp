@@ -65,6 +65,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<TriangleVerts> tri_verts;
   DeviceBuffer<TriangleShading> tri_shading;
   DeviceBuffer<Sphere> spheres;
+  DeviceBuffer<ReflectorPlane> reflector_planes;
   DeviceBuffer<Material> materials;
   DeviceBuffer<Light> lights;
   DeviceBuffer<float> light_cdf;
@@ -612,6 +613,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.tri_verts.upload(scene.tri_verts());
   m.tri_shading.upload(scene.tri_shading());
   m.spheres.upload(scene.spheres());
+  m.reflector_planes.upload(scene.reflector_planes());
   m.materials.upload(scene.materials());
   m.lights.upload(scene.lights());
   m.light_cdf.upload(scene.light_cdf());
@@ -647,6 +649,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.tri_verts = m.tri_verts.get();
   m.view.tri_shading = m.tri_shading.get();
   m.view.spheres = m.spheres.get();
+  m.view.reflector_planes = scene.reflector_planes().empty() ? nullptr : m.reflector_planes.get();
   m.view.materials = m.materials.get();
   m.view.lights = m.lights.get();
   m.view.light_cdf = m.light_cdf.get();

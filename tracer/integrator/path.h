@@ -122,7 +122,7 @@ enum PathFlags : uint32_t {
   kPathMneeRefract1 = 1u << 5,
   kPathMneeRefract2 = 1u << 6,
   kPathMneeOther = 1u << 7,
-  kPathMneeMirror = 1u << 8,  // ... or exactly one reflection off a mirror sphere
+  kPathMneeMirror = 1u << 8,  // ... or exactly one reflection (mnee_reflection: a mirror sphere, a flat reflector)
 };
 // The wavefront keeps the flags in 9 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
 static_assert(kPathMneeMirror < (1u << 9), "PathFlags must fit in 9 bits");
@@ -225,23 +225,22 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
 }
 
 // Manifold next-event estimation (render.mnee; integrator/manifold.h): light reaches a
-// non-delta vertex through smooth glass, where a shadow ray is blocked by the glass and only a
-// BSDF-sampled path could find it. From the vertex's offset origin o (offset_ray_origin of the
-// point to its viewer's side) to a light point y on primitive light_prim (unit normal ny):
+// non-delta vertex through smooth glass or by a smooth reflection, where a shadow ray is blocked
+// or turned away and only a BSDF-sampled path could find it. From the vertex's offset origin o
+// (offset_ray_origin of the point to its viewer's side) to a light point y on primitive light_prim
+// (unit normal ny):
 // - mnee_chain, through flat glass (faces of meshes and boxes): the smooth glass the straight
 //   segment meets first and the surface where the ray refracted there leaves it (in and out of one
-//   piece of glass) seed the chain, and Newton's method solves it;
+//   piece of glass) seed the chain; through parallel faces (a pane, a slab) manifold_slab solves
+//   it in one dimension, else Newton's method in 3D;
 // - mnee_sphere_chains, through each glass sphere: every chain, found in the plane of o, y and the
 //   centre (sphere_refraction_chains);
-// - mnee_mirror, off each mirror sphere: the one reflection (sphere_reflection_chain).
-// Each chain's segments must then be what a ray sees (mnee_check_chain), and the light must emit
-// towards its last vertex. Each is a function of (o, y) alone, so that a BSDF-sampled path can
+// - mnee_reflection, off each mirror sphere (sphere_reflection_chain) and each plane of flat
+//   smooth reflectors (SceneView::reflector_planes: glass's Fresnel reflection, mirrors, smooth
+//   conductors; the line to the light's mirror image): the one reflection.
+// Each chain's segments must then be what a ray sees (mnee_check_chain, mnee_reflection), and the
+// light must emit towards its last vertex. Each is a function of (o, y) alone, so that a BSDF-sampled path can
 // ask whether this estimator covers it (mnee_resolve's partition).
-
-// Whether manifold NEE refracts through material m: smooth glass without textures.
-TRACER_HD inline bool mnee_glass(const Material& m) {
-  return m.type == MaterialType::kDielectric && m.roughness <= 0.0f && !m.has_textures();
-}
 
 // Manifold NEE's seed (Hanika et al.'s): the smooth glass that the ray r meets first (before its
 // tmax, skipping primitive `skip`) and where the ray refracted there leaves that glass again,
@@ -393,26 +392,45 @@ TRACER_HD inline void mnee_sphere_chains(const SceneView& s, vec3 o, vec3 y, vec
                            });
 }
 
-// The reflectance of a smooth reflector (a mirror, a smooth conductor) at cosine c, or 0 for a
-// material manifold NEE does not reflect off.
-TRACER_HD inline vec3 mnee_mirror_reflectance(const Material& m, float c) {
-  if (m.has_textures()) return vec3(0.0f);
-  if (m.type == MaterialType::kMirror) return m.albedo;
-  if (m.type == MaterialType::kConductor && bsdf_is_delta(m, m.type))
-    return conductor_fresnel(m, c);
-  return vec3(0.0f);
-}
+// Which casters mnee_chains solves: every one it tries, or the one a BSDF-sampled path left
+// (mnee_resolve's partition): flat glass, one sphere (its index in s.spheres, below
+// kMneeMaxSpheres) or one plane of flat reflectors (kMneeMaxSpheres + its index in
+// s.reflector_planes).
+constexpr uint32_t kMneeEveryCaster = kInvalid;
+constexpr uint32_t kMneeFlatGlass = kInvalid - 1;
+constexpr uint32_t kMneeNoCaster = kInvalid - 2;
 
-// The chain from o to light point y (on light_prim, normal ny) by one reflection off sphere
-// `sphere` (its index in s.spheres): the one reflection point sphere_reflection_chain finds,
-// polished by Newton in 3D, checked with rays (the sphere seen first from o at the vertex, the
-// light free from it and emitting towards it), and weighed by the reflectance.
+// The chain from o to light point y (on light_prim, normal ny) by one reflection off caster
+// `caster`: a mirror sphere (the one reflection point sphere_reflection_chain finds, polished by
+// Newton in 3D) or a plane of flat reflectors (the line to y's mirror image in the plane, within
+// the bounds of its triangles: exact, no Newton). Checked with rays (a reflector of that caster
+// seen first from o at the vertex, flat there, the light free from it and emitting towards it)
+// and weighed by the reflectance (a mirror's or smooth conductor's, or glass's Fresnel
+// reflection, untinted as the BSDF's).
 template <uint32_t F>
-TRACER_HD inline bool mnee_mirror(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
-                                  uint32_t sphere, ManifoldChain& ch, vec3& throughput) {
-  const Sphere& sph = s.spheres[sphere];
-  if (!sphere_reflection_chain(sph.center, sph.radius, o, y, ch) || !manifold_walk(ch, o, y))
-    return false;
+TRACER_HD inline bool mnee_reflection(const SceneView& s, vec3 o, vec3 y, vec3 ny,
+                                      uint32_t light_prim, uint32_t caster, ManifoldChain& ch,
+                                      vec3& throughput) {
+  const bool sphere = caster < kMneeMaxSpheres;
+  if (sphere) {
+    const Sphere& sph = s.spheres[caster];
+    if (!sphere_reflection_chain(sph.center, sph.radius, o, y, ch) || !manifold_walk(ch, o, y))
+      return false;
+  } else {
+    const ReflectorPlane pl = s.reflector_planes[caster - kMneeMaxSpheres];
+    const float ho = glm::dot(o - pl.a, pl.n), hy = glm::dot(y - pl.a, pl.n);
+    if (!(ho > 0.0f) || !(hy > 0.0f)) return false;  // both in front of it
+    const vec3 p = o + (ho / (ho + hy)) * (y - 2.0f * hy * pl.n - o);
+    const float margin = 1e-4f * glm::length(pl.hi - pl.lo);
+    if (glm::any(glm::lessThan(p, pl.lo - margin)) || glm::any(glm::greaterThan(p, pl.hi + margin)))
+      return false;
+    ch.k = 1;
+    ch.surface[0].kind = SpecularSurface::kPlane;
+    ch.surface[0].a = pl.a;
+    ch.surface[0].n = pl.n;
+    ch.surface[0].eta = 0.0f;
+    ch.p[0] = p;
+  }
   const vec3 d = ch.p[0] - o;
   const float len = glm::length(d);
   if (!(len > 0.0f)) return false;
@@ -422,26 +440,27 @@ TRACER_HD inline bool mnee_mirror(const SceneView& s, vec3 o, vec3 y, vec3 ny, u
   seg.tmax = len * 1.01f;
   seg.pad = 0.0f;
   const Hit h = intersect_closest<F>(s, seg, kInvalid);
-  if (!h.valid() || h.prim != s.tri_count + sphere ||
-      glm::length(seg.o + h.t * seg.d - ch.p[0]) > 1e-3f * (len + glm::length(y - ch.p[0])))
+  if (!h.valid() || (sphere ? h.prim != s.tri_count + caster : !prim_is_triangle(s, h.prim)))
     return false;
+  const SurfaceHit hs = make_surface_hit<F>(s, seg, h);
   const vec3 n = ch.surface[0].normal(ch.p[0]);
-  throughput = mnee_mirror_reflectance(s.materials[sph.material], glm::dot(-seg.d, n));
+  if (glm::length(hs.p - ch.p[0]) > 1e-3f * (len + glm::length(y - ch.p[0])) ||
+      glm::dot(hs.ng, n) < 1.0f - 1e-5f || glm::abs(glm::dot(hs.ns, n)) < 1.0f - 1e-5f)
+    return false;
+  const Material& m = s.materials[hs.material];
+  const float c = glm::dot(-seg.d, n);
+  throughput = mnee_glass(m) && !sphere ? vec3(material_fresnel(m, c, m.ior))
+                                        : mnee_mirror_reflectance(m, c);
   if (is_black(throughput)) return false;
   if (!mnee_light_faces<F>(s, light_prim, y, ny, o, ch.p[0])) return false;
   return !intersect_any<F>(s, spawn_ray_to(ch.p[0], n, y, ny), light_prim);
 }
 
-// Which casters mnee_chains solves: every one it tries, or the one a BSDF-sampled path left
-// (mnee_resolve's partition): flat glass, or one sphere (its index in s.spheres).
-constexpr uint32_t kMneeEveryCaster = kInvalid;
-constexpr uint32_t kMneeFlatGlass = kInvalid - 1;
-constexpr uint32_t kMneeNoCaster = kInvalid - 2;
-
 // Every chain manifold NEE finds from o to light point y (on light_prim, unit normal ny) within
 // `segments` of the depth limit, of the casters `only` names: through flat glass (mnee_chain,
-// 3 segments), through each glass sphere (mnee_sphere_chains, 3) and off each mirror sphere
-// (mnee_mirror, 2) of the first kMneeMaxSpheres. Calls found(chain, throughput) for each.
+// 3 segments), through each glass sphere (mnee_sphere_chains, 3), off each mirror sphere of the
+// first kMneeMaxSpheres and off each plane of flat reflectors (mnee_reflection, 2). Calls
+// found(chain, throughput) for each.
 template <uint32_t F, typename Found>
 TRACER_HD inline void mnee_chains(const SceneView& s, vec3 o, vec3 y, vec3 ny,
                                   uint32_t light_prim, uint32_t segments, uint32_t only,
@@ -451,16 +470,22 @@ TRACER_HD inline void mnee_chains(const SceneView& s, vec3 o, vec3 y, vec3 ny,
   if (segments >= 3 && (only == kMneeEveryCaster || only == kMneeFlatGlass) &&
       mnee_chain<F>(s, o, y, ny, light_prim, ch, tr))
     found(ch, tr);
-  if (!(F & kFeatureSpheres) || segments < 2) return;
-  const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
-  for (uint32_t i = 0; i < spheres; ++i) {
-    if (only != kMneeEveryCaster && only != i) continue;
-    const Material& mi = s.materials[s.spheres[i].material];
-    if (segments >= 3 && mnee_glass(mi))
-      mnee_sphere_chains<F>(s, o, y, ny, light_prim, i, found);
-    else if (!is_black(mnee_mirror_reflectance(mi, 1.0f)) &&
-             mnee_mirror<F>(s, o, y, ny, light_prim, i, ch, tr))
-      found(ch, tr);
+  if (segments < 2) return;
+  // The spheres, then the planes (one loop: one copy of the reflection's rays).
+  const uint32_t spheres = (F & kFeatureSpheres) ? glm::min(s.sphere_count, kMneeMaxSpheres) : 0u;
+  const uint32_t casters = spheres + s.reflector_plane_count;
+  for (uint32_t k = 0; k < casters; ++k) {
+    const uint32_t caster = k < spheres ? k : kMneeMaxSpheres + (k - spheres);
+    if (only != kMneeEveryCaster && only != caster) continue;
+    if (k < spheres) {
+      const Material& mi = s.materials[s.spheres[k].material];
+      if (mnee_glass(mi)) {
+        if (segments >= 3) mnee_sphere_chains<F>(s, o, y, ny, light_prim, k, found);
+        continue;
+      }
+      if (is_black(mnee_mirror_reflectance(mi, 1.0f))) continue;
+    }
+    if (mnee_reflection<F>(s, o, y, ny, light_prim, caster, ch, tr)) found(ch, tr);
   }
 }
 
@@ -513,8 +538,9 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
   }
   const float tol = 1e-3f * glm::length(q.hit_p - q.from_o);
   // The caster the partition's segment left: the sphere whose surface seg_o lies on (of those
-  // manifold NEE tries) where it is glass, or for a mirror path a mirror; else flat glass, which
-  // a mirror path cannot have left (kMneeNoCaster: manifold NEE does not own it).
+  // manifold NEE tries) where it is glass, or for a mirror path a mirror; else for a mirror path
+  // the plane of flat reflectors it lies on, and otherwise flat glass (kMneeNoCaster: manifold NEE
+  // does not own it).
   uint32_t caster = q.mirror ? kMneeNoCaster : kMneeFlatGlass;
   if ((F & kFeatureSpheres) && q.partition) {
     const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
@@ -523,6 +549,17 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
       if (glm::abs(glm::length(q.seg_o - sph.center) - sph.radius) > tol) continue;
       const Material& mi = s.materials[sph.material];
       if (q.mirror ? !is_black(mnee_mirror_reflectance(mi, 1.0f)) : mnee_glass(mi)) caster = i;
+      break;
+    }
+  }
+  if (q.partition && q.mirror && caster == kMneeNoCaster) {
+    for (uint32_t j = 0; j < s.reflector_plane_count; ++j) {
+      const ReflectorPlane& pl = s.reflector_planes[j];
+      if (glm::abs(glm::dot(q.seg_o - pl.a, pl.n)) > tol ||
+          glm::any(glm::lessThan(q.seg_o, pl.lo - tol)) ||
+          glm::any(glm::greaterThan(q.seg_o, pl.hi + tol)))
+        continue;
+      caster = kMneeMaxSpheres + j;
       break;
     }
   }
@@ -876,11 +913,13 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       if (st.flags & (kPathMneeRefract2 | kPathMneeMirror)) st.flags |= kPathMneeOther;
       else if (st.flags & kPathMneeRefract1) st.flags = (st.flags & ~kPathMneeRefract1) | kPathMneeRefract2;
       else st.flags |= kPathMneeRefract1;
-    } else if ((F & kFeatureSpheres) && !prim_is_triangle(s, hit.prim) &&
-               hit.prim - s.tri_count < s.sphere_count &&
-               !(st.flags & (kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeMirror)) &&
-               !is_black(mnee_mirror_reflectance(m, 1.0f))) {
-      st.flags |= kPathMneeMirror;  // off a mirror sphere
+    } else if (!(st.flags & (kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeMirror)) &&
+               (prim_is_triangle(s, hit.prim)
+                    ? s.reflector_plane_count > 0 &&
+                          (mnee_glass(m) || !is_black(mnee_mirror_reflectance(m, 1.0f)))
+                    : (F & kFeatureSpheres) && hit.prim - s.tri_count < s.sphere_count &&
+                          !is_black(mnee_mirror_reflectance(m, 1.0f)))) {
+      st.flags |= kPathMneeMirror;  // off a mirror sphere or a flat reflector (a glass face's too)
     } else {
       st.flags |= kPathMneeOther;
     }

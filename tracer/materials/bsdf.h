@@ -91,6 +91,21 @@ TRACER_HD TRACER_INLINE vec3 conductor_fresnel(const Material& mat, float cos_i)
   return fresnel_schlick_f0(mat.albedo, cos_i);
 }
 
+// The materials manifold NEE connects through (integrator/path.h) and the scene lists as flat
+// reflectors (scene/compiled_scene.cpp): smooth glass without textures, which refracts and
+// reflects by Fresnel alone; and smooth reflectors (a mirror, a smooth conductor), whose
+// reflectance at cosine c is mnee_mirror_reflectance's (black for any other material).
+TRACER_HD TRACER_INLINE bool mnee_glass(const Material& m) {
+  return m.type == MaterialType::kDielectric && m.roughness <= 0.0f && !m.has_textures();
+}
+TRACER_HD TRACER_INLINE vec3 mnee_mirror_reflectance(const Material& m, float c) {
+  if (m.has_textures()) return vec3(0.0f);
+  if (m.type == MaterialType::kMirror) return m.albedo;
+  if (m.type == MaterialType::kConductor && bsdf_is_delta(m, m.type))
+    return conductor_fresnel(m, c);
+  return vec3(0.0f);
+}
+
 TRACER_HD TRACER_INLINE vec2 conductor_alpha(const Material& mat) {
   const float v = mat.roughness_v >= 0.0f ? mat.roughness_v : mat.roughness;
   return vec2(ggx_alpha(mat.roughness), ggx_alpha(v));

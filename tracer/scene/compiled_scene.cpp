@@ -6,6 +6,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "materials/bsdf.h"
+
 namespace tracer {
 
 Camera make_camera(const CameraDesc& d, int width, int height) {
@@ -33,6 +35,61 @@ std::string describe_features(uint32_t f) {
   }
   return out.empty() ? "none (diffuse only)" : out;
 }
+
+namespace {
+
+// The planes of the scene's flat smooth reflectors (scene_view.h, ReflectorPlane): triangles of
+// smooth glass or of a smooth reflector, flat shaded, grouped by plane (normals within 1e-5 of
+// each other, offsets within 1e-6 of the scene's size). None when there are more than
+// kMaxReflectorPlanes.
+std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>& verts,
+                                                const std::vector<TriangleShading>& shading,
+                                                const std::vector<Material>& materials,
+                                                uint32_t tri_count) {
+  Aabb scene;
+  for (uint32_t i = 0; i < tri_count; ++i) {
+    scene.grow(verts[i].v0);
+    scene.grow(verts[i].v1);
+    scene.grow(verts[i].v2);
+  }
+  const float tol = 1e-6f * glm::length(scene.hi - scene.lo);
+  std::vector<ReflectorPlane> planes;
+  for (uint32_t i = 0; i < tri_count; ++i) {
+    const Material& m = materials[shading[i].material];
+    if (!mnee_glass(m) && !(max_component(mnee_mirror_reflectance(m, 1.0f)) > 0.0f)) continue;
+    const TriangleVerts& t = verts[i];
+    const vec3 c = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
+    const float len = glm::length(c);
+    if (!(len > 0.0f)) continue;
+    const vec3 n = c / len;
+    const TriangleShading& ts = shading[i];
+    if (ts.has_normals) {  // interpolated normals: flat only where they are the face's
+      bool flat = true;
+      for (const vec3 v : {ts.n0, ts.n1, ts.n2})
+        flat = flat && glm::abs(glm::dot(glm::normalize(v), n)) >= 1.0f - 1e-5f;
+      if (!flat) continue;
+    }
+    auto same = [&](const ReflectorPlane& p) {
+      return glm::dot(p.n, n) > 1.0f - 1e-5f && glm::abs(glm::dot(t.v0 - p.a, p.n)) <= tol &&
+             glm::abs(glm::dot(t.v1 - p.a, p.n)) <= tol && glm::abs(glm::dot(t.v2 - p.a, p.n)) <= tol;
+    };
+    ReflectorPlane* p = nullptr;
+    for (ReflectorPlane& q : planes)
+      if (same(q)) p = &q;
+    if (!p) {
+      if (planes.size() == kMaxReflectorPlanes) return {};
+      planes.push_back({t.v0, 0.0f, n, 0.0f, t.v0, t.v0});
+      p = &planes.back();
+    }
+    for (const vec3 v : {t.v0, t.v1, t.v2}) {
+      p->lo = glm::min(p->lo, v);
+      p->hi = glm::max(p->hi, v);
+    }
+  }
+  return planes;
+}
+
+}  // namespace
 
 CompiledScene::CompiledScene(const Scene& scene, int width, int height,
                              const CompiledScene* same_geometry) {
@@ -389,6 +446,9 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
   view_.infinite = infinite_->any() ? &infinite_->view : nullptr;
   view_.point_lights = point_lights_.empty() ? nullptr : point_lights_.data();
   view_.point_light_count = uint32_t(point_lights_.size());
+  reflector_planes_ = reflector_planes_of(tri_verts_, tri_shading_, materials_, tri_count);
+  view_.reflector_planes = reflector_planes_.empty() ? nullptr : reflector_planes_.data();
+  view_.reflector_plane_count = uint32_t(reflector_planes_.size());
   view_.texture_count = uint32_t(textures_.size());
   view_.node_count = uint32_t(bvh_->nodes.size());
   view_.tri_count = tri_count;

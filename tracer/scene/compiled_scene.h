@@ -63,6 +63,9 @@ class CompiledScene {
   const InfiniteLightsData& infinite() const { return *infinite_; }
   // The point and spot lights (view().point_lights points at them when there are any).
   const std::vector<PointLight>& point_lights() const { return point_lights_; }
+  // The planes of flat smooth reflectors (view().reflector_planes points at them when there are
+  // any).
+  const std::vector<ReflectorPlane>& reflector_planes() const { return reflector_planes_; }
 
  private:
   // Shared with the compiled scenes of later edits that keep the geometry.
@@ -89,6 +92,7 @@ class CompiledScene {
   std::vector<uint32_t> texels_;  // RGBA8 packed little-endian (R in the low byte)
   std::unique_ptr<InfiniteLightsData> infinite_;  // on the heap: view_ keeps its address
   std::vector<PointLight> point_lights_;
+  std::vector<ReflectorPlane> reflector_planes_;
   SceneView view_;
 };
 

@@ -54,6 +54,21 @@ struct Light {
   uint32_t kind;  // LightKind
 };
 
+// A plane of flat smooth reflectors: the scene's triangles of smooth glass (its Fresnel
+// reflection), mirrors and smooth conductors (mnee_mirror_reflectance) that lie in one plane and
+// face one way, with flat shading. Manifold NEE connects a vertex to a light by one reflection
+// off each (integrator/path.h, mnee_flat_reflection): the light's mirror image in the plane.
+struct ReflectorPlane {
+  vec3 a;       // a point on it
+  float pad0;
+  vec3 n;       // its unit normal, the side its triangles face
+  float pad1;
+  vec3 lo, hi;  // the bounds of its triangles
+};
+// At most this many planes are listed (CompiledScene): a scene with more (a glass mesh of many
+// facets) lists none, since every vertex would try each.
+constexpr uint32_t kMaxReflectorPlanes = 16;
+
 // The whole scene as the integrator reads it: the geometry that ray queries read (TraceView) and
 // the shading data, materials, lights, textures and camera.
 struct SceneView : TraceView {
@@ -78,6 +93,9 @@ struct SceneView : TraceView {
   // Point and spot lights (point_light_count entries; null when there are none).
   const PointLight* point_lights = nullptr;
   uint32_t point_light_count = 0;
+  // The planes of flat smooth reflectors (reflector_plane_count <= kMaxReflectorPlanes).
+  const ReflectorPlane* reflector_planes = nullptr;
+  uint32_t reflector_plane_count = 0;
   uint32_t texture_count = 0;
   uint32_t material_count = 0, light_count = 0, finite_light_count = 0;
   uint32_t features = 0;
