@@ -536,7 +536,12 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
     area_pdf = q.ls.pdf * glm::abs(glm::dot(q.ls.n, q.p - q.ls.p)) / (d2 * glm::sqrt(d2));
     frame = bsdf_frame(q.m, (F & kFeatureSpecular) ? q.m.type : MaterialType::kDiffuse, q.frame_n);
   }
-  const float tol = 1e-3f * glm::length(q.hit_p - q.from_o);
+  // How far seg_o may lie from the chain's last vertex and its caster: a thousandth of the path,
+  // and at least the spawn offset that moved seg_o off that vertex (offset_ray_origin: 256 ulps
+  // per axis, about 5e-5 of the coordinates), which over a short path (a ceiling just above a
+  // lamp's reflection) is the larger: missed, the path would be counted by both estimators.
+  const float tol = 1e-3f * glm::length(q.hit_p - q.from_o) +
+                    1e-4f * max_component(glm::abs(q.seg_o));
   // The caster the partition's segment left: the sphere whose surface seg_o lies on (of those
   // manifold NEE tries) where it is glass, or for a mirror path a mirror; else for a mirror path
   // the plane of flat reflectors it lies on, and otherwise flat glass (kMneeNoCaster: manifold NEE
