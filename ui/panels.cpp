@@ -448,7 +448,7 @@ void render_panel(Workbench& wb, PanelState& ps) {
   setting_widget(wb, ps, "render.sampler", "sampler");
   setting_widget(wb, ps, "render.light_sampler", "light sampler");
   setting_widget(wb, ps, "render.guiding", "path guiding");
-  setting_widget(wb, ps, "render.mnee", "manifold NEE (glass, mirror balls)");
+  setting_widget(wb, ps, "render.mnee", "manifold NEE (glass, mirrors)");
   setting_widget(wb, ps, "render.filter", "pixel filter");
   setting_widget(wb, ps, "render.filter_radius", "filter radius", 0.05f, "%.2f px (0: default)");
   setting_widget(wb, ps, "render.clamp", "clamp (0: off)", 0.1f, "%.2f");

@@ -213,8 +213,9 @@ std::vector<Setting> make_table() {
   t.push_back(field("render.mnee", "--mnee", T::kBool, 0, 0, "",
                     "Manifold next-event estimation: connect each light sample also through "
                     "smooth glass (two refractions: in and out of one piece, on flat faces or "
-                    "spheres) by Newton's method, where a shadow ray is blocked by the glass. "
-                    "Unbiased; caustics of lights behind glass converge without fireflies.",
+                    "spheres) and by one reflection (off mirror and metal spheres, flat mirrors "
+                    "and glass faces), where a shadow ray is blocked or cannot turn. Unbiased; "
+                    "caustics of lights behind glass or in mirrors converge without fireflies.",
                     E::kImage, [](Scene& s) -> bool& { return s.settings.mnee; }));
   t.push_back(choice<PixelFilter>(
       "render.filter", "--filter", {"box", "tent", "gaussian", "blackman-harris"},
