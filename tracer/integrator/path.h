@@ -445,7 +445,7 @@ TRACER_HD inline bool mnee_reflection(const SceneView& s, vec3 o, vec3 y, vec3 n
   const SurfaceHit hs = make_surface_hit<F>(s, seg, h);
   const vec3 n = ch.surface[0].normal(ch.p[0]);
   if (glm::length(hs.p - ch.p[0]) > 1e-3f * (len + glm::length(y - ch.p[0])) ||
-      glm::dot(hs.ng, n) < 1.0f - 1e-5f || glm::abs(glm::dot(hs.ns, n)) < 1.0f - 1e-5f)
+      (!sphere && (glm::dot(hs.ng, n) < 1.0f - 1e-5f || glm::abs(glm::dot(hs.ns, n)) < 1.0f - 1e-5f)))
     return false;
   const Material& m = s.materials[hs.material];
   const float c = glm::dot(-seg.d, n);
@@ -560,7 +560,9 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
   if (q.partition && q.mirror && caster == kMneeNoCaster) {
     for (uint32_t j = 0; j < s.reflector_plane_count; ++j) {
       const ReflectorPlane& pl = s.reflector_planes[j];
-      if (glm::abs(glm::dot(q.seg_o - pl.a, pl.n)) > tol ||
+      // (The vertex in front: of a face listed both ways, the side it reflects on.)
+      if (!(glm::dot(q.from_o - pl.a, pl.n) > 0.0f) ||
+          glm::abs(glm::dot(q.seg_o - pl.a, pl.n)) > tol ||
           glm::any(glm::lessThan(q.seg_o, pl.lo - tol)) ||
           glm::any(glm::greaterThan(q.seg_o, pl.hi + tol)))
         continue;

@@ -40,8 +40,8 @@ namespace {
 
 // The planes of the scene's flat smooth reflectors (scene_view.h, ReflectorPlane): triangles of
 // smooth glass or of a smooth reflector, flat shaded, grouped by plane (normals within 1e-5 of
-// each other, offsets within 1e-6 of the scene's size). None when there are more than
-// kMaxReflectorPlanes.
+// each other, offsets within 1e-5 of the scene's size: one plane is one entry, or a chain
+// through it would be found twice). None when there are more than kMaxReflectorPlanes.
 std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>& verts,
                                                 const std::vector<TriangleShading>& shading,
                                                 const std::vector<Material>& materials,
@@ -52,7 +52,7 @@ std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>
     scene.grow(verts[i].v1);
     scene.grow(verts[i].v2);
   }
-  const float tol = 1e-6f * glm::length(scene.hi - scene.lo);
+  const float tol = 1e-5f * glm::length(scene.hi - scene.lo);
   std::vector<ReflectorPlane> planes;
   for (uint32_t i = 0; i < tri_count; ++i) {
     const Material& m = materials[shading[i].material];
