@@ -242,32 +242,6 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
 // light must emit towards its last vertex. Each is a function of (o, y) alone, so that a BSDF-sampled path can
 // ask whether this estimator covers it (mnee_resolve's partition).
 
-// Manifold NEE's ray queries (the seeds, the chains' checks, the reflections): the nearest hit
-// with its surface (h invalid: none), and whether anything blocks a ray. On the GPU one copy of
-// each, called rather than inlined: the mnee kernel asks them from several places, and inlined
-// copies of the walk filled its instruction cache (76% of its warps' stalls were instruction
-// fetches, PERFORMANCE.md row 118).
-template <uint32_t F>
-#if defined(__CUDA_ARCH__)
-__device__ __noinline__
-#else
-inline
-#endif
-SurfaceHit mnee_closest(const SceneView& s, const Ray& r, uint32_t skip, Hit& h) {
-  h = intersect_closest<F>(s, r, skip);
-  if (!h.valid()) return SurfaceHit{};
-  return make_surface_hit<F>(s, r, h);
-}
-template <uint32_t F>
-#if defined(__CUDA_ARCH__)
-__device__ __noinline__
-#else
-inline
-#endif
-bool mnee_blocked(const SceneView& s, const Ray& r, uint32_t skip) {
-  return intersect_any<F>(s, r, skip);
-}
-
 // Manifold NEE's seed (Hanika et al.'s): the smooth glass that the ray r meets first (before its
 // tmax, skipping primitive `skip`) and where the ray refracted there leaves that glass again,
 // into the chain from vertex `first` on in the direction `step` (+1: o to y, -1: y to o).
@@ -277,9 +251,9 @@ TRACER_HD inline bool mnee_seed(const SceneView& s, Ray r, uint32_t skip, Manifo
                                 uint32_t* material, uint32_t first, int step, bool* glass) {
   *glass = false;
   for (int k = 0; k < 2; ++k) {
-    Hit h;
-    const SurfaceHit hs = mnee_closest<F>(s, r, k == 0 ? skip : kInvalid, h);
+    const Hit h = intersect_closest<F>(s, r, k == 0 ? skip : kInvalid);
     if (!h.valid()) return false;
+    const SurfaceHit hs = make_surface_hit<F>(s, r, h);
     const Material& ms = s.materials[hs.material];
     if (!mnee_glass(ms)) return false;
     *glass = true;
@@ -342,9 +316,9 @@ TRACER_HD inline bool mnee_check_chain(const SceneView& s, vec3 o, vec3 y, vec3 
     seg.d = d / len;
     seg.tmax = len * 1.01f;
     seg.pad = 0.0f;
-    Hit h;
-    const SurfaceHit hs = mnee_closest<F>(s, seg, kInvalid, h);
+    const Hit h = intersect_closest<F>(s, seg, kInvalid);
     if (!h.valid()) return false;
+    const SurfaceHit hs = make_surface_hit<F>(s, seg, h);
     const vec3 n = ch.surface[i].normal(ch.p[i]);
     if (glm::length(hs.p - ch.p[i]) > 1e-3f * dist || hs.material != material[i] ||
         glm::abs(glm::dot(hs.ns, n)) < 1.0f - 1e-5f)
@@ -363,7 +337,7 @@ TRACER_HD inline bool mnee_check_chain(const SceneView& s, vec3 o, vec3 y, vec3 
                                           ? ch.surface[1].normal(ch.p[1])
                                           : -ch.surface[1].normal(ch.p[1]),
                                 y, ny);
-  return !mnee_blocked<F>(s, last, light_prim);
+  return !intersect_any<F>(s, last, light_prim);
 }
 
 template <uint32_t F>
@@ -465,10 +439,10 @@ TRACER_HD inline bool mnee_reflection(const SceneView& s, vec3 o, vec3 y, vec3 n
   seg.d = d / len;
   seg.tmax = len * 1.01f;
   seg.pad = 0.0f;
-  Hit h;
-  const SurfaceHit hs = mnee_closest<F>(s, seg, kInvalid, h);
+  const Hit h = intersect_closest<F>(s, seg, kInvalid);
   if (!h.valid() || (sphere ? h.prim != s.tri_count + caster : !prim_is_triangle(s, h.prim)))
     return false;
+  const SurfaceHit hs = make_surface_hit<F>(s, seg, h);
   const vec3 n = ch.surface[0].normal(ch.p[0]);
   if (glm::length(hs.p - ch.p[0]) > 1e-3f * (len + glm::length(y - ch.p[0])) ||
       (!sphere && (glm::dot(hs.ng, n) < 1.0f - 1e-5f || glm::abs(glm::dot(hs.ns, n)) < 1.0f - 1e-5f)))
@@ -479,7 +453,7 @@ TRACER_HD inline bool mnee_reflection(const SceneView& s, vec3 o, vec3 y, vec3 n
                                         : mnee_mirror_reflectance(m, c);
   if (is_black(throughput)) return false;
   if (!mnee_light_faces<F>(s, light_prim, y, ny, o, ch.p[0])) return false;
-  return !mnee_blocked<F>(s, spawn_ray_to(ch.p[0], n, y, ny), light_prim);
+  return !intersect_any<F>(s, spawn_ray_to(ch.p[0], n, y, ny), light_prim);
 }
 
 // Every chain manifold NEE finds from o to light point y (on light_prim, unit normal ny) within
