@@ -72,6 +72,9 @@ int run_info(const InfoOptions& o) {
   j["primitives"] = v.tri_count + v.sphere_count;
   j["triangles"] = v.tri_count;
   j["spheres"] = v.sphere_count;
+  // The planes of flat mirrors and glass faces manifold NEE reflects off (scene_view.h).
+  j["reflector_planes"] = v.reflector_plane_count;
+  j["too_many_reflector_planes"] = cs.too_many_reflector_planes();
   // Instanced meshes are stored once and placed by every instance: the triangles the instances
   // place, and those stored.
   uint64_t stored = 0;
@@ -190,6 +193,15 @@ int run_info(const InfoOptions& o) {
             << " lights (" << lt.leaf_count << " leaves), depth " << lt.depth << ", built in "
             << std::setprecision(2) << lt.build_ms << " ms\n"
             << "flat list   " << flat_text << "\n"
+            << (v.reflector_plane_count > 0
+                    ? "reflectors  " + std::to_string(v.reflector_plane_count) +
+                          " planes of flat mirrors and glass faces (manifold NEE reflects off "
+                          "each)\n"
+                    : cs.too_many_reflector_planes()
+                          ? "reflectors  none listed: flat mirrors and glass faces in more than " +
+                                std::to_string(tracer::kMaxReflectorPlanes) +
+                                " planes (manifold NEE does not reflect off them)\n"
+                          : std::string())
             << "features    " << tracer::describe_features(cs.features()) << "\n"
             << "GPU kernels " << tracer::spec_name_for_features(cs.features())
             << (gpu.shade_spec != gpu.spec

@@ -154,6 +154,11 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
   EXPECT_EQ(j["flat_list"]["box_faces"].get<int>(), 5);
   EXPECT_EQ(j["flat_list"]["solid_boxes"].get<int>(), 0);
   EXPECT_EQ(j["gpu_specialization"].get<std::string>(), "spheres+triangles, pinhole, specular");
+  EXPECT_EQ(j["reflector_planes"].get<int>(), 0);  // a mirror ball and a glass ball: no planes
+  // The lamp's glass box: six planes of flat reflectors (its faces) for manifold NEE.
+  ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
+                                  "/assets/scenes/glass_lamp.json", &log), 0) << log;
+  EXPECT_EQ(nlohmann::json::parse(log.substr(log.find('{')))["reflector_planes"].get<int>(), 6);
   // The Cornell box's two blocks are solid boxes (one slab test each on the GPU).
   ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
                                   "/assets/scenes/cornell_box.json", &log), 0) << log;

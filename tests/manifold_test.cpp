@@ -697,7 +697,10 @@ TEST(Manifold, SceneListsThePlanesOfItsFlatReflectors) {
   faceted.materials.push_back({"faceted glass", glass});
   test::add_icosphere(faceted.mesh, vec3(278.0f, 100.0f, 100.0f), 50.0f, 1,
                       uint32_t(faceted.materials.size() - 1));
-  EXPECT_EQ(CompiledScene(faceted, 16, 16).view().reflector_plane_count, 0u);
+  const CompiledScene fc(faceted, 16, 16);
+  EXPECT_EQ(fc.view().reflector_plane_count, 0u);
+  EXPECT_TRUE(fc.too_many_reflector_planes());
+  EXPECT_FALSE(cs.too_many_reflector_planes());
 }
 
 // The glass and mirror balls: the lamp through the glass ball and in the mirror ball (measured

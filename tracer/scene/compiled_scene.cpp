@@ -45,7 +45,8 @@ namespace {
 std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>& verts,
                                                 const std::vector<TriangleShading>& shading,
                                                 const std::vector<Material>& materials,
-                                                uint32_t tri_count) {
+                                                uint32_t tri_count, bool* too_many) {
+  *too_many = false;
   Aabb scene;
   for (uint32_t i = 0; i < tri_count; ++i) {
     scene.grow(verts[i].v0);
@@ -77,7 +78,10 @@ std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>
     for (ReflectorPlane& q : planes)
       if (same(q)) p = &q;
     if (!p) {
-      if (planes.size() == kMaxReflectorPlanes) return {};
+      if (planes.size() == kMaxReflectorPlanes) {
+        *too_many = true;
+        return {};
+      }
       planes.push_back({t.v0, 0.0f, n, 0.0f, t.v0, t.v0});
       p = &planes.back();
     }
@@ -446,7 +450,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
   view_.infinite = infinite_->any() ? &infinite_->view : nullptr;
   view_.point_lights = point_lights_.empty() ? nullptr : point_lights_.data();
   view_.point_light_count = uint32_t(point_lights_.size());
-  reflector_planes_ = reflector_planes_of(tri_verts_, tri_shading_, materials_, tri_count);
+  reflector_planes_ =
+      reflector_planes_of(tri_verts_, tri_shading_, materials_, tri_count, &too_many_reflectors_);
   view_.reflector_planes = reflector_planes_.empty() ? nullptr : reflector_planes_.data();
   view_.reflector_plane_count = uint32_t(reflector_planes_.size());
   view_.texture_count = uint32_t(textures_.size());

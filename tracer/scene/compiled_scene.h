@@ -66,6 +66,9 @@ class CompiledScene {
   // The planes of flat smooth reflectors (view().reflector_planes points at them when there are
   // any).
   const std::vector<ReflectorPlane>& reflector_planes() const { return reflector_planes_; }
+  // True when the scene's flat reflectors lie in more than kMaxReflectorPlanes planes (none
+  // listed).
+  bool too_many_reflector_planes() const { return too_many_reflectors_; }
 
  private:
   // Shared with the compiled scenes of later edits that keep the geometry.
@@ -93,6 +96,7 @@ class CompiledScene {
   std::unique_ptr<InfiniteLightsData> infinite_;  // on the heap: view_ keeps its address
   std::vector<PointLight> point_lights_;
   std::vector<ReflectorPlane> reflector_planes_;
+  bool too_many_reflectors_ = false;
   SceneView view_;
 };
 
