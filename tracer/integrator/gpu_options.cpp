@@ -174,7 +174,8 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
     o.tail_fraction = 0.0f;
   }
   // Manifold NEE runs in the caustic shade kernels only (features.h), where a scene has glass
-  // (elsewhere it has nothing to connect through, and the usual kernels run).
+  // (elsewhere the usual kernels run: also in a scene of mirrors alone, which the CPU's manifold
+  // NEE reflects off; the mean is the same, the noise the plain kernels').
   const bool mnee = scene.mnee && (scene.features & kFeatureDielectric);
   if (mnee && o.kernel != KernelMode::kWavefront) {
     changed("kernel", kernel_mode_name(o.kernel), "wavefront",
