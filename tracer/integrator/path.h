@@ -421,9 +421,7 @@ TRACER_HD inline bool mnee_reflection(const SceneView& s, vec3 o, vec3 y, vec3 n
     const float ho = glm::dot(o - pl.a, pl.n), hy = glm::dot(y - pl.a, pl.n);
     if (!(ho > 0.0f) || !(hy > 0.0f)) return false;  // both in front of it
     const vec3 p = o + (ho / (ho + hy)) * (y - 2.0f * hy * pl.n - o);
-    const float margin = 1e-4f * glm::length(pl.hi - pl.lo);
-    if (glm::any(glm::lessThan(p, pl.lo - margin)) || glm::any(glm::greaterThan(p, pl.hi + margin)))
-      return false;
+    if (!pl.bounds_hold(p, 1e-4f * glm::length(pl.hi - pl.lo))) return false;
     ch.k = 1;
     ch.surface[0].kind = SpecularSurface::kPlane;
     ch.surface[0].a = pl.a;
@@ -562,9 +560,7 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
       const ReflectorPlane& pl = s.reflector_planes[j];
       // (The vertex in front: of a face listed both ways, the side it reflects on.)
       if (!(glm::dot(q.from_o - pl.a, pl.n) > 0.0f) ||
-          glm::abs(glm::dot(q.seg_o - pl.a, pl.n)) > tol ||
-          glm::any(glm::lessThan(q.seg_o, pl.lo - tol)) ||
-          glm::any(glm::greaterThan(q.seg_o, pl.hi + tol)))
+          glm::abs(glm::dot(q.seg_o - pl.a, pl.n)) > tol || !pl.bounds_hold(q.seg_o, tol))
         continue;
       caster = kMneeMaxSpheres + j;
       break;
@@ -922,8 +918,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       else st.flags |= kPathMneeRefract1;
     } else if (!(st.flags & (kPathMneeRefract1 | kPathMneeRefract2 | kPathMneeMirror)) &&
                (prim_is_triangle(s, hit.prim)
-                    ? s.reflector_plane_count > 0 &&
-                          (mnee_glass(m) || !is_black(mnee_mirror_reflectance(m, 1.0f)))
+                    ? s.reflector_plane_count > 0 && mnee_flat_reflector(m)
                     : (F & kFeatureSpheres) && hit.prim - s.tri_count < s.sphere_count &&
                           !is_black(mnee_mirror_reflectance(m, 1.0f)))) {
       st.flags |= kPathMneeMirror;  // off a mirror sphere or a flat reflector (a glass face's too)

@@ -105,6 +105,11 @@ TRACER_HD TRACER_INLINE vec3 mnee_mirror_reflectance(const Material& m, float c)
     return conductor_fresnel(m, c);
   return vec3(0.0f);
 }
+// What manifold NEE reflects off as a flat reflector: smooth glass (its Fresnel reflection) or a
+// smooth reflector.
+TRACER_HD TRACER_INLINE bool mnee_flat_reflector(const Material& m) {
+  return mnee_glass(m) || max_component(mnee_mirror_reflectance(m, 1.0f)) > 0.0f;
+}
 
 TRACER_HD TRACER_INLINE vec2 conductor_alpha(const Material& mat) {
   const float v = mat.roughness_v >= 0.0f ? mat.roughness_v : mat.roughness;

@@ -47,6 +47,9 @@ std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>
                                                 const std::vector<Material>& materials,
                                                 uint32_t tri_count, bool* too_many) {
   *too_many = false;
+  bool any = false;  // (no pass over the triangles where no material reflects)
+  for (const Material& m : materials) any = any || mnee_flat_reflector(m);
+  if (!any) return {};
   Aabb scene;
   for (uint32_t i = 0; i < tri_count; ++i) {
     scene.grow(verts[i].v0);
@@ -57,7 +60,7 @@ std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>
   std::vector<ReflectorPlane> planes;
   for (uint32_t i = 0; i < tri_count; ++i) {
     const Material& m = materials[shading[i].material];
-    if (!mnee_glass(m) && !(max_component(mnee_mirror_reflectance(m, 1.0f)) > 0.0f)) continue;
+    if (!mnee_flat_reflector(m)) continue;
     const TriangleVerts& t = verts[i];
     const vec3 c = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
     const float len = glm::length(c);

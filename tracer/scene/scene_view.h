@@ -57,13 +57,17 @@ struct Light {
 // A plane of flat smooth reflectors: the scene's triangles of smooth glass (its Fresnel
 // reflection), mirrors and smooth conductors (mnee_mirror_reflectance) that lie in one plane and
 // face one way, with flat shading. Manifold NEE connects a vertex to a light by one reflection
-// off each (integrator/path.h, mnee_flat_reflection): the light's mirror image in the plane.
+// off each (integrator/path.h, mnee_reflection): the light's mirror image in the plane.
 struct ReflectorPlane {
   vec3 a;       // a point on it
   float pad0;
   vec3 n;       // its unit normal, the side its triangles face
   float pad1;
   vec3 lo, hi;  // the bounds of its triangles
+  // Whether p lies within the bounds, widened by margin.
+  TRACER_HD bool bounds_hold(vec3 p, float margin) const {
+    return !glm::any(glm::lessThan(p, lo - margin)) && !glm::any(glm::greaterThan(p, hi + margin));
+  }
 };
 // At most this many planes are listed (CompiledScene): a scene with more (a glass mesh of many
 // facets) lists none, since every vertex would try each.
