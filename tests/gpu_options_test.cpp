@@ -49,14 +49,15 @@ std::vector<GpuOptions> all_requests() {
 // Every scene a rule distinguishes: the features the rules and the specialisation read
 // (textures, random walks, spheres, depth of field, specular materials, lights beyond emitters,
 // instances, glass),
-// with and without a flat list, a jittered camera and a lens, guiding and manifold NEE.
+// with and without a flat list, a jittered camera and a lens, guiding and manifold NEE (with and
+// without something to connect through).
 std::vector<GpuSceneTraits> all_scenes() {
   const uint32_t bits[] = {kFeatureTextures, kFeatureSubsurface, kFeatureSpheres,
                            kFeatureDepthOfField, kFeatureMirror, kFeaturePointLights,
                            kFeatureInstances, kFeatureDielectric};
   std::vector<GpuSceneTraits> out;
   for (uint32_t mask = 0; mask < 256; ++mask)
-    for (int other = 0; other < 64; ++other) {
+    for (int other = 0; other < 128; ++other) {
       GpuSceneTraits t;
       for (int i = 0; i < 8; ++i)
         if (mask & (1u << i)) t.features |= bits[i];
@@ -68,6 +69,7 @@ std::vector<GpuSceneTraits> all_scenes() {
       t.bvh8_available = other & 8;
       t.guiding = other & 16;
       t.mnee = other & 32;
+      t.mnee_casters = other & 64;
       out.push_back(t);
     }
   return out;
@@ -80,7 +82,7 @@ std::string describe_case(const GpuOptions& o, const GpuSceneTraits& t) {
          fraction_text(o.tail_fraction) + "; scene features 0x" + std::to_string(t.features) +
          ", flat list " + on_off(t.flat_available) + ", jitter " + on_off(t.jitter) + ", lens " +
          on_off(t.depth_of_field) + ", 8-wide tree " + on_off(t.bvh8_available) + ", guiding " +
-         on_off(t.guiding) + ", mnee " + on_off(t.mnee);
+         on_off(t.guiding) + ", mnee " + on_off(t.mnee) + ", casters " + on_off(t.mnee_casters);
 }
 
 // The user's switches, by the names the overrides use, as text.
@@ -119,8 +121,9 @@ bool check(const GpuOptions& r, const GpuSceneTraits& t, const EffectiveGpuOptio
   };
 
   // The user's switches.
-  // Manifold NEE runs where the scene has glass (elsewhere it has nothing to connect through).
-  const bool mnee = t.mnee && (t.features & kFeatureDielectric);
+  // Manifold NEE runs where the scene has glass or smooth reflectors (elsewhere it has nothing to
+  // connect through or off).
+  const bool mnee = t.mnee && t.mnee_casters;
   expect(o.kernel == (t.guiding || mnee ? KernelMode::kWavefront : r.kernel),
          "the kernel is as requested (auto is decided by timing); guiding or manifold NEE: the "
          "wavefront");
@@ -241,8 +244,8 @@ TEST(GpuOptions, EveryCombinationObeysTheRules) {
   const std::vector<GpuOptions> requests = all_requests();
   const std::vector<GpuSceneTraits> scenes = all_scenes();
   ASSERT_EQ(requests.size(), 192u);
-  // 128 x 64 without instances, 128 x 32 with (no flat list)
-  ASSERT_EQ(scenes.size(), 12288u);
+  // 128 x 128 without instances, 128 x 64 with (no flat list)
+  ASSERT_EQ(scenes.size(), 24576u);
   size_t failed = 0, overridden = 0;
   for (const GpuSceneTraits& t : scenes)
     for (const GpuOptions& r : requests) {

@@ -93,6 +93,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<FlatPrim> flat_solids;  // the solid boxes' maps
   DeviceBuffer<uint32_t> tri_to_flat;
   bool flat_available = false;
+  bool mnee_casters = false;  // mnee_has_casters(the scene)
   std::string flat_text;             // describe_flat_list of the scene's list
   FlatParams flat_params;            // the same entries, passed to the kernels that loop over them
   SceneView view;
@@ -269,6 +270,7 @@ struct CudaRenderer::Impl {
   void resolve() {
     if (!has_scene) return;
     GpuSceneTraits traits = gpu_scene_traits(view, flat_available, cfg);
+    traits.mnee_casters = mnee_casters;
     traits.bvh8_available = nodes8.size() > 0;
     if (guide_retired()) traits.guiding = false;  // the render goes on unguided
     eff = resolve_gpu_options(opts, traits);
@@ -631,6 +633,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.texels.upload(scene.texels());
   const FlatList& fl = scene.flat_list();
   m.flat_available = fl.enabled;
+  m.mnee_casters = mnee_has_casters(scene);
   m.flat_text = describe_flat_list(fl, uint32_t(scene.spheres().size()));
   m.flat.upload(fl.prims);
   m.flat_info.upload(fl.info);

@@ -236,9 +236,10 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
                             __popc(ballot_finish & below))] = id;
 }
 
-// Manifold NEE's stage: one thread per request of the bounce (launch_mnee). Two blocks per
-// multiprocessor (128 registers, some spilled) run it faster than one, which the lamp's
-// variant would otherwise need for its 255 registers (PERFORMANCE.md row 115).
+// Manifold NEE's stage: one thread per request of the bounce (launch_mnee), which runs its
+// request's solver and traces the rays it asks for at one place (path.h, mnee_resolve). Two
+// blocks per multiprocessor (128 registers, some spilled) run it faster than one, which the
+// lamp's variant would otherwise need for its 255 registers (PERFORMANCE.md row 115).
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock, 2)
     mnee_kernel(SceneView view, const __grid_constant__ FlatParams flat, IntegratorSettings cfg,

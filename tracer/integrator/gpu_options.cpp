@@ -2,6 +2,7 @@
 // path of the wavefront, in one place, each with the reason it gives.
 #include "integrator/gpu_options.h"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "bvh/bvh8.h"
@@ -105,9 +106,19 @@ GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,
   return t;
 }
 
+bool mnee_has_casters(const CompiledScene& scene) {
+  if ((scene.view().features & kFeatureDielectric) || !scene.reflector_planes().empty())
+    return true;
+  const size_t spheres = std::min<size_t>(scene.spheres().size(), kMneeMaxSpheres);
+  for (size_t i = 0; i < spheres; ++i)
+    if (mnee_flat_reflector(scene.materials()[scene.spheres()[i].material])) return true;
+  return false;
+}
+
 GpuSceneTraits gpu_scene_traits(const CompiledScene& scene, const IntegratorSettings& cfg) {
   GpuSceneTraits t = gpu_scene_traits(scene.view(), scene.flat_list().enabled, cfg);
   t.bvh8_available = !scene.bvh8().nodes.empty();
+  t.mnee_casters = mnee_has_casters(scene);
   return t;
 }
 
@@ -173,10 +184,9 @@ EffectiveGpuOptions resolve_gpu_options(const GpuOptions& requested, const GpuSc
             "path guiding: the tail is a megakernel, which neither guides nor trains");
     o.tail_fraction = 0.0f;
   }
-  // Manifold NEE runs in the caustic shade kernels only (features.h), where a scene has glass
-  // (elsewhere the usual kernels run: also in a scene of mirrors alone, which the CPU's manifold
-  // NEE reflects off; the mean is the same, the noise the plain kernels').
-  const bool mnee = scene.mnee && (scene.features & kFeatureDielectric);
+  // Manifold NEE runs in the caustic shade kernels only (features.h), where a scene has glass or
+  // smooth reflectors to connect through or off (elsewhere the usual kernels run).
+  const bool mnee = scene.mnee && scene.mnee_casters;
   if (mnee && o.kernel != KernelMode::kWavefront) {
     changed("kernel", kernel_mode_name(o.kernel), "wavefront",
             "manifold NEE runs in the wavefront's caustic shade kernels");

@@ -53,9 +53,13 @@ struct GpuSceneTraits {
   bool bvh8_available = false;  // the compiled scene has an 8-wide tree (CompiledScene::bvh8)
   bool guiding = false;         // path guiding is asked for (IntegratorSettings::guiding)
   bool mnee = false;            // manifold NEE is asked for (IntegratorSettings::mnee)
+  bool mnee_casters = false;    // ... and the scene has what it connects through or reflects off
 };
-// From a scene's view (its features and camera) and whether it has a flat list, or from the
-// compiled scene itself.
+// Whether manifold NEE has something to connect through or reflect off in the scene: smooth
+// glass, a plane of flat reflectors, a mirror sphere of those it tries (integrator/path.h).
+bool mnee_has_casters(const CompiledScene& scene);
+// From a scene's view (its features and camera) and whether it has a flat list (mnee_casters is
+// left false: the caller knows it from the compiled scene), or from the compiled scene itself.
 GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,
                                 const IntegratorSettings& cfg);
 GpuSceneTraits gpu_scene_traits(const CompiledScene& scene, const IntegratorSettings& cfg);

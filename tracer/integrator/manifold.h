@@ -5,7 +5,7 @@
 // refraction), found by Newton's method on the specular surfaces, and the generalized geometry
 // term that turns the light sample's area density into a density of directions at x.
 //
-// Used by path.h's mnee_chain, mnee_sphere_chains, mnee_mirror and mnee_resolve (render.mnee:
+// Used by path.h's MneeSolver and mnee_resolve (render.mnee:
 // the CPU and the wavefront's mnee stage). The surfaces are the two analytic kinds the target
 // scenes' casters are made of, a plane (a flat face of a box or mesh) and a sphere; a mesh with
 // interpolated normals needs its vertices moved along the mesh (re-projected by a ray, as Hanika
@@ -437,23 +437,52 @@ constexpr int kSphereFoldSteps = 10;
 
 // Every two-refraction chain from x to y through the sphere (centre c, radius r, index eta inside;
 // x and y outside): the sign changes of sphere_refraction_miss over the angles of incidence and
-// the folds' pairs, each narrowed by bisection. Calls found(chain) for each, its surfaces set, to
-// be polished by manifold_walk.
-template <typename Found>
-TRACER_HD inline void sphere_refraction_chains(vec3 c, float r, float eta, vec3 x, vec3 y,
-                                               Found&& found) {
+// the folds' pairs, each narrowed by bisection, one chain at a time (next: its surfaces set, to be
+// polished by manifold_walk), so that a solver can trace rays between two chains (path.h,
+// MneeSolver) and sphere_refraction_chains below can call a function for each.
+struct SphereChainScan {
   SpherePlane pl;
-  if (!sphere_plane(c, x, y, pl) || !(pl.x.x > r) || !(glm::length(pl.y) > r)) return;
-  vec2 d, t;
-  auto miss_at = [&](float a, float& m) {
-    return sphere_refraction_miss(pl, r, eta, vec2(glm::cos(a), glm::sin(a)), d, t, m);
-  };
+  vec3 c = vec3(0.0f);
+  float r = 0.0f, eta = 1.0f;
+  float th = 0.0f, step = 0.0f;  // the scan's first angle (-th) and step
+  vec2 rot = vec2(1.0f, 0.0f), ci = vec2(1.0f, 0.0f);  // its rotation by a step; (cos, sin) of i
+  float m1 = 0.0f, m2 = 0.0f;  // the misses one and two steps back
+  bool ok1 = false, ok2 = false;
+  int i = kSphereScan + 1;  // the next angle of the scan (past the end: none)
+  // Brackets of roots still to narrow (a fold gives two): [a, b] with a's miss m_a.
+  int pending = 0, taken = 0;
+  float pa[2] = {0.0f, 0.0f}, pb[2] = {0.0f, 0.0f}, pm[2] = {0.0f, 0.0f};
+
+  TRACER_HD void start(vec3 centre, float radius, float index, vec3 x, vec3 y) {
+    c = centre;
+    r = radius;
+    eta = index;
+    pending = taken = 0;
+    ok1 = ok2 = false;
+    i = kSphereScan + 1;
+    if (!sphere_plane(c, x, y, pl) || !(pl.x.x > r) || !(glm::length(pl.y) > r)) return;
+    // The scan's (cos, sin) of incidence by rotation, one step at a time (no trigonometry).
+    th = 0.5f * kPi * (1.0f - 1e-4f);
+    step = 2.0f * th / float(kSphereScan);
+    fast_sincos(step, &rot.y, &rot.x);
+    fast_sincos(th, &ci.y, &ci.x);
+    ci.y = -ci.y;
+    i = 0;
+  }
+
+  TRACER_HD bool miss_at(float a, vec2& d, vec2& t, float& m) const {
+    vec2 cs;
+    fast_sincos(a, &cs.y, &cs.x);
+    return sphere_refraction_miss(pl, r, eta, cs, d, t, m);
+  }
+
   // The chain between angles a (miss m_a) and b, whose misses differ in sign.
-  auto root = [&](float a, float b, float m_a) {
+  TRACER_HD bool root(float a, float b, float m_a, ManifoldChain& ch) const {
+    vec2 d, t;
     float m;
     for (int it = 0; it < kSphereBisections; ++it) {
       const float mid = 0.5f * (a + b);
-      if (!miss_at(mid, m)) return;
+      if (!miss_at(mid, d, t, m)) return false;
       if ((m > 0.0f) == (m_a > 0.0f)) {
         a = mid;
         m_a = m;
@@ -462,11 +491,12 @@ TRACER_HD inline void sphere_refraction_chains(vec3 c, float r, float eta, vec3 
       }
     }
     const float mid = 0.5f * (a + b);
-    if (!miss_at(mid, m)) return;
+    if (!miss_at(mid, d, t, m)) return false;
     // The vertices: where the lines in and out meet the circle (at distance b from the centre).
-    const float dist = r * glm::sin(mid), half = r * glm::cos(mid);
+    float sm, cm;
+    fast_sincos(mid, &sm, &cm);
+    const float dist = r * sm, half = r * cm;
     const vec2 p1 = dist * vec2(d.y, -d.x) - half * d, p2 = dist * vec2(t.y, -t.x) + half * t;
-    ManifoldChain ch;
     ch.k = 2;
     for (int j = 0; j < 2; ++j) {
       ch.surface[j].kind = SpecularSurface::kSphere;
@@ -476,46 +506,51 @@ TRACER_HD inline void sphere_refraction_chains(vec3 c, float r, float eta, vec3 
     }
     ch.p[0] = c + p1.x * pl.u + p1.y * pl.v;
     ch.p[1] = c + p2.x * pl.u + p2.y * pl.v;
-    found(ch);
-  };
-  // The scan's (cos, sin) of incidence by rotation, one step at a time (no trigonometry).
-  const float th = 0.5f * kPi * (1.0f - 1e-4f), step = 2.0f * th / float(kSphereScan);
-  const vec2 rot(glm::cos(step), glm::sin(step));
-  vec2 ci(glm::cos(th), -glm::sin(th));
-  float m1 = 0.0f, m2 = 0.0f;  // the misses one and two steps back
-  bool ok1 = false, ok2 = false;
-  for (int i = 0; i <= kSphereScan; ++i) {
+    return true;
+  }
+
+  // One angle of the scan: brackets of roots where the miss changes sign, or a fold's pair.
+  TRACER_HD void scan_one() {
     const float a = -th + step * float(i);
+    vec2 d, t;
     float m = 0.0f;
     const bool ok = sphere_refraction_miss(pl, r, eta, ci, d, t, m);
     if (ok && ok1 && (m > 0.0f) != (m1 > 0.0f)) {
-      root(a - step, a, m1);
+      pa[0] = a - step;
+      pb[0] = a;
+      pm[0] = m1;
+      pending = 1;
     } else if (ok && ok1 && ok2 && (m > 0.0f) == (m1 > 0.0f) && (m1 > 0.0f) == (m2 > 0.0f) &&
                (m1 > 0.0f ? m1 < glm::min(m, m2) : m1 > glm::max(m, m2))) {
       // |miss| smallest one step back: a fold, if its extremum crosses zero. Golden section for
       // the extremum of s * miss (s: the sign), then a root on either side.
       const float sgn = m1 > 0.0f ? 1.0f : -1.0f, g = 0.381966f;
       float lo = a - 2.0f * step, hi = a, x1 = lo + g * (hi - lo), x2 = hi - g * (hi - lo), f1, f2;
-      bool fine = miss_at(x1, f1) && miss_at(x2, f2);
+      bool fine = miss_at(x1, d, t, f1) && miss_at(x2, d, t, f2);
       for (int it = 0; it < kSphereFoldSteps && fine && sgn * f1 > 0.0f && sgn * f2 > 0.0f; ++it) {
         if (sgn * f1 < sgn * f2) {
           hi = x2;
           x2 = x1;
           f2 = f1;
           x1 = lo + g * (hi - lo);
-          fine = miss_at(x1, f1);
+          fine = miss_at(x1, d, t, f1);
         } else {
           lo = x1;
           x1 = x2;
           f1 = f2;
           x2 = hi - g * (hi - lo);
-          fine = miss_at(x2, f2);
+          fine = miss_at(x2, d, t, f2);
         }
       }
       if (fine && (sgn * f1 <= 0.0f || sgn * f2 <= 0.0f)) {
         const float xm = sgn * f1 <= sgn * f2 ? x1 : x2, fm = sgn * f1 <= sgn * f2 ? f1 : f2;
-        root(a - 2.0f * step, xm, m2);
-        root(xm, a, fm);
+        pa[0] = a - 2.0f * step;
+        pb[0] = xm;
+        pm[0] = m2;
+        pa[1] = xm;
+        pb[1] = a;
+        pm[1] = fm;
+        pending = 2;
       }
     }
     m2 = m1;
@@ -523,7 +558,31 @@ TRACER_HD inline void sphere_refraction_chains(vec3 c, float r, float eta, vec3 
     m1 = m;
     ok1 = ok;
     ci = vec2(ci.x * rot.x - ci.y * rot.y, ci.x * rot.y + ci.y * rot.x);
+    ++i;
   }
+
+  // The next chain; false when the scan has no more.
+  TRACER_HD bool next(ManifoldChain& ch) {
+    for (;;) {
+      while (taken < pending) {
+        const int j = taken++;
+        if (root(pa[j], pb[j], pm[j], ch)) return true;
+      }
+      pending = taken = 0;
+      if (i > kSphereScan) return false;
+      scan_one();
+    }
+  }
+};
+
+// Calls found(chain) for every chain SphereChainScan finds.
+template <typename Found>
+TRACER_HD inline void sphere_refraction_chains(vec3 c, float r, float eta, vec3 x, vec3 y,
+                                               Found&& found) {
+  SphereChainScan scan;
+  scan.start(c, r, eta, x, y);
+  ManifoldChain ch;
+  while (scan.next(ch)) found(ch);
 }
 
 // The reflection off a mirror sphere (centre c, radius r) from x to y (both outside): on the arc

@@ -122,7 +122,7 @@ enum PathFlags : uint32_t {
   kPathMneeRefract1 = 1u << 5,
   kPathMneeRefract2 = 1u << 6,
   kPathMneeOther = 1u << 7,
-  kPathMneeMirror = 1u << 8,  // ... or exactly one reflection (mnee_reflection: a mirror sphere, a flat reflector)
+  kPathMneeMirror = 1u << 8,  // ... or exactly one reflection (MneeSolver: a mirror sphere, a flat reflector)
 };
 // The wavefront keeps the flags in 9 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
 static_assert(kPathMneeMirror < (1u << 9), "PathFlags must fit in 9 bits");
@@ -226,60 +226,10 @@ TRACER_HD TRACER_INLINE bool is_black(vec3 c) {
 
 // Manifold next-event estimation (render.mnee; integrator/manifold.h): light reaches a
 // non-delta vertex through smooth glass or by a smooth reflection, where a shadow ray is blocked
-// or turned away and only a BSDF-sampled path could find it. From the vertex's offset origin o
-// (offset_ray_origin of the point to its viewer's side) to a light point y on primitive light_prim
-// (unit normal ny):
-// - mnee_chain, through flat glass (faces of meshes and boxes): the smooth glass the straight
-//   segment meets first and the surface where the ray refracted there leaves it (in and out of one
-//   piece of glass) seed the chain; through parallel faces (a pane, a slab) manifold_slab solves
-//   it in one dimension, else Newton's method in 3D;
-// - mnee_sphere_chains, through each glass sphere: every chain, found in the plane of o, y and the
-//   centre (sphere_refraction_chains);
-// - mnee_reflection, off each mirror sphere (sphere_reflection_chain) and each plane of flat
-//   smooth reflectors (SceneView::reflector_planes: glass's Fresnel reflection, mirrors, smooth
-//   conductors; the line to the light's mirror image): the one reflection.
-// Each chain's segments must then be what a ray sees (mnee_check_chain, mnee_reflection), and the
-// light must emit towards its last vertex. Each is a function of (o, y) alone, so that a BSDF-sampled path can
-// ask whether this estimator covers it (mnee_resolve's partition).
-
-// Manifold NEE's seed (Hanika et al.'s): the smooth glass that the ray r meets first (before its
-// tmax, skipping primitive `skip`) and where the ray refracted there leaves that glass again,
-// into the chain from vertex `first` on in the direction `step` (+1: o to y, -1: y to o).
-// *glass: the ray met such glass first.
-template <uint32_t F>
-TRACER_HD inline bool mnee_seed(const SceneView& s, Ray r, uint32_t skip, ManifoldChain& ch,
-                                uint32_t* material, uint32_t first, int step, bool* glass) {
-  *glass = false;
-  for (int k = 0; k < 2; ++k) {
-    const Hit h = intersect_closest<F>(s, r, k == 0 ? skip : kInvalid);
-    if (!h.valid()) return false;
-    const SurfaceHit hs = make_surface_hit<F>(s, r, h);
-    const Material& ms = s.materials[hs.material];
-    if (!mnee_glass(ms)) return false;
-    *glass = true;
-    // Glass spheres' chains are all found by mnee_sphere_chains instead.
-    if ((F & kFeatureSpheres) && !prim_is_triangle(s, h.prim) &&
-        h.prim - s.tri_count < s.sphere_count)
-      return false;
-    const uint32_t i = uint32_t(int(first) + step * k);
-    SpecularSurface& su = ch.surface[i];
-    su.kind = SpecularSurface::kPlane;  // a triangle (also of an instance): its plane
-    su.a = hs.p;
-    su.n = hs.ng;
-    su.eta = ms.ior;
-    material[i] = hs.material;
-    ch.p[i] = hs.p;
-    if (k == 1) break;
-    // Refracted into the glass (total internal reflection: no seed).
-    const float c = glm::dot(-r.d, hs.ng);
-    const vec3 nn = c > 0.0f ? hs.ng : -hs.ng;
-    const vec3 t = glm::refract(r.d, nn, c > 0.0f ? 1.0f / ms.ior : ms.ior);
-    if (!(glm::dot(t, t) > 0.0f)) return false;
-    r = spawn_ray(hs.p, hs.ng, glm::normalize(t));
-  }
-  ch.k = 2;
-  return material[0] == material[1];  // in and out of one glass
-}
+// or turned away and only a BSDF-sampled path could find it. shade_path fills an MneeRequest;
+// mnee_resolve runs its solves (MneeSolver: the chains through flat glass, through glass spheres,
+// off mirror spheres and planes of flat reflectors), on the CPU right after shading and in the
+// wavefront's mnee stage.
 
 // Whether the light at y (primitive light_prim, unit normal ny) emits towards q, the last vertex
 // of a chain from o: a one-sided light from its front only. A sphere light's point must also
@@ -294,198 +244,16 @@ TRACER_HD inline bool mnee_light_faces(const SceneView& s, uint32_t light_prim, 
          (!sphere || glm::dot(ny, o - y) > 0.0f);
 }
 
-// A solved two-refraction chain from o to light point y (on light_prim, normal ny) must be what
-// rays see: each segment reaches the next vertex, on the same material (material[i]) and surface,
-// whose shading normal is the surface's (no interpolated or mapped normals), and the last one is
-// free to the light, which must emit towards the chain (mnee_light_faces). Its throughput: the two
-// transmissions as the BSDF weighs them (Fresnel, tint, the eta^2 of radiance, Beer-Lambert
-// absorption inside).
-template <uint32_t F>
-TRACER_HD inline bool mnee_check_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny,
-                                       uint32_t light_prim, const ManifoldChain& ch,
-                                       const uint32_t* material, vec3& throughput) {
-  const float dist = glm::length(y - o);
-  vec3 from = o;
-  throughput = vec3(1.0f);
-  for (uint32_t i = 0; i < ch.k; ++i) {
-    const vec3 d = ch.p[i] - from;
-    const float len = glm::length(d);
-    if (!(len > 0.0f)) return false;
-    Ray seg;
-    seg.o = from;
-    seg.d = d / len;
-    seg.tmax = len * 1.01f;
-    seg.pad = 0.0f;
-    const Hit h = intersect_closest<F>(s, seg, kInvalid);
-    if (!h.valid()) return false;
-    const SurfaceHit hs = make_surface_hit<F>(s, seg, h);
-    const vec3 n = ch.surface[i].normal(ch.p[i]);
-    if (glm::length(hs.p - ch.p[i]) > 1e-3f * dist || hs.material != material[i] ||
-        glm::abs(glm::dot(hs.ns, n)) < 1.0f - 1e-5f)
-      return false;
-    const Material& mi = s.materials[material[i]];
-    // The transmission as the BSDF weighs it (bsdf.h, smooth dielectric), on the side the path
-    // arrives from o; inside (the second vertex) after Beer-Lambert's attenuation.
-    const float c = glm::dot(-seg.d, n);
-    const float eta = c > 0.0f ? mi.ior : 1.0f / mi.ior;
-    if (i > 0 && !is_black(mi.absorption)) throughput *= glm::exp(-mi.absorption * len);
-    throughput *= mi.albedo * ((1.0f - material_fresnel(mi, glm::abs(c), eta)) / (eta * eta));
-    from = spawn_ray(hs.p, hs.ng, seg.d).o;
-  }
-  if (!mnee_light_faces<F>(s, light_prim, y, ny, o, from)) return false;
-  const Ray last = spawn_ray_to(from, glm::dot(y - from, ch.surface[1].normal(ch.p[1])) > 0.0f
-                                          ? ch.surface[1].normal(ch.p[1])
-                                          : -ch.surface[1].normal(ch.p[1]),
-                                y, ny);
-  return !intersect_any<F>(s, last, light_prim);
-}
-
-template <uint32_t F>
-TRACER_HD inline bool mnee_chain(const SceneView& s, vec3 o, vec3 y, vec3 ny, uint32_t light_prim,
-                                 ManifoldChain& ch, vec3& throughput) {
-  const float dist = glm::length(y - o);
-  if (!(dist > 0.0f)) return false;
-  uint32_t material[kManifoldMaxChain];
-  // Seeded from o's side; where glass is in the way but that fails (a way in through one face
-  // of a box that would leave through another by total internal reflection), from the light's.
-  // One loop for both seeds: on the GPU one copy of the seed's rays and of Newton's method.
-  Ray r;
-  r.o = o;
-  r.d = (y - o) / dist;
-  r.tmax = dist * (1.0f - 1e-4f);
-  r.pad = 0.0f;
-  for (int side = 0; side < 2; ++side) {
-    if (side == 1) {
-      r.o = offset_ray_origin(y, glm::dot(ny, o - y) > 0.0f ? ny : -ny);
-      r.d = -r.d;
-    }
-    bool glass;
-    // Through parallel faces (a pane, a slab) the chain is solved in one dimension first.
-    if (mnee_seed<F>(s, r, side == 0 ? kInvalid : light_prim, ch, material, side, side ? -1 : 1,
-                     &glass) &&
-        (manifold_slab(ch, o, y), manifold_walk(ch, o, y)))
-      return mnee_check_chain<F>(s, o, y, ny, light_prim, ch, material, throughput);
-    if (!glass) return false;
-  }
-  return false;
-}
-
 // Manifold NEE through glass spheres and off mirror spheres: the spheres it tries (the first ones
 // of the scene's list; a scene of many spheres would pay a solve per sphere at every vertex).
 constexpr uint32_t kMneeMaxSpheres = 16;
 
-// Every two-refraction chain from o to light point y (on light_prim, normal ny) through glass
-// sphere `sphere` (its index in s.spheres): all that sphere_refraction_chains finds in the plane
-// of o, y and the centre, polished by Newton in 3D and checked by mnee_check_chain. Calls
-// found(chain, throughput) for each.
-template <uint32_t F, typename Found>
-TRACER_HD inline void mnee_sphere_chains(const SceneView& s, vec3 o, vec3 y, vec3 ny,
-                                         uint32_t light_prim, uint32_t sphere, Found&& found) {
-  const Sphere& sph = s.spheres[sphere];
-  const uint32_t material[kManifoldMaxChain] = {sph.material, sph.material};
-  sphere_refraction_chains(sph.center, sph.radius, s.materials[sph.material].ior, o, y,
-                           [&](ManifoldChain& ch) {
-                             vec3 tr;
-                             if (manifold_walk(ch, o, y) &&
-                                 mnee_check_chain<F>(s, o, y, ny, light_prim, ch, material, tr))
-                               found(ch, tr);
-                           });
-}
-
-// Which casters mnee_chains solves: every one it tries, or the one a BSDF-sampled path left
-// (mnee_resolve's partition): flat glass, one sphere (its index in s.spheres, below
-// kMneeMaxSpheres) or one plane of flat reflectors (kMneeMaxSpheres + its index in
-// s.reflector_planes).
+// Which casters a solve tries: every one, or the one a BSDF-sampled path left (mnee_resolve's
+// partition): flat glass, one sphere (its index in s.spheres, below kMneeMaxSpheres) or one plane
+// of flat reflectors (kMneeMaxSpheres + its index in s.reflector_planes).
 constexpr uint32_t kMneeEveryCaster = kInvalid;
 constexpr uint32_t kMneeFlatGlass = kInvalid - 1;
 constexpr uint32_t kMneeNoCaster = kInvalid - 2;
-
-// The chain from o to light point y (on light_prim, normal ny) by one reflection off caster
-// `caster`: a mirror sphere (the one reflection point sphere_reflection_chain finds, polished by
-// Newton in 3D) or a plane of flat reflectors (the line to y's mirror image in the plane, within
-// the bounds of its triangles: exact, no Newton). Checked with rays (a reflector of that caster
-// seen first from o at the vertex, flat there, the light free from it and emitting towards it)
-// and weighed by the reflectance (a mirror's or smooth conductor's, or glass's Fresnel
-// reflection, untinted as the BSDF's).
-template <uint32_t F>
-TRACER_HD inline bool mnee_reflection(const SceneView& s, vec3 o, vec3 y, vec3 ny,
-                                      uint32_t light_prim, uint32_t caster, ManifoldChain& ch,
-                                      vec3& throughput) {
-  const bool sphere = caster < kMneeMaxSpheres;
-  if (sphere) {
-    const Sphere& sph = s.spheres[caster];
-    if (!sphere_reflection_chain(sph.center, sph.radius, o, y, ch) || !manifold_walk(ch, o, y))
-      return false;
-  } else {
-    const ReflectorPlane pl = s.reflector_planes[caster - kMneeMaxSpheres];
-    const float ho = glm::dot(o - pl.a, pl.n), hy = glm::dot(y - pl.a, pl.n);
-    if (!(ho > 0.0f) || !(hy > 0.0f)) return false;  // both in front of it
-    const vec3 p = o + (ho / (ho + hy)) * (y - 2.0f * hy * pl.n - o);
-    if (!pl.bounds_hold(p, 1e-4f * glm::length(pl.hi - pl.lo))) return false;
-    ch.k = 1;
-    ch.surface[0].kind = SpecularSurface::kPlane;
-    ch.surface[0].a = pl.a;
-    ch.surface[0].n = pl.n;
-    ch.surface[0].eta = 0.0f;
-    ch.p[0] = p;
-  }
-  const vec3 d = ch.p[0] - o;
-  const float len = glm::length(d);
-  if (!(len > 0.0f)) return false;
-  Ray seg;
-  seg.o = o;
-  seg.d = d / len;
-  seg.tmax = len * 1.01f;
-  seg.pad = 0.0f;
-  const Hit h = intersect_closest<F>(s, seg, kInvalid);
-  if (!h.valid() || (sphere ? h.prim != s.tri_count + caster : !prim_is_triangle(s, h.prim)))
-    return false;
-  const SurfaceHit hs = make_surface_hit<F>(s, seg, h);
-  const vec3 n = ch.surface[0].normal(ch.p[0]);
-  if (glm::length(hs.p - ch.p[0]) > 1e-3f * (len + glm::length(y - ch.p[0])) ||
-      (!sphere && (glm::dot(hs.ng, n) < 1.0f - 1e-5f || glm::abs(glm::dot(hs.ns, n)) < 1.0f - 1e-5f)))
-    return false;
-  const Material& m = s.materials[hs.material];
-  const float c = glm::dot(-seg.d, n);
-  throughput = mnee_glass(m) && !sphere ? vec3(material_fresnel(m, c, m.ior))
-                                        : mnee_mirror_reflectance(m, c);
-  if (is_black(throughput)) return false;
-  if (!mnee_light_faces<F>(s, light_prim, y, ny, o, ch.p[0])) return false;
-  return !intersect_any<F>(s, spawn_ray_to(ch.p[0], n, y, ny), light_prim);
-}
-
-// Every chain manifold NEE finds from o to light point y (on light_prim, unit normal ny) within
-// `segments` of the depth limit, of the casters `only` names: through flat glass (mnee_chain,
-// 3 segments), through each glass sphere (mnee_sphere_chains, 3), off each mirror sphere of the
-// first kMneeMaxSpheres and off each plane of flat reflectors (mnee_reflection, 2). Calls
-// found(chain, throughput) for each.
-template <uint32_t F, typename Found>
-TRACER_HD inline void mnee_chains(const SceneView& s, vec3 o, vec3 y, vec3 ny,
-                                  uint32_t light_prim, uint32_t segments, uint32_t only,
-                                  Found&& found) {
-  ManifoldChain ch;
-  vec3 tr;
-  if (segments >= 3 && (only == kMneeEveryCaster || only == kMneeFlatGlass) &&
-      mnee_chain<F>(s, o, y, ny, light_prim, ch, tr))
-    found(ch, tr);
-  if (segments < 2) return;
-  // The spheres, then the planes (one loop: one copy of the reflection's rays).
-  const uint32_t spheres = (F & kFeatureSpheres) ? glm::min(s.sphere_count, kMneeMaxSpheres) : 0u;
-  const uint32_t casters = spheres + s.reflector_plane_count;
-  for (uint32_t k = 0; k < casters; ++k) {
-    const uint32_t caster = k < spheres ? k : kMneeMaxSpheres + (k - spheres);
-    if (only != kMneeEveryCaster && only != caster) continue;
-    if (k < spheres) {
-      const Material& mi = s.materials[s.spheres[k].material];
-      if (mnee_glass(mi)) {
-        if (segments >= 3) mnee_sphere_chains<F>(s, o, y, ny, light_prim, k, found);
-        continue;
-      }
-      if (is_black(mnee_mirror_reflectance(mi, 1.0f))) continue;
-    }
-    if (mnee_reflection<F>(s, o, y, ny, light_prim, caster, ch, tr)) found(ch, tr);
-  }
-}
 
 // Manifold NEE's work at one vertex (shade_path fills it; mnee_resolve does it): on the CPU
 // right after shading, in the wavefront in a stage of its own (the mnee kernel: the solves and
@@ -509,30 +277,386 @@ struct MneeRequest {
   uint32_t from_normal = 0, hit_prim = kInvalid, hit_light = kInvalid;
 };
 
-// The radiance a request adds to its path.
-// - connect: every chain from the vertex's offset origin o to the light sample's point
-//   (mnee_chains), each weighed by the BSDF towards its first vertex, its throughput and its
-//   generalized geometry term over the light sample's density of area.
-// - partition: the emission unless manifold NEE owns that path: the solve from the vertex that
-//   sampled the lights finds a chain to this light point whose last vertex is where the segment
-//   left (the same path: the chain is fixed by its ends and last vertex), of the caster that
-//   segment left, and the vertex could have chosen this light. The two estimators so split the
-//   paths exactly, also where the solve fails (no bias).
-// Both solves run in one loop, so that in a kernel threads with either request run one copy of
-// the solves' code (with fewer instructions to fetch, and a warp's threads together).
+// A ray manifold NEE's solver asks for, and what it needs of the answer: the nearest hit (a
+// shadow ray's: only whether there is one before its tmax).
+struct MneeRay {
+  Ray ray;
+  uint32_t skip = kInvalid;  // a primitive the ray ignores (a shadow ray's light)
+  bool shadow = false;
+};
+struct MneeHit {
+  bool valid = false;
+  uint32_t prim = kInvalid, material = 0;
+  vec3 p = vec3(0.0f), ng = vec3(0.0f), ns = vec3(0.0f);
+};
+
 template <uint32_t F>
-TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings& cfg,
-                                   const MneeRequest& q) {
-  // The connection's origin, frame and the light sample's density of area (its fields are set
-  // only with connect).
-  vec3 o_connect(0.0f);
-  float area_pdf = 0.0f;
+TRACER_HD inline MneeHit mnee_trace(const SceneView& s, const MneeRay& r) {
+  MneeHit a;
+  const Hit h = intersect_closest<F>(s, r.ray, r.skip);
+  a.valid = h.valid();
+  a.prim = h.prim;
+  if (a.valid && !r.shadow) {
+    const SurfaceHit hs = make_surface_hit<F>(s, r.ray, h);
+    a.p = hs.p;
+    a.ng = hs.ng;
+    a.ns = hs.ns;
+    a.material = hs.material;
+  }
+  return a;
+}
+
+// Manifold NEE's solves for one request, as a machine that asks for one ray at a time (next) and
+// is handed its hit: the caller traces every ray at one place, so that on the GPU a warp's
+// threads trace together whatever each is solving, through one copy of the traversal's code (the
+// stage was bound by fetching instructions while each solve inlined its own rays), and Newton's
+// method too is written once. For each of the request's two tasks (the partition's solve, then
+// the connection's) it finds every chain from o to the light point y (on light_prim, unit normal
+// ny) within `segments` of the depth limit, of the casters `only` names:
+// - through flat glass (faces of meshes and boxes; 3 segments): the smooth glass the straight
+//   segment meets first and the surface where the ray refracted there leaves it (in and out of
+//   one piece of glass) seed the chain, Hanika et al.'s seed; seeded from o's side, and where
+//   glass is in the way but that fails (a way in through one face of a box that would leave
+//   through another by total internal reflection) from the light's. Through parallel faces (a
+//   pane, a slab) manifold_slab solves it in one dimension first, then Newton's method in 3D;
+// - through each glass sphere of the first kMneeMaxSpheres (3): every chain in the plane of o, y
+//   and the centre (SphereChainScan), polished by Newton in 3D;
+// - off each mirror sphere (sphere_reflection_chain, polished by Newton) and each plane of flat
+//   smooth reflectors (SceneView::reflector_planes: glass's Fresnel reflection, mirrors, smooth
+//   conductors; the line to y's mirror image in the plane within the bounds of its triangles:
+//   exact) (2): the one reflection.
+// Each chain's segments must then be what rays see: each reaches the next vertex, on the same
+// material and surface, whose shading normal is the surface's (no interpolated or mapped
+// normals; a reflector: a triangle of the plane or the sphere, seen first from o), the last one
+// free to the light, which must emit towards its last vertex (mnee_light_faces). Its throughput:
+// the transmissions as the BSDF weighs them (Fresnel, tint, the eta^2 of radiance, Beer-Lambert
+// absorption inside), or the reflectance (a mirror's or smooth conductor's, or glass's Fresnel
+// reflection, untinted as the BSDF's). Each chain is a function of (o, y) alone, so that a
+// BSDF-sampled path can ask whether this estimator covers it (the partition).
+template <uint32_t F>
+struct MneeSolver {
+  enum Phase : uint8_t { kTask, kSeed, kWalk, kCheck, kCasters, kSphereChains, kReflect,
+                         kShadow };
+  Phase phase = kTask;
+  int task = -1;  // 0: the partition's solve, 1: the connection's
+  // The task's ends, its segments left and the casters it tries.
+  vec3 o = vec3(0.0f), y = vec3(0.0f), ny = vec3(0.0f);
+  uint32_t light_prim = kInvalid, segments = 0, only = kMneeEveryCaster;
+  float dist = 0.0f;
+  // The chain being solved or checked, its surfaces' materials, the ray asked for last.
+  ManifoldChain ch;
+  uint32_t material[kManifoldMaxChain] = {0, 0};
+  Ray ray;
+  // The flat glass's seed: from o's side (0) or the light's (1), its ray's step (0, 1), whether
+  // that side met glass first.
+  int side = 0, seed_step = 0;
+  bool glass = false;
+  // The check: the segment asked for, its origin, the throughput so far; a reflection's caster.
+  uint32_t segment = 0, caster = kMneeNoCaster;
+  vec3 from = vec3(0.0f), throughput = vec3(1.0f);
+  Phase after_check = kCasters;
+  bool reflection = false;
+  // The casters: the next one, the spheres tried (the first of the list), their number with
+  // the planes; a glass sphere's chains.
+  uint32_t next_caster = 0, spheres = 0, casters = 0;
+  SphereChainScan scan;
+  // What the solves give: whether the partition's path is covered, the connection's sum.
+  bool covered = false;
+  vec3 sum = vec3(0.0f);
+
+  // The request's fixed parts (mnee_resolve).
+  vec3 o_connect = vec3(0.0f);
+  float area_pdf = 0.0f, tol = 0.0f;
   Frame frame;
+  uint32_t part_caster = kMneeNoCaster;
+
+  TRACER_HD void ask(MneeRay& out, bool shadow, uint32_t skip) const {
+    out.ray = ray;
+    out.shadow = shadow;
+    out.skip = skip;
+  }
+
+  // The straight segment's ray from o to y, or from y to o (the light's side).
+  TRACER_HD void seed_ray(int from_light) {
+    ray.d = (y - o) / dist;
+    ray.tmax = dist * (1.0f - 1e-4f);
+    ray.pad = 0.0f;
+    ray.o = o;
+    if (from_light) {
+      ray.o = offset_ray_origin(y, glm::dot(ny, o - y) > 0.0f ? ny : -ny);
+      ray.d = -ray.d;
+    }
+  }
+
+  // The ray to the chain's next vertex from `from` (false where they coincide).
+  TRACER_HD bool segment_ray(vec3 to) {
+    const vec3 d = to - from;
+    const float len = glm::length(d);
+    if (!(len > 0.0f)) return false;
+    ray.o = from;
+    ray.d = d / len;
+    ray.tmax = len * 1.01f;
+    ray.pad = 0.0f;
+    return true;
+  }
+
+  // A chain found (its throughput in `throughput`).
+  TRACER_HD void found(const MneeRequest& q) {
+    if (task == 0) {
+      covered = covered || glm::length(ch.p[ch.k - 1] - q.seg_o) <= tol;
+      return;
+    }
+    const vec3 w1 = glm::normalize(ch.p[0] - o);
+    if (!(glm::dot(w1, q.ng_viewer) > 0.0f)) return;
+    const vec3 wi = frame.to_local(w1);
+    const float g = manifold_geometry(ch, o, q.ls.p, q.ls.n);
+    if (g > 0.0f)
+      sum += bsdf_eval<F>(q.m, q.wo, wi) * glm::abs(wi.z) * throughput * (g / area_pdf);
+  }
+
+  // Runs the solves until they need a ray: true with it in `out`, to be answered by `h` on the
+  // next call; false when all are done. (The first call's h is not read.)
+  TRACER_HD bool next(const SceneView& s, const MneeRequest& q, const MneeHit& h, MneeRay& out) {
+    for (;;) {
+      switch (phase) {
+        case kTask: {  // the next task
+          if (++task == 2) return false;
+          const bool part = task == 0;
+          if (part ? !q.partition || part_caster == kMneeNoCaster
+                   : !q.connect || !(area_pdf > 0.0f))
+            continue;
+          o = part ? q.from_o : o_connect;
+          y = part ? q.hit_p : q.ls.p;
+          ny = part ? q.hit_ng : q.ls.n;
+          light_prim = part ? q.hit_prim : q.ls.prim;
+          segments = part ? 3u : q.segments;
+          only = part ? part_caster : kMneeEveryCaster;
+          dist = glm::length(y - o);
+          next_caster = 0;
+          spheres = (F & kFeatureSpheres) ? glm::min(s.sphere_count, kMneeMaxSpheres) : 0u;
+          casters = segments >= 2 ? spheres + s.reflector_plane_count : 0u;
+          phase = kCasters;
+          if (segments >= 3 && (only == kMneeEveryCaster || only == kMneeFlatGlass) &&
+              dist > 0.0f) {
+            side = seed_step = 0;
+            glass = false;
+            seed_ray(0);
+            phase = kSeed;
+            ask(out, false, kInvalid);
+            return true;
+          }
+          continue;
+        }
+        case kSeed: {  // the flat glass's seed: the hit of the seed's ray
+          bool ok = false;
+          if (h.valid) {
+            const Material& ms = s.materials[h.material];
+            // Glass spheres' chains are all found by SphereChainScan instead.
+            glass = glass || mnee_glass(ms);
+            ok = mnee_glass(ms) && !((F & kFeatureSpheres) && !prim_is_triangle(s, h.prim) &&
+                                     h.prim - s.tri_count < s.sphere_count);
+            if (ok) {
+              const uint32_t i = uint32_t(side ? 1 - seed_step : seed_step);
+              SpecularSurface& su = ch.surface[i];
+              su.kind = SpecularSurface::kPlane;  // a triangle (also of an instance): its plane
+              su.a = h.p;
+              su.n = h.ng;
+              su.eta = ms.ior;
+              material[i] = h.material;
+              ch.p[i] = h.p;
+              if (seed_step == 0) {  // refracted into the glass (total internal reflection: none)
+                const float c = glm::dot(-ray.d, h.ng);
+                const vec3 nn = c > 0.0f ? h.ng : -h.ng;
+                const vec3 t = glm::refract(ray.d, nn, c > 0.0f ? 1.0f / ms.ior : ms.ior);
+                ok = glm::dot(t, t) > 0.0f;
+                if (ok) {
+                  ray = spawn_ray(h.p, h.ng, glm::normalize(t));
+                  seed_step = 1;
+                  ask(out, false, kInvalid);
+                  return true;
+                }
+              } else {
+                ch.k = 2;
+                ok = material[0] == material[1];  // in and out of one glass
+                // Through parallel faces (a pane, a slab) solved in one dimension first.
+                if (ok) {
+                  manifold_slab(ch, o, y);
+                  after_check = kCasters;
+                  reflection = false;
+                  phase = kWalk;
+                  continue;
+                }
+              }
+            }
+          }
+          // No seed from this side: from the light's where o's met glass, else no flat chain.
+          if (glass && side == 0) {
+            side = 1;
+            seed_step = 0;
+            glass = false;
+            seed_ray(1);
+            ask(out, false, light_prim);
+            return true;
+          }
+          phase = kCasters;
+          continue;
+        }
+        case kWalk: {  // Newton's method on the chain, then its check (one copy of each)
+          if (!manifold_walk(ch, o, y)) {
+            // A flat chain that fails from o's side where o's ray met glass: from the light's.
+            if (after_check == kCasters && !reflection && side == 0 && glass) {
+              side = 1;
+              seed_step = 0;
+              glass = false;
+              seed_ray(1);
+              phase = kSeed;
+              ask(out, false, light_prim);
+              return true;
+            }
+            phase = after_check;
+            continue;
+          }
+          from = o;
+          throughput = vec3(1.0f);
+          segment = 0;
+          phase = kCheck;
+          if (!segment_ray(ch.p[0])) {
+            phase = after_check;
+            continue;
+          }
+          ask(out, false, kInvalid);
+          return true;
+        }
+        case kCheck: {  // the hit of the segment to vertex `segment`
+          const vec3 n = ch.surface[segment].normal(ch.p[segment]);
+          bool ok = h.valid;
+          if (reflection) {
+            const bool sphere = caster < kMneeMaxSpheres;
+            ok = ok && (sphere ? h.prim == s.tri_count + caster : prim_is_triangle(s, h.prim)) &&
+                 !(glm::length(h.p - ch.p[0]) > 1e-3f * (glm::length(ch.p[0] - o) +
+                                                          glm::length(y - ch.p[0]))) &&
+                 (sphere || (glm::dot(h.ng, n) >= 1.0f - 1e-5f &&
+                             glm::abs(glm::dot(h.ns, n)) >= 1.0f - 1e-5f));
+            if (ok) {
+              const Material& m = s.materials[h.material];
+              const float c = glm::dot(-ray.d, n);
+              throughput = mnee_glass(m) && !sphere ? vec3(material_fresnel(m, c, m.ior))
+                                                    : mnee_mirror_reflectance(m, c);
+              ok = !is_black(throughput);
+              from = ch.p[0];
+            }
+          } else {
+            ok = ok && !(glm::length(h.p - ch.p[segment]) > 1e-3f * dist) &&
+                 h.material == material[segment] &&
+                 !(glm::abs(glm::dot(h.ns, n)) < 1.0f - 1e-5f);
+            if (ok) {
+              // The transmission as the BSDF weighs it (bsdf.h, smooth dielectric), on the side
+              // the path arrives from o; inside (the second vertex) after Beer-Lambert's
+              // attenuation.
+              const Material& mi = s.materials[material[segment]];
+              const float c = glm::dot(-ray.d, n);
+              const float eta = c > 0.0f ? mi.ior : 1.0f / mi.ior;
+              if (segment > 0 && !is_black(mi.absorption))
+                throughput *= glm::exp(-mi.absorption * glm::length(ch.p[segment] - from));
+              throughput *=
+                  mi.albedo * ((1.0f - material_fresnel(mi, glm::abs(c), eta)) / (eta * eta));
+              from = spawn_ray(h.p, h.ng, ray.d).o;
+            }
+          }
+          if (ok && ++segment < ch.k) {
+            ok = segment_ray(ch.p[segment]);
+            if (ok) {
+              ask(out, false, kInvalid);
+              return true;
+            }
+          }
+          // The last vertex: the light must emit towards it and be free from it.
+          if (ok && mnee_light_faces<F>(s, light_prim, y, ny, o, reflection ? ch.p[0] : from)) {
+            const vec3 nl = ch.surface[ch.k - 1].normal(ch.p[ch.k - 1]);
+            ray = reflection ? spawn_ray_to(ch.p[0], nl, y, ny)
+                             : spawn_ray_to(from, glm::dot(y - from, nl) > 0.0f ? nl : -nl, y, ny);
+            phase = kShadow;
+            ask(out, true, light_prim);
+            return true;
+          }
+          phase = after_check;
+          continue;
+        }
+        case kShadow:
+          if (!h.valid) found(q);
+          phase = after_check;
+          continue;
+        case kSphereChains:  // a glass sphere's next chain
+          if ((F & kFeatureSpheres) && scan.next(ch)) {
+            phase = kWalk;
+            continue;
+          }
+          phase = kCasters;
+          continue;
+        case kCasters: {  // the next sphere or plane
+          if (next_caster >= casters) {
+            phase = kTask;
+            continue;
+          }
+          const uint32_t k = next_caster++;
+          caster = k < spheres ? k : kMneeMaxSpheres + (k - spheres);
+          if (only != kMneeEveryCaster && only != caster) continue;
+          after_check = kCasters;
+          reflection = true;
+          if ((F & kFeatureSpheres) && k < spheres) {
+            const Sphere& sph = s.spheres[k];
+            const Material& mi = s.materials[sph.material];
+            if (mnee_glass(mi)) {
+              if (segments >= 3) {
+                material[0] = material[1] = sph.material;
+                scan.start(sph.center, sph.radius, mi.ior, o, y);
+                reflection = false;
+                after_check = kSphereChains;
+                phase = kSphereChains;
+              }
+              continue;
+            }
+            if (is_black(mnee_mirror_reflectance(mi, 1.0f)) ||
+                !sphere_reflection_chain(sph.center, sph.radius, o, y, ch))
+              continue;
+            phase = kWalk;  // polished by Newton
+            continue;
+          }
+          const ReflectorPlane pl = s.reflector_planes[caster - kMneeMaxSpheres];
+          const float ho = glm::dot(o - pl.a, pl.n), hy = glm::dot(y - pl.a, pl.n);
+          if (!(ho > 0.0f) || !(hy > 0.0f)) continue;  // both in front of it
+          const vec3 p = o + (ho / (ho + hy)) * (y - 2.0f * hy * pl.n - o);
+          if (!pl.bounds_hold(p, 1e-4f * glm::length(pl.hi - pl.lo))) continue;
+          ch.k = 1;
+          ch.surface[0].kind = SpecularSurface::kPlane;
+          ch.surface[0].a = pl.a;
+          ch.surface[0].n = pl.n;
+          ch.surface[0].eta = 0.0f;
+          ch.p[0] = p;
+          from = o;
+          segment = 0;
+          if (!segment_ray(p)) continue;  // exact: no Newton
+          phase = kCheck;
+          ask(out, false, kInvalid);
+          return true;
+        }
+        default: return false;
+      }
+    }
+  }
+};
+
+// A request's solver, set up: the connection's origin, frame and light sample's density of area
+// (where it connects), and the caster the partition's segment left.
+template <uint32_t F>
+TRACER_HD inline MneeSolver<F> mnee_begin(const SceneView& s, const MneeRequest& q) {
+  MneeSolver<F> sv;
   if (q.connect) {
-    o_connect = offset_ray_origin(q.p, q.ng_viewer);
+    sv.o_connect = offset_ray_origin(q.p, q.ng_viewer);
     const float d2 = glm::dot(q.ls.p - q.p, q.ls.p - q.p);
-    area_pdf = q.ls.pdf * glm::abs(glm::dot(q.ls.n, q.p - q.ls.p)) / (d2 * glm::sqrt(d2));
-    frame = bsdf_frame(q.m, (F & kFeatureSpecular) ? q.m.type : MaterialType::kDiffuse, q.frame_n);
+    sv.area_pdf = q.ls.pdf * glm::abs(glm::dot(q.ls.n, q.p - q.ls.p)) / (d2 * glm::sqrt(d2));
+    sv.frame =
+        bsdf_frame(q.m, (F & kFeatureSpecular) ? q.m.type : MaterialType::kDiffuse, q.frame_n);
   }
   // How far seg_o may lie from the chain's last vertex and its caster: a thousandth of the path,
   // and at least the spawn offset that moved seg_o off that vertex (offset_ray_origin: 256 ulps
@@ -540,6 +664,7 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
   // lamp's reflection) is the larger: missed, the path would be counted by both estimators.
   const float tol = 1e-3f * glm::length(q.hit_p - q.from_o) +
                     1e-4f * max_component(glm::abs(q.seg_o));
+  sv.tol = tol;
   // The caster the partition's segment left: the sphere whose surface seg_o lies on (of those
   // manifold NEE tries) where it is glass, or for a mirror path a mirror; else for a mirror path
   // the plane of flat reflectors it lies on, and otherwise flat glass (kMneeNoCaster: manifold NEE
@@ -566,35 +691,29 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
       break;
     }
   }
-  bool covered = false;
-  vec3 sum(0.0f);
-  for (int task = 0; task < 2; ++task) {
-    const bool part = task == 0;
-    if (part ? !q.partition || caster == kMneeNoCaster
-             : !q.connect || !(area_pdf > 0.0f))
-      continue;
-    const vec3 o = part ? q.from_o : o_connect;
-    mnee_chains<F>(s, o, part ? q.hit_p : q.ls.p, part ? q.hit_ng : q.ls.n,
-                   part ? q.hit_prim : q.ls.prim, part ? 3u : q.segments,
-                   part ? caster : kMneeEveryCaster, [&](const ManifoldChain& ch, vec3 tr) {
-                     if (part) {
-                       covered = covered || glm::length(ch.p[ch.k - 1] - q.seg_o) <= tol;
-                       return;
-                     }
-                     const vec3 w1 = glm::normalize(ch.p[0] - o);
-                     if (!(glm::dot(w1, q.ng_viewer) > 0.0f)) return;
-                     const vec3 wi = frame.to_local(w1);
-                     const float g = manifold_geometry(ch, o, q.ls.p, q.ls.n);
-                     if (g > 0.0f)
-                       sum += bsdf_eval<F>(q.m, q.wo, wi) * glm::abs(wi.z) * tr * (g / area_pdf);
-                   });
-  }
+  sv.part_caster = caster;
+  return sv;
+}
+
+// The radiance a request adds to its path, once its solver is done.
+// - connect: every chain from the vertex's offset origin o to the light sample's point
+//   (MneeSolver), each weighed by the BSDF towards its first vertex, its throughput and its
+//   generalized geometry term over the light sample's density of area.
+// - partition: the emission unless manifold NEE owns that path: the solve from the vertex that
+//   sampled the lights finds a chain to this light point whose last vertex is where the segment
+//   left (the same path: the chain is fixed by its ends and last vertex), of the caster that
+//   segment left, and the vertex could have chosen this light. The two estimators so split the
+//   paths exactly, also where the solve fails (no bias).
+template <uint32_t F>
+TRACER_HD inline vec3 mnee_finish(const SceneView& s, const IntegratorSettings& cfg,
+                                  const MneeRequest& q, const MneeSolver<F>& sv) {
   vec3 c(0.0f);
   if (q.connect) {
-    const vec3 l = sum * q.ls.le;
+    const vec3 l = sv.sum * q.ls.le;
     if (is_finite(l)) c += l;
   }
   if (q.partition) {
+    bool covered = sv.covered;
     if (covered) {  // and the vertex could have chosen this light
       const bool tree =
           (F & kFeatureLightTree) && cfg.light_sampler == kLightSamplerBvh && s.light_tree.nodes;
@@ -604,6 +723,18 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
     if (!covered) c += q.contribution;
   }
   return c;
+}
+
+// A request's radiance: its solves, every ray they ask for traced here (one copy of the
+// traversal). The wavefront's mnee stage runs the same loop over many requests per thread.
+template <uint32_t F>
+TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings& cfg,
+                                   const MneeRequest& q) {
+  MneeSolver<F> sv = mnee_begin<F>(s, q);
+  MneeHit h;
+  MneeRay r;
+  while (sv.next(s, q, h, r)) h = mnee_trace<F>(s, r);
+  return mnee_finish<F>(s, cfg, q, sv);
 }
 
 // Shades the hit of st.ray. Adds emission to st.radiance, may fill `shadow`, and returns whether

@@ -57,7 +57,7 @@ struct Light {
 // A plane of flat smooth reflectors: the scene's triangles of smooth glass (its Fresnel
 // reflection), mirrors and smooth conductors (mnee_mirror_reflectance) that lie in one plane and
 // face one way, with flat shading. Manifold NEE connects a vertex to a light by one reflection
-// off each (integrator/path.h, mnee_reflection): the light's mirror image in the plane.
+// off each (integrator/path.h, MneeSolver): the light's mirror image in the plane.
 struct ReflectorPlane {
   vec3 a;       // a point on it
   float pad0;
