@@ -237,11 +237,12 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
 }
 
 // Manifold NEE's stage: one thread per request of the bounce (launch_mnee), which runs its
-// request's solver and traces the rays it asks for at one place (path.h, mnee_resolve). Two
-// blocks per multiprocessor (128 registers, some spilled) run it faster than one, which the
-// lamp's variant would otherwise need for its 255 registers (PERFORMANCE.md row 115).
+// request's solver and traces the rays it asks for at one place (path.h, mnee_resolve). One
+// block per multiprocessor with up to 255 registers runs it 3-4% faster than two with 128 and
+// the solver's state spilled (PERFORMANCE.md row 122; before the solver, two were faster: row
+// 115).
 template <uint32_t Spec>
-__global__ void __launch_bounds__(kBlock, 2)
+__global__ void __launch_bounds__(kBlock, 1)
     mnee_kernel(SceneView view, const __grid_constant__ FlatParams flat, IntegratorSettings cfg,
                 uint32_t sample, uint32_t bounce, WavefrontState w) {
   const uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
