@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <thread>
 
+#include "integrator/gpu_options.h"
 #include "integrator/manifold.h"
 #include "integrator/renderer.h"
 #include "scene/compiled_scene.h"
@@ -675,6 +676,29 @@ TEST(Manifold, LampAboveAMirrorKeepsItsMeanWithLessNoise) {
         nm.material.albedo = vec3(0.9f);
       }
   });
+}
+
+// What manifold NEE connects through or off, by which the GPU picks its caustic kernels: smooth
+// glass (the lamp's box, the glass ball), flat mirrors alone (the lamp's box made a mirror), a
+// mirror ball; nothing in the diffuse box nor among rough metals and frosted glass.
+TEST(Manifold, ScenesWithAndWithoutCasters) {
+  const std::string dir = std::string(TRACER_SOURCE_DIR) + "/assets/scenes/";
+  auto casters = [&](const std::string& name, MaterialType glass_to = MaterialType::kDielectric) {
+    Scene scene = load_scene(dir + name);
+    for (NamedMaterial& nm : scene.materials)
+      if (nm.name == "glass" && glass_to != MaterialType::kDielectric) {
+        nm.material = Material();
+        nm.material.type = glass_to;
+        nm.material.albedo = vec3(0.9f);
+      }
+    return mnee_has_casters(CompiledScene(scene, 16, 16));
+  };
+  EXPECT_TRUE(casters("glass_lamp.json"));
+  EXPECT_TRUE(casters("glass_lamp.json", MaterialType::kMirror));
+  EXPECT_FALSE(casters("glass_lamp.json", MaterialType::kDiffuse));
+  EXPECT_TRUE(casters("cornell_spheres.json"));
+  EXPECT_FALSE(casters("cornell_box.json"));
+  EXPECT_FALSE(casters("rough_materials.json"));
 }
 
 // The planes of flat smooth reflectors a scene lists: the lamp's glass box has six; a faceted

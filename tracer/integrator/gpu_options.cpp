@@ -107,8 +107,11 @@ GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,
 }
 
 bool mnee_has_casters(const CompiledScene& scene) {
-  if ((scene.view().features & kFeatureDielectric) || !scene.reflector_planes().empty())
-    return true;
+  // Smooth glass (rough glass, the dielectric feature's other half, it does not connect
+  // through), or the planes of flat smooth reflectors.
+  for (const Material& m : scene.materials())
+    if (mnee_glass(m)) return true;
+  if (!scene.reflector_planes().empty()) return true;
   const size_t spheres = std::min<size_t>(scene.spheres().size(), kMneeMaxSpheres);
   for (size_t i = 0; i < spheres; ++i)
     if (mnee_flat_reflector(scene.materials()[scene.spheres()[i].material])) return true;
