@@ -662,6 +662,28 @@ TEST(Manifold, LampBehindGlassKeepsItsMeanWithLessNoise) {
   expect_mnee_keeps_the_mean("glass_lamp.json", 32, 1024, 0.15);
 }
 
+// The same lamp behind its glass box turned 25 degrees about the vertical (faces no longer along
+// the axes, whose planes' bounds, boxes, reach beyond them): the same mean, less noise (measured
+// 0.099x the relative variance).
+TEST(Manifold, LampBehindATurnedPaneKeepsItsMean) {
+  expect_mnee_keeps_the_mean("glass_lamp.json", 32, 1024, 0.15, [](Scene& scene) {
+    uint32_t glass = 0;
+    for (uint32_t m = 0; m < scene.materials.size(); ++m)
+      if (scene.materials[m].name == "glass") glass = m;
+    std::vector<bool> turn(scene.mesh.positions.size(), false);
+    for (size_t t = 0; t < scene.mesh.indices.size(); ++t)
+      if (scene.mesh.materials[t] == glass)
+        for (int k = 0; k < 3; ++k) turn[scene.mesh.indices[t][k]] = true;
+    const vec3 c(278.0f, 530.0f, 279.5f);
+    const float a = glm::radians(25.0f), ca = glm::cos(a), sa = glm::sin(a);
+    for (size_t i = 0; i < turn.size(); ++i) {
+      if (!turn[i]) continue;
+      const vec3 d = scene.mesh.positions[i] - c;
+      scene.mesh.positions[i] = c + vec3(ca * d.x + sa * d.z, d.y, -sa * d.x + ca * d.z);
+    }
+  });
+}
+
 // The lamp above a mirror slab: the room is lit only by the lamp's image in the slab's top face
 // (on the ceiling), which one reflection off a flat reflector connects. (Below 8,192 spp plain
 // path tracing's image mean still wanders by 2-3%: all its light comes from the ceiling's hot
