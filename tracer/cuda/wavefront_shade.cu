@@ -238,9 +238,8 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
 
 // Manifold NEE's stage: one thread per request of the bounce (launch_mnee), which runs its
 // request's solver and traces the rays it asks for at one place (path.h, mnee_resolve). One
-// block per multiprocessor with up to 255 registers runs it 3-4% faster than two with 128 and
-// the solver's state spilled (PERFORMANCE.md row 122; before the solver, two were faster: row
-// 115).
+// block per multiprocessor with up to 255 registers runs it faster than two with 128, where the
+// solver's state, which lives across the rays, would spill (PERFORMANCE.md rows 115, 122).
 template <uint32_t Spec>
 __global__ void __launch_bounds__(kBlock, 1)
     mnee_kernel(SceneView view, const __grid_constant__ FlatParams flat, IntegratorSettings cfg,
