@@ -75,6 +75,9 @@ int run_info(const InfoOptions& o) {
   // The planes of flat mirrors and glass faces manifold NEE reflects off (scene_view.h).
   j["reflector_planes"] = v.reflector_plane_count;
   j["too_many_reflector_planes"] = cs.too_many_reflector_planes();
+  // Whether manifold NEE has anything to connect through or off (smooth glass or reflectors).
+  const bool casters = tracer::mnee_has_casters(cs);
+  j["mnee_casters"] = casters;
   // Instanced meshes are stored once and placed by every instance: the triangles the instances
   // place, and those stored.
   uint64_t stored = 0;
@@ -202,6 +205,11 @@ int run_info(const InfoOptions& o) {
                                 std::to_string(tracer::kMaxReflectorPlanes) +
                                 " planes (manifold NEE does not reflect off them)\n"
                           : std::string())
+            << (scene.settings.mnee && !casters
+                    ? "mnee        on, but nothing here to connect through or reflect off (no "
+                      "smooth glass, flat mirrors or mirror spheres): the image is as without "
+                      "it, and the GPU runs its usual kernels\n"
+                    : std::string())
             << "features    " << tracer::describe_features(cs.features()) << "\n"
             << "GPU kernels " << tracer::spec_name_for_features(cs.features())
             << (gpu.shade_spec != gpu.spec

@@ -449,6 +449,12 @@ void render_panel(Workbench& wb, PanelState& ps) {
   setting_widget(wb, ps, "render.light_sampler", "light sampler");
   setting_widget(wb, ps, "render.guiding", "path guiding");
   setting_widget(wb, ps, "render.mnee", "manifold NEE (glass, mirrors)");
+  if (wb.settings().mnee && !wb.mnee_has_casters()) {
+    ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
+    ImGui::TextWrapped("  nothing in this scene to connect through or reflect off (no smooth "
+                       "glass, flat mirrors or mirror spheres): renders as without it");
+    ImGui::PopStyleColor();
+  }
   setting_widget(wb, ps, "render.filter", "pixel filter");
   setting_widget(wb, ps, "render.filter_radius", "filter radius", 0.05f, "%.2f px (0: default)");
   setting_widget(wb, ps, "render.clamp", "clamp (0: off)", 0.1f, "%.2f");

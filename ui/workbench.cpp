@@ -14,6 +14,7 @@
 #include "image/display.h"
 #include "image/image.h"
 #include "integrator/export.h"
+#include "integrator/gpu_options.h"
 #include "integrator/sidecar.h"
 #include "scene/loader.h"
 
@@ -198,6 +199,7 @@ void Workbench::rebuild(bool geometry) {
                                     scene_, scene_.settings.width, scene_.settings.height,
                                     geometry ? nullptr : compiled_.get());
   ready_compiled_.reset();
+  mnee_casters_ = tracer::mnee_has_casters(*compiled_);
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(scene_.settings);
   if (!async_) {
     try {

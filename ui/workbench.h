@@ -88,6 +88,8 @@ class Workbench {
   // The display image as RGBA8 (top row first); false when nothing new since the last call.
   bool fetch_display(std::vector<uint32_t>& rgba, int& width, int& height);
   tracer::Renderer* gpu_renderer();  // the CUDA renderer when it is the active backend
+  // Whether the scene has anything manifold NEE connects through or off (mnee_has_casters).
+  bool mnee_has_casters() const { return mnee_casters_; }
   // The denoiser on the viewport (display.denoise, image/denoise.h): on and available. It
   // denoises the mean that is shown, never the accumulator (toggling it never restarts), at
   // once after each restart and then at most every kDenoiseInterval seconds or when the render
@@ -176,6 +178,7 @@ class Workbench {
   size_t scene_notes_taken_ = 0;
   std::unique_ptr<tracer::Renderer> renderer_;
   std::shared_ptr<tracer::CompiledScene> compiled_;
+  bool mnee_casters_ = true;  // mnee_has_casters(*compiled_)
   bool dirty_ = true, geometry_dirty_ = true, display_dirty_ = true;
   WorkbenchStats stats_;
   double since_reset_s_ = 0.0;
