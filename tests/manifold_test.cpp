@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <thread>
 
+#include "cpu/cpu_backend.h"
 #include "integrator/gpu_options.h"
 #include "integrator/manifold.h"
 #include "integrator/renderer.h"
@@ -721,6 +722,26 @@ TEST(Manifold, ScenesWithAndWithoutCasters) {
   EXPECT_TRUE(casters("cornell_spheres.json"));
   EXPECT_FALSE(casters("cornell_box.json"));
   EXPECT_FALSE(casters("rough_materials.json"));
+}
+
+// With nothing to connect through (rough metals, frosted glass) the image with manifold NEE on is
+// the image without it, sample for sample, as info and the Render panel then say (the CPU skips
+// the requests, the GPU runs its usual kernels).
+TEST(Manifold, NothingToConnectThroughRendersAsWithout) {
+  const Scene scene =
+      load_scene(std::string(TRACER_SOURCE_DIR) + "/assets/scenes/rough_materials.json");
+  RenderSettings rs;
+  rs.width = rs.height = 16;
+  const CompiledScene cs(scene, rs.width, rs.height);
+  ImageRGB images[2];
+  for (int on = 0; on < 2; ++on) {
+    rs.mnee = on != 0;
+    CpuRenderer r(2);
+    r.set_scene(cs, make_integrator_settings(rs));
+    r.render(4);
+    images[on] = r.image();
+  }
+  EXPECT_EQ(images[0].pixels, images[1].pixels);
 }
 
 // The planes of flat smooth reflectors a scene lists: the lamp's glass box has six; a faceted

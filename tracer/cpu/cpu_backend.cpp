@@ -20,6 +20,7 @@ std::string CpuRenderer::device_name() const {
 
 void CpuRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) {
   scene_ = &scene;
+  mnee_casters_ = mnee_has_casters(scene);
   set_settings(cfg);
 }
 
@@ -219,6 +220,8 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
   const auto start = std::chrono::steady_clock::now();
   IntegratorSettings cfg = cfg_;
   if (guide_.ready()) cfg.guide = guide_.view(next_);
+  // Manifold NEE with nothing to connect through: no requests (the same image, as on the GPU).
+  if (!mnee_casters_) cfg.mnee = 0;
   SceneView view = scene_->view();
   if (!simd_traversal_) view.cpu_bvh = CpuBvhView();
   view.use_flat = flat_list_ && scene_->flat_list().enabled ? 1u : 0u;

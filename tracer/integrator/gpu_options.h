@@ -57,7 +57,8 @@ struct GpuSceneTraits {
 };
 // Whether manifold NEE has something to connect through or reflect off in the scene: smooth
 // glass, a plane of flat reflectors, a mirror sphere of those it tries (integrator/path.h). Where
-// it has none (rough glass and metals only, say) the GPU runs the usual kernels.
+// it has none (rough glass and metals only, say) the GPU runs the usual kernels and the CPU makes
+// no requests.
 bool mnee_has_casters(const CompiledScene& scene);
 // From a scene's view (its features and camera) and whether it has a flat list (mnee_casters is
 // left false: the caller knows it from the compiled scene), or from the compiled scene itself.
