@@ -335,8 +335,7 @@ TRACER_HD inline MneeHit mnee_trace(const SceneView& s, const MneeRay& r) {
 // BSDF-sampled path can ask whether this estimator covers it (the partition).
 template <uint32_t F>
 struct MneeSolver {
-  enum Phase : uint8_t { kTask, kSeed, kWalk, kCheck, kCasters, kSphereChains, kReflect,
-                         kShadow };
+  enum Phase : uint8_t { kTask, kSeed, kWalk, kCheck, kCasters, kSphereChains, kShadow };
   Phase phase = kTask;
   int task = -1;  // 0: the partition's solve, 1: the connection's
   // The task's ends, its segments left and the casters it tries.
@@ -364,7 +363,7 @@ struct MneeSolver {
   bool covered = false;
   vec3 sum = vec3(0.0f);
 
-  // The request's fixed parts (mnee_resolve).
+  // The request's fixed parts (mnee_begin).
   vec3 o_connect = vec3(0.0f);
   float area_pdf = 0.0f, tol = 0.0f;
   Frame frame;
