@@ -1170,12 +1170,7 @@ TEST(Gpu, ManifoldNeeThroughBallsAgreesWithTheCpu) {
 // itself; the plain kernels' would be 1x).
 TEST(Gpu, ManifoldNeeOffMirrorsAloneAgreesWithTheCpu) {
   expect_gpu_mnee("glass_lamp.json", true, false, 0.85, [](Scene& scene) {
-    for (NamedMaterial& nm : scene.materials)
-      if (nm.name == "glass") {
-        nm.material = Material();
-        nm.material.type = MaterialType::kMirror;
-        nm.material.albedo = vec3(0.9f);
-      }
+    test::retype_material(scene, "glass", MaterialType::kMirror);
   });
 }
 

@@ -692,12 +692,7 @@ TEST(Manifold, LampBehindATurnedPaneKeepsItsMean) {
 // the spawn offset exceeded its tolerance.)
 TEST(Manifold, LampAboveAMirrorKeepsItsMeanWithLessNoise) {
   expect_mnee_keeps_the_mean("glass_lamp.json", 24, 8192, 0.5, [](Scene& scene) {
-    for (NamedMaterial& nm : scene.materials)
-      if (nm.name == "glass") {
-        nm.material = Material();
-        nm.material.type = MaterialType::kMirror;
-        nm.material.albedo = vec3(0.9f);
-      }
+    test::retype_material(scene, "glass", MaterialType::kMirror);
   });
 }
 
@@ -708,12 +703,7 @@ TEST(Manifold, ScenesWithAndWithoutCasters) {
   const std::string dir = std::string(TRACER_SOURCE_DIR) + "/assets/scenes/";
   auto casters = [&](const std::string& name, MaterialType glass_to = MaterialType::kDielectric) {
     Scene scene = load_scene(dir + name);
-    for (NamedMaterial& nm : scene.materials)
-      if (nm.name == "glass" && glass_to != MaterialType::kDielectric) {
-        nm.material = Material();
-        nm.material.type = glass_to;
-        nm.material.albedo = vec3(0.9f);
-      }
+    if (glass_to != MaterialType::kDielectric) test::retype_material(scene, "glass", glass_to);
     return mnee_has_casters(CompiledScene(scene, 16, 16));
   };
   EXPECT_TRUE(casters("glass_lamp.json"));

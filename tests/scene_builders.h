@@ -134,6 +134,17 @@ inline Material diffuse(vec3 albedo, vec3 emission = vec3(0.0f), bool two_sided 
   return m;
 }
 
+// The scene's material `name` made a plain one of `type` with albedo 0.9 (the lamp's glass box
+// made a mirror, say).
+inline void retype_material(Scene& scene, const std::string& name, MaterialType type) {
+  for (NamedMaterial& nm : scene.materials)
+    if (nm.name == name) {
+      nm.material = Material();
+      nm.material.type = type;
+      nm.material.albedo = vec3(0.9f);
+    }
+}
+
 // The slab: 400 x 200 x 400 mean free paths, top face at y = 0. Walks that matter stay within a
 // few tens of mean free paths, so this is semi-infinite to well under 1e-4 in R, while keeping
 // coordinates small enough that the boundary's rounding error is far below a mean free path.

@@ -387,6 +387,29 @@ struct MneeSolver {
     }
   }
 
+  // The flat glass's seed from the light's side, after o's met glass but gave no chain: asks its
+  // first ray.
+  TRACER_HD void seed_from_light(MneeRay& out) {
+    side = 1;
+    seed_step = 0;
+    glass = false;
+    seed_ray(1);
+    phase = kSeed;
+    ask(out, false, light_prim);
+  }
+
+  // The check of the chain from o (kCheck): asks for the segment to its first vertex; false (the
+  // phase unchanged) where they coincide.
+  TRACER_HD bool start_check(MneeRay& out) {
+    from = o;
+    throughput = vec3(1.0f);
+    segment = 0;
+    if (!segment_ray(ch.p[0])) return false;
+    phase = kCheck;
+    ask(out, false, kInvalid);
+    return true;
+  }
+
   // The ray to the chain's next vertex from `from` (false where they coincide).
   TRACER_HD bool segment_ray(vec3 to) {
     const vec3 d = to - from;
@@ -490,11 +513,7 @@ struct MneeSolver {
           }
           // No seed from this side: from the light's where o's met glass, else no flat chain.
           if (glass && side == 0) {
-            side = 1;
-            seed_step = 0;
-            glass = false;
-            seed_ray(1);
-            ask(out, false, light_prim);
+            seed_from_light(out);
             return true;
           }
           phase = kCasters;
@@ -504,27 +523,15 @@ struct MneeSolver {
           if (!manifold_walk(ch, o, y)) {
             // A flat chain that fails from o's side where o's ray met glass: from the light's.
             if (after_check == kCasters && !reflection && side == 0 && glass) {
-              side = 1;
-              seed_step = 0;
-              glass = false;
-              seed_ray(1);
-              phase = kSeed;
-              ask(out, false, light_prim);
+              seed_from_light(out);
               return true;
             }
             phase = after_check;
             continue;
           }
-          from = o;
-          throughput = vec3(1.0f);
-          segment = 0;
-          phase = kCheck;
-          if (!segment_ray(ch.p[0])) {
-            phase = after_check;
-            continue;
-          }
-          ask(out, false, kInvalid);
-          return true;
+          if (start_check(out)) return true;
+          phase = after_check;
+          continue;
         }
         case kCheck: {  // the hit of the segment to vertex `segment`
           const vec3 n = ch.surface[segment].normal(ch.p[segment]);
@@ -569,8 +576,9 @@ struct MneeSolver {
               return true;
             }
           }
-          // The last vertex: the light must emit towards it and be free from it.
-          if (ok && mnee_light_faces<F>(s, light_prim, y, ny, o, reflection ? ch.p[0] : from)) {
+          // The last vertex (`from`; a reflection's: its point): the light must emit towards it
+          // and be free from it.
+          if (ok && mnee_light_faces<F>(s, light_prim, y, ny, o, from)) {
             const vec3 nl = ch.surface[ch.k - 1].normal(ch.p[ch.k - 1]);
             ray = reflection ? spawn_ray_to(ch.p[0], nl, y, ny)
                              : spawn_ray_to(from, glm::dot(y - from, nl) > 0.0f ? nl : -nl, y, ny);
@@ -632,12 +640,8 @@ struct MneeSolver {
           ch.surface[0].n = pl.n;
           ch.surface[0].eta = 0.0f;
           ch.p[0] = p;
-          from = o;
-          segment = 0;
-          if (!segment_ray(p)) continue;  // exact: no Newton
-          phase = kCheck;
-          ask(out, false, kInvalid);
-          return true;
+          if (start_check(out)) return true;  // exact: no Newton
+          continue;
         }
         default: return false;
       }
