@@ -167,7 +167,7 @@ nlohmann::json to_json(const Result& r) {
                         {"sort", r.stages.sort}, {"shade", r.stages.shade},
                         {"shadow", r.stages.shadow}, {"trace", r.stages.trace},
                         {"compact", r.stages.compact}, {"mnee", r.stages.mnee},
-                        {"megakernel", r.stages.megakernel}}},
+                        {"light", r.stages.light}, {"megakernel", r.stages.megakernel}}},
           {"alive_per_bounce", r.alive},
           {"shadow_rays_per_bounce", r.shadows},
           {"finished_without_shadow_ray_per_bounce", r.finished},
@@ -407,6 +407,9 @@ int run_bench(const BenchOptions& o) {
                     "mnee", r.stages.mnee, total > 0 ? 100.0 * r.stages.mnee / total : 0.0,
                     requests / 1e6, requests / (r.stages.mnee * 1e-3) / 1e6);
       }
+      if (r.stages.light > 0)  // one thread per light path, atomics into the film
+        std::printf("  %-10s %8.3f ms %5.1f%%  (light tracing's paths and camera connections)\n",
+                    "light", r.stages.light, total > 0 ? 100.0 * r.stages.light / total : 0.0);
       // The intersect, shadow and trace stages together: all extension and shadow rays, the
       // same bytes with and without the fused stage.
       row("all rays", r.stages.intersect + r.stages.shadow + r.stages.trace,

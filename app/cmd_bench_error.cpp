@@ -54,6 +54,7 @@ struct Config {
   int light_sampler = -1;   // tracer::kLightSampler*; < 0: the scene's
   int guiding = -1;         // path guiding 0/1; < 0: the scene's
   int mnee = -1;            // manifold NEE 0/1; < 0: the scene's
+  int light_tracing = -1;   // light tracing of caustics 0/1; < 0: the scene's
   bool scalar_bvh = false;  // CPU: the shared scalar traversal instead of the SSE one
   bool cpu_flat = false;    // CPU: the flat primitive list of small scenes (as the GPU)
   // Each checkpoint's image denoised (image/denoise.h, guided by the albedo and normal AOVs);
@@ -72,7 +73,7 @@ const tracer::Setting* modifier_setting(const std::string& name) {
   static const std::vector<std::string> kKeys = {
       "render.nee",   "render.mis",     "render.russian_roulette", "render.max_depth",
       "render.clamp", "render.sampler", "render.light_sampler",    "render.guiding",
-      "render.mnee",
+      "render.mnee",  "render.light_tracing",
       "gpu.compaction",
       "gpu.sort",     "gpu.cache",      "gpu.flat",                "gpu.tail"};
   for (const std::string& key : kKeys) {
@@ -162,6 +163,7 @@ Config parse_config(const std::string& text) {
     else if (key == "render.light_sampler") c.light_sampler = int(rs.light_sampler);
     else if (key == "render.guiding") c.guiding = rs.guiding ? 1 : 0;
     else if (key == "render.mnee") c.mnee = rs.mnee ? 1 : 0;
+    else if (key == "render.light_tracing") c.light_tracing = rs.light_tracing ? 1 : 0;
     else if (key == "gpu.flat" && c.cpu) c.cpu_flat = tmpl.gpu.flat_list;  // the CPU's list
     else if (key.rfind("gpu.", 0) == 0) c.gpu = tmpl.gpu;
     else
@@ -312,6 +314,7 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
   if (c.light_sampler >= 0) cfg.light_sampler = uint32_t(c.light_sampler);
   if (c.guiding >= 0) cfg.guiding = uint32_t(c.guiding);
   if (c.mnee >= 0) cfg.mnee = uint32_t(c.mnee);
+  if (c.light_tracing >= 0) cfg.light_tracing = c.light_tracing && cfg.jitter ? 1u : 0u;
   r.set_gpu_options(c.gpu);
   r.set_scene(cs, cfg);
   r.set_aovs(c.denoise);
@@ -507,7 +510,7 @@ CLI::Option* add_error_bench_options(CLI::App& cmd, ErrorBenchOptions* o) {
   cmd.add_option("--configs", o->configs,
                  "Comma-separated configurations: cpu|megakernel|wavefront|auto, each with "
                  "+modifiers: a setting as NAME=VALUE (nee, mis, rr, max_depth, clamp, sampler, "
-                 "light_sampler, guiding, mnee, compaction, sort, cache, flat, tail: the settings "
+                 "light_sampler, guiding, mnee, light_tracing, compaction, sort, cache, flat, tail: the settings "
                  "table's "
                  "names, values and checks; flat=on on cpu: the GPU's flat list of small scenes), schlick (every "
                  "dielectric with Schlick's Fresnel), scalar-bvh (CPU: the GPU's scalar "

@@ -45,7 +45,7 @@ scene() {
   esac
 }
 
-MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit | guiding | caustics | mpi (the last ten not part of all)
+MODE=${1:-all}  # all | tests | render | gui | bench | error | sanitize | bitterli | suite | instances | denoise | denoise-classroom | subsurface-exit | guiding | caustics | light | mpi (the last eleven not part of all)
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
   echo "== GPU tests"
   $DIST/cuda_test 2>&1 | grep -vE "^\[ RUN|^\[       OK" || echo "cuda_test FAILED"
@@ -246,16 +246,19 @@ if [ "$MODE" = subsurface-exit ]; then
   done
   (cd $D && tar czf "$OUT/subsurface-exit.tgz" --exclude='*.exr' .)
 fi
-if [ "$MODE" = guiding ] || [ "$MODE" = caustics ]; then
-  # Path guiding and manifold NEE (issue 24): error against time without and with the technique
-  # (caustics: also with guiding beside it) on the caustic scenes (the lamp behind glass, glass
+if [ "$MODE" = guiding ] || [ "$MODE" = caustics ] || [ "$MODE" = light ]; then
+  # Path guiding, manifold NEE and light tracing (issue 24): error against time without and with
+  # the technique (caustics, light: also with guiding beside it) on the caustic scenes (the lamp behind glass, glass
   # and mirror spheres, rough materials, Bitterli's water caustic: copy it to
   # .devbuild/bitterli/water-caustic and carry it) and the diffuse Cornell box; then the
   # same-time pictures. Carry $DIST (and the Bitterli folder).
   if [ "$MODE" = guiding ]; then
     FLAG=--guiding; DEFAULT_CONFIGS=wavefront,wavefront+guiding=on
-  else
+  elif [ "$MODE" = caustics ]; then
     FLAG=--mnee; DEFAULT_CONFIGS=wavefront,wavefront+mnee=on,wavefront+guiding=on+mnee=on
+  else
+    FLAG=--light-tracing
+    DEFAULT_CONFIGS=auto,auto+light_tracing=on,wavefront+guiding=on+light_tracing=on
   fi
   D=/tmp/$MODE && rm -rf $D && mkdir -p $D
   B=${BITTERLI:-.devbuild/bitterli}
@@ -273,7 +276,7 @@ if [ "$MODE" = guiding ] || [ "$MODE" = caustics ]; then
         --out $D/$name-${FLAG#--}-$g.png 2>&1 | tail -1
     done
   done
-  if [ "$MODE" = guiding ]; then TESTS='*Guid*'; else TESTS='*Manifold*'; fi
+  case $MODE in guiding) TESTS='*Guid*' ;; caustics) TESTS='*Manifold*' ;; *) TESTS='*LightTracing*' ;; esac
   $DIST/cuda_test --gtest_filter="$TESTS" 2>&1 | tail -15
   (cd $D && tar czf "$OUT/$MODE.tgz" --exclude='*.exr' .)
 fi

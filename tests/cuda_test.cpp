@@ -1174,4 +1174,59 @@ TEST(Gpu, ManifoldNeeOffMirrorsAloneAgreesWithTheCpu) {
   });
 }
 
+// Light tracing (render.light_tracing): the light kernel after each sample's camera paths, in
+// the megakernel (even batches) and the wavefront (odd ones); 16 batches of 256 spp at 64x64
+// against the CPU's plain path tracing (block z-test of the batches against 2,048 CPU samples)
+// and their relative variance against the plain GPU batches'.
+void expect_gpu_light_tracing(const std::string& scene, double limit) {
+  REQUIRE_GPU(gpu);
+  Scene s = load_scene(source_dir() + "/assets/scenes/" + scene);
+  RenderSettings rs = s.settings;
+  rs.width = 64;
+  rs.height = 64;
+  rs.seed = 7;
+  RenderSettings lt_rs = rs;
+  lt_rs.light_tracing = true;
+  const PixelStats cpu = render_pixel_stats(s, rs, 2048);
+  double noise[2] = {0, 0};
+  for (int on = 0; on < 2; ++on) {
+    std::vector<ImageRGB> batches;
+    for (uint32_t b = 0; b < 16; ++b) {
+      RenderSettings r = on ? lt_rs : rs;
+      r.seed = 300 + b;
+      GpuOptions o;
+      o.kernel = b % 2 ? KernelMode::kWavefront : KernelMode::kMegakernel;
+      FrameStats st;
+      batches.push_back(render_gpu(*gpu, s, r, 256, o, &st));
+      if (on) EXPECT_GT(st.stages.light, 0.0) << "the light kernel ran";
+      else EXPECT_EQ(st.stages.light, 0.0);
+    }
+    const BlockZ z = block_z(batches, cpu);
+    std::printf("%s %s: chi2/dof against the CPU's plain %.3f (limit %.3f)\n", scene.c_str(),
+                on ? "light tracing" : "plain", z.chi2_per_dof, z.limit);
+    if (on) EXPECT_LT(z.chi2_per_dof, z.limit) << scene;
+    for (size_t i = 0; i < batches[0].pixels.size(); ++i) {
+      double m = 0, v = 0;
+      for (const ImageRGB& img : batches) m += img.pixels[i];
+      m /= batches.size();
+      for (const ImageRGB& img : batches) v += (img.pixels[i] - m) * (img.pixels[i] - m);
+      const double ref = luminance(cpu.mean[i / 3]);
+      noise[on] += v / (ref * ref + 1e-2);
+    }
+  }
+  std::printf("%s: relative variance, light tracing / plain at 256 spp, 64 x 64: %.3f\n",
+              scene.c_str(), noise[1] / noise[0]);
+  EXPECT_LT(noise[1], limit * noise[0]) << scene;
+}
+
+// The lamp behind glass: its room is lit through the slab, all of it light-traced.
+TEST(Gpu, LightTracingKeepsTheMeanAndLowersNoise) {
+  expect_gpu_light_tracing("glass_lamp.json", 0.2);
+}
+
+// The glass and mirror balls: their caustics light-traced.
+TEST(Gpu, LightTracingOfTheBallsAgreesWithTheCpu) {
+  expect_gpu_light_tracing("cornell_spheres.json", 0.8);
+}
+
 }  // namespace

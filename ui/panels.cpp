@@ -455,6 +455,12 @@ void render_panel(Workbench& wb, PanelState& ps) {
                        "glass, flat mirrors or mirror spheres): renders as without it");
     ImGui::PopStyleColor();
   }
+  setting_widget(wb, ps, "render.light_tracing", "light tracing (caustics)");
+  if (wb.settings().light_tracing && !wb.settings().jitter) {
+    ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
+    ImGui::TextWrapped("  off while pixel jitter is off (splats need jittered pixels)");
+    ImGui::PopStyleColor();
+  }
   setting_widget(wb, ps, "render.filter", "pixel filter");
   setting_widget(wb, ps, "render.filter_radius", "filter radius", 0.05f, "%.2f px (0: default)");
   setting_widget(wb, ps, "render.clamp", "clamp (0: off)", 0.1f, "%.2f");

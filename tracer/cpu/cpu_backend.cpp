@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "integrator/aov.h"
+#include "integrator/light_path.h"
 
 namespace tracer {
 
@@ -21,6 +22,7 @@ std::string CpuRenderer::device_name() const {
 void CpuRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) {
   scene_ = &scene;
   mnee_casters_ = mnee_has_casters(scene);
+  light_paths_ = light_tracing_has_paths(scene);
   set_settings(cfg);
 }
 
@@ -157,6 +159,52 @@ TRACER_CPU_MULTIVERSION void render_rows(const Pass& p, ThreadTotals& out) {
   out.removed = lost;
 }
 
+// Adds v to *p from several threads.
+inline void atomic_add(double* p, double v) {
+  double old;
+  __atomic_load(p, &old, __ATOMIC_RELAXED);
+  double next = old + v;
+  while (!__atomic_compare_exchange(p, &old, &next, true, __ATOMIC_RELAXED, __ATOMIC_RELAXED))
+    next = old + v;
+}
+
+// One worker's share of a pass's light paths (cfg.light_tracing; integrator/light_path.h):
+// width x height per sample, in chunks from the shared counter, splatted into the pass's sums of
+// each sample's half.
+TRACER_CPU_MULTIVERSION void trace_light_paths(const Pass& p, std::atomic<uint32_t>* next_chunk,
+                                               ThreadTotals& out) {
+  const IntegratorSettings& cfg = *p.cfg;
+  const uint32_t n = cfg.width * cfg.height;
+  const uint64_t total = uint64_t(n) * p.spp;
+  constexpr uint32_t kChunk = 1024;
+  const float norm = filter_profile_integral(cfg.filter, cfg.filter_radius);
+  uint64_t segments = 0, connections = 0;
+  for (uint64_t c; (c = uint64_t(next_chunk->fetch_add(1)) * kChunk) < total;) {
+    for (uint64_t i = c; i < std::min(total, c + kChunk); ++i) {
+      const uint32_t sample = p.first_sample + uint32_t(i / n);
+      double* sums = (sample & 1) ? p.pass_odd : p.pass_even;
+      auto splat = [&](uint32_t pixel, vec3 v) {
+        float cut;
+        v = clamp_radiance(v, cfg.clamp, &cut);
+        if (cut > 0.0f) {
+          ++out.clamped;
+          out.removed += cut;
+        }
+        atomic_add(&sums[size_t(pixel) * 3 + 0], v.x);
+        atomic_add(&sums[size_t(pixel) * 3 + 1], v.y);
+        atomic_add(&sums[size_t(pixel) * 3 + 2], v.z);
+      };
+      const LightPathCounts lc =
+          trace_light_path<kAllFeatures>(*p.view, cfg, uint32_t(i % n), sample, n, norm, splat);
+      segments += lc.segments;
+      connections += lc.connections;
+    }
+    if (p.cancel && p.cancel->load(std::memory_order_relaxed)) break;
+  }
+  out.rays.extension += segments;
+  out.rays.shadow += connections;
+}
+
 }  // namespace
 
 FrameStats CpuRenderer::render(uint32_t spp) {
@@ -222,6 +270,8 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
   if (guide_.ready()) cfg.guide = guide_.view(next_);
   // Manifold NEE with nothing to connect through: no requests (the same image, as on the GPU).
   if (!mnee_casters_) cfg.mnee = 0;
+  // Light tracing with no path to find (no mirror or smooth glass): none traced, the same image.
+  if (!light_paths_) cfg.light_tracing = 0;
   SceneView view = scene_->view();
   if (!simd_traversal_) view.cpu_bvh = CpuBvhView();
   view.use_flat = flat_list_ && scene_->flat_list().enabled ? 1u : 0u;
@@ -245,6 +295,20 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
   for (int t = 1; t < threads_; ++t) pool.emplace_back(worker, t);
   worker(0);
   for (auto& th : pool) th.join();
+  if (cfg.light_tracing) {  // after the camera paths, which write the pass's sums
+    std::vector<ThreadTotals> light(threads_);
+    std::atomic<uint32_t> next_chunk{0};
+    auto light_worker = [&](int t) { trace_light_paths(pass, &next_chunk, light[t]); };
+    pool.clear();
+    for (int t = 1; t < threads_; ++t) pool.emplace_back(light_worker, t);
+    light_worker(0);
+    for (auto& th : pool) th.join();
+    for (int t = 0; t < threads_; ++t) {
+      totals[t].rays += light[t].rays;
+      totals[t].clamped += light[t].clamped;
+      totals[t].removed += light[t].removed;
+    }
+  }
 
   FrameStats st;
   st.kernel = "cpu";

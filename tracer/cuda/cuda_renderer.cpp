@@ -47,7 +47,7 @@ void require_device_memory(size_t need, size_t held, const std::string& what,
 
 enum Stage {
   kGenerate, kIntersect, kSort, kShade, kShadow, kCompact, kMega, kIntersectFirst, kTail,
-  kTrace, kMnee, kStageCount
+  kTrace, kMnee, kLight, kStageCount
 };
 }
 
@@ -407,7 +407,7 @@ struct CudaRenderer::Impl {
     TRACER_CUDA_CHECK(cudaEventSynchronize(marks.back().first));
     double* slot[kStageCount] = {&t.generate, &t.intersect,  &t.sort,      &t.shade,
                                  &t.shadow,   &t.compact,    &t.megakernel, &t.intersect_first,
-                                 &t.tail,     &t.trace,      &t.mnee};
+                                 &t.tail,     &t.trace,      &t.mnee,       &t.light};
     for (size_t i = 1; i < marks.size(); ++i) {
       float ms = 0.0f;
       TRACER_CUDA_CHECK(cudaEventElapsedTime(&ms, marks[i - 1].first, marks[i].first));
@@ -429,6 +429,14 @@ struct CudaRenderer::Impl {
       if (stage == kMnee) b.mnee += ms;
     }
     marks.clear();
+  }
+
+  // Light tracing's paths of a sample (render.light_tracing), after its camera paths.
+  bool light_paths = false;  // light_tracing_has_paths(scene): else cfg.light_tracing is off
+  void light_wave(uint32_t sample, bool timed) {
+    if (!cfg.light_tracing) return;
+    launch_light_trace(eff.spec, view, cfg, sample, film_view(sample), counters.get(), stream);
+    mark(timed, kLight);
   }
 
   void megakernel_wave(uint32_t sample, bool first, bool timed) {
@@ -691,6 +699,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.point_lights.upload(scene.point_lights());
   m.view.point_lights = scene.point_lights().empty() ? nullptr : m.point_lights.get();
   m.features = scene.features();
+  m.light_paths = light_tracing_has_paths(scene);
   m.compiled = &scene;
   m.has_scene = true;
   set_settings(cfg);
@@ -701,6 +710,8 @@ void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
   m.use_device();
   m.cfg = cfg;
   m.cfg.guide = GuideView();
+  // Light tracing with no path to find (no mirror or smooth glass): none traced, the same image.
+  if (!m.light_paths) m.cfg.light_tracing = 0;
   m.view.camera.width = cfg.width;
   m.view.camera.height = cfg.height;
   m.view.camera.aspect = float(cfg.width) / float(cfg.height);
@@ -849,10 +860,12 @@ FrameStats CudaRenderer::render(uint32_t spp) {
     const bool unguided = calibrating_guide && !guide_calibration_guided(sample);
     if (mode == KernelMode::kMegakernel) {
       m.megakernel_wave(sample, first, timed);
+      m.light_wave(sample, timed);
     } else {
       if (unguided) std::swap(m.eff, m.eff_plain);
       m.wavefront_wave(sample, first, timed);
       if (unguided) std::swap(m.eff, m.eff_plain);
+      m.light_wave(sample, timed);
       m.guide_after_sample(sample);
     }
     // The feature buffers after the sample's paths (outside its timed stages).

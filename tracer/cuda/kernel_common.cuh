@@ -52,7 +52,7 @@ __device__ __forceinline__ void add_to_film(FilmView film, uint32_t pixel, vec3 
 // The flags of path id for finish_path: with rays at their slots (never with random walks,
 // the only source of the flags it counts) none are kept by id.
 __device__ __forceinline__ uint32_t path_flags(const WavefrontState& w, uint32_t id) {
-  return w.rays_at_slots ? 0u : (__float_as_uint(w.ray_d[id].w) >> 11) & 0x1ffu;
+  return w.rays_at_slots ? 0u : (__float_as_uint(w.ray_d[id].w) >> 10) & 0x3ffu;
 }
 
 // A wavefront path whose sample is complete: its radiance goes to the film, its flags to the
@@ -84,12 +84,12 @@ __device__ __forceinline__ uint32_t take_pixel(unsigned need, uint32_t* next_pix
 }
 
 // The path's ray (with its pdf, depth, flags and previous normal) into slot k of the ray
-// arrays o, d: depth in bits 0-10 (render.max_depth is at most 1024), flags in 11-19,
-// prev_normal's 12 bits in 20-31.
+// arrays o, d: depth - 1 in bits 0-9 (a stored ray's depth is 1 to render.max_depth, at most
+// 1024), flags in 10-19, prev_normal's 12 bits in 20-31.
 __device__ __forceinline__ void store_ray(float4* o, float4* d, uint32_t k, const PathState& st) {
   o[k] = make_float4(st.ray.o.x, st.ray.o.y, st.ray.o.z, st.prev_pdf);
   d[k] = make_float4(st.ray.d.x, st.ray.d.y, st.ray.d.z,
-                     __uint_as_float(st.depth | (st.flags << 11) | (st.prev_normal << 20)));
+                     __uint_as_float((st.depth - 1u) | (st.flags << 10) | (st.prev_normal << 20)));
 }
 
 // Throughput and radiance, always at the path's id.
@@ -130,8 +130,8 @@ __device__ __forceinline__ PathState load_state(const WavefrontState& w, uint32_
   st.ray.pad = 0.0f;
   st.prev_pdf = o.w;
   const uint32_t bits = __float_as_uint(d.w);
-  st.depth = bits & 0x7ffu;
-  st.flags = (bits >> 11) & 0x1ffu;
+  st.depth = (bits & 0x3ffu) + 1u;
+  st.flags = (bits >> 10) & 0x3ffu;
   st.prev_normal = bits >> 20;
   st.throughput = vec3(t.x, t.y, t.z);
   st.radiance = vec3(r.x, r.y, r.z);

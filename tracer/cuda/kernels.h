@@ -37,7 +37,7 @@ enum PathStatus : uint8_t {
 struct WavefrontState {
   uint32_t n = 0;
   float4* ray_o = nullptr;       // origin, prev_pdf
-  float4* ray_d = nullptr;       // direction, depth | flags << 11 | prev_normal << 20 (bits)
+  float4* ray_d = nullptr;       // direction, depth - 1 | flags << 10 | prev_normal << 20 (bits)
   float4* throughput = nullptr;  // xyz
   float4* radiance = nullptr;    // xyz
   float4* hit = nullptr;         // t, prim (bits), u, v
@@ -169,6 +169,12 @@ void launch_shade(uint32_t spec, const SceneView& s, const IntegratorSettings& c
 void launch_mnee(uint32_t spec, const SceneView& s, const FlatParams& flat,
                  const IntegratorSettings& cfg, uint32_t sample, uint32_t bounce,
                  const WavefrontState& w, cudaStream_t stream);
+// Light tracing (render.light_tracing; integrator/light_path.h): the film's n light paths of
+// `sample`, their camera connections added to `film` (after the sample's camera paths); their
+// segments and connections counted as extension and shadow rays.
+void launch_light_trace(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
+                        uint32_t sample, const FilmView& film, unsigned long long* counters,
+                        cudaStream_t stream);
 // Without shadow_queue: over the bounce's queue (every path shaded, with a shadow ray or not);
 // with it: the shadow rays, then the paths to finish, of the shade kernel's shadow queue.
 void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,

@@ -118,6 +118,28 @@ bool mnee_has_casters(const CompiledScene& scene) {
   return false;
 }
 
+bool light_tracing_has_paths(const CompiledScene& scene) {
+  bool area_light = false;
+  for (uint32_t i = 0; i < scene.view().light_count; ++i)
+    area_light = area_light || scene.view().lights[i].kind == kLightPrimitive;
+  if (!area_light) return false;
+  // A delta event: a mirror, smooth metal or glass, a smooth coat (a subsurface material's
+  // boundary stops light paths). Textures may make a material smooth metal per texel.
+  for (const Material& m : scene.materials()) {
+    if (m.has_textures()) return true;
+    switch (m.type) {
+      case MaterialType::kMirror: return true;
+      case MaterialType::kConductor:
+      case MaterialType::kDielectric:
+      case MaterialType::kCoatedDiffuse:
+        if (m.roughness <= 0.0f) return true;
+        break;
+      default: break;
+    }
+  }
+  return false;
+}
+
 GpuSceneTraits gpu_scene_traits(const CompiledScene& scene, const IntegratorSettings& cfg) {
   GpuSceneTraits t = gpu_scene_traits(scene.view(), scene.flat_list().enabled, cfg);
   t.bvh8_available = !scene.bvh8().nodes.empty();

@@ -60,6 +60,10 @@ struct GpuSceneTraits {
 // it has none (rough glass and metals only, say) the GPU runs the usual kernels and the CPU makes
 // no requests.
 bool mnee_has_casters(const CompiledScene& scene);
+// Whether light tracing (render.light_tracing) can find any path here: an area light and a
+// material with a delta lobe. Where not, the renderers trace no light paths (the image is the
+// same: the path tracer leaves nothing to them).
+bool light_tracing_has_paths(const CompiledScene& scene);
 // From a scene's view (its features and camera) and whether it has a flat list (mnee_casters is
 // left false: the caller knows it from the compiled scene), or from the compiled scene itself.
 GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,

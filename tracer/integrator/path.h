@@ -24,6 +24,9 @@ struct IntegratorSettings {
   // Manifold next-event estimation through smooth glass (render.mnee): only code compiled with
   // kFeatureCaustics reads it (the CPU's, the wavefront's caustic shade kernels).
   uint32_t mnee = 0;
+  // Light tracing of caustics (render.light_tracing; integrator/light_path.h): the path tracer
+  // leaves the paths it covers to it (kPathLightTraced). Needs jittered samples.
+  uint32_t light_tracing = 0;
   uint32_t jitter = 1;  // 0: every sample goes through the pixel centre (enables hit caching)
   float clamp = 0.0f;   // > 0: scale each sample down to at most this much per channel (biased)
   // kSamplerRandom (PCG32), kSamplerSobol or kSamplerSobolPairs (core/sobol.h)
@@ -123,9 +126,13 @@ enum PathFlags : uint32_t {
   kPathMneeRefract2 = 1u << 6,
   kPathMneeOther = 1u << 7,
   kPathMneeMirror = 1u << 8,  // ... or exactly one reflection (MneeSolver: a mirror sphere, a flat reflector)
+  // Light tracing (cfg.light_tracing): the camera's vertex scattered by a non-delta lobe and no
+  // subsurface material came since, so emission reached by delta events from a non-delta vertex
+  // is the light tracer's (integrator/light_path.h), not added here.
+  kPathLightTraced = 1u << 9,
 };
-// The wavefront keeps the flags in 9 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
-static_assert(kPathMneeMirror < (1u << 9), "PathFlags must fit in 9 bits");
+// The wavefront keeps the flags in 10 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
+static_assert(kPathLightTraced < (1u << 10), "PathFlags must fit in 10 bits");
 
 struct PathState {
   Ray ray;
@@ -866,7 +873,12 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       // estimators so split the paths exactly, also where the solve fails (no bias).
       const uint32_t mnee_bits = st.flags & (kPathMneeFrom | kPathMneeRefract1 |
                                              kPathMneeRefract2 | kPathMneeOther | kPathMneeMirror);
-      if ((F & kFeatureCaustics) && cfg.mnee && mnee && sh.light != kInvalid &&
+      if ((F & kFeatureSpecular) && cfg.light_tracing && sh.light != kInvalid &&
+          (st.flags & (kPathLightTraced | kPathPrevSpecular)) ==
+              (kPathLightTraced | kPathPrevSpecular) &&
+          light_select_pdf(s, sh.light) > 0.0f) {
+        w = 0.0f;  // the light tracer's: an area light it emits from, after delta events
+      } else if ((F & kFeatureCaustics) && cfg.mnee && mnee && sh.light != kInvalid &&
           (mnee_bits == (kPathMneeFrom | kPathMneeRefract2) ||
            mnee_bits == (kPathMneeFrom | kPathMneeMirror))) {
         mnee->partition = w > 0.0f;
@@ -952,8 +964,11 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     // mirror spheres (paths of 3 and 2 more segments, within max_depth as the BSDF's would have
     // to be), with the light's radiance towards the chain: also from behind a one-sided light,
     // which the chain may reach from its front (a ceiling lit by the light's image in a ball).
+    // (Not where the light tracer owns these paths: a camera vertex, or kPathLightTraced.)
+    const bool light_traced = (F & kFeatureSpecular) && cfg.light_tracing &&
+                              (st.depth == 1 ? !diffuse_exit : (st.flags & kPathLightTraced) != 0);
     if ((F & kFeatureCaustics) && cfg.mnee && mnee && ls.valid && !ls.infinite && !ls.delta &&
-        !is_black(ls.emitted) && st.depth + 2 <= cfg.max_depth) {
+        !is_black(ls.emitted) && st.depth + 2 <= cfg.max_depth && !light_traced) {
       mnee->connect = true;
       mnee->depth = st.depth;
       mnee->p = sh.p;
@@ -1035,6 +1050,12 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     } else {
       st.flags &= ~kPathInMedium;
     }
+  }
+  if ((F & kFeatureSpecular) && cfg.light_tracing) {  // the light tracer's paths
+    if (st.depth == 1 && !bs.specular && !diffuse_exit && type != MaterialType::kSubsurface)
+      st.flags |= kPathLightTraced;
+    else if (st.depth == 1 || type == MaterialType::kSubsurface)
+      st.flags &= ~kPathLightTraced;  // (the light tracer stops at subsurface materials)
   }
   if ((F & kFeatureCaustics) && cfg.mnee) {  // manifold NEE's partition (kPathMneeFrom)
     if (!bsdf_is_delta(m, type)) {

@@ -40,6 +40,7 @@ struct StageTimes {
   // Fused trace stages (a bounce's shadow rays with the next bounce's extension rays).
   double trace = 0;
   double mnee = 0;  // manifold NEE's stage (render.mnee): its solves and their rays
+  double light = 0;  // light tracing's paths (render.light_tracing), after the camera paths
   std::vector<BounceTimes> bounces;  // the same per bounce (wavefront only)
   double tail = 0;         // the wavefront's tail kernel
   uint32_t tail_from = 0;  // the bounce its tail began at (0: none)
@@ -48,7 +49,7 @@ struct StageTimes {
   double megakernel = 0;
   // The whole sample (intersect includes intersect_first).
   double total() const {
-    return generate + intersect + sort + shade + shadow + trace + compact + mnee + tail +
+    return generate + intersect + sort + shade + shadow + trace + compact + mnee + light + tail +
            megakernel;
   }
 };

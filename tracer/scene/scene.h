@@ -51,6 +51,7 @@ struct RenderSettings {
   uint32_t light_sampler = kLightSamplerBvh;
   bool guiding = false;  // path guiding (integrator/guide.h)
   bool mnee = false;     // manifold next-event estimation through glass (integrator/manifold.h)
+  bool light_tracing = false;  // light tracing of caustics (integrator/light_path.h)
 };
 
 // "random" / "sobol" / "sobol-pairs", as the scene format, the CLI and the workbench spell

@@ -1,0 +1,300 @@
+// Light tracing of caustics (render.light_tracing, integrator/light_path.h): the camera mapping it
+// inverts, the filter's splat weights, and the split with the path tracer, which must keep every
+// scene's mean (block z-test against plain path tracing) while lowering the noise of caustics.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <thread>
+
+#include "cpu/cpu_backend.h"
+#include "integrator/gpu_options.h"
+#include "integrator/light_path.h"
+#include "integrator/renderer.h"
+#include "scene/compiled_scene.h"
+#include "scene/loader.h"
+#include "scene_builders.h"
+
+namespace {
+using namespace tracer;
+
+// camera_film_point inverts Camera::generate_ray: a point along a camera ray lands where the ray
+// left the film, through a pinhole and through a thin lens (from the ray's own lens point).
+TEST(LightPath, FilmPointInvertsTheCameraRay) {
+  for (float lens : {0.0f, 0.3f}) {
+    Camera c = make_camera(vec3(1.0f, 2.0f, 3.0f), vec3(-2.0f, 0.5f, -4.0f), vec3(0, 1, 0), 50.0f,
+                           lens, 6.0f, 320, 200);
+    Pcg32 rng(7, 11);
+    for (int i = 0; i < 2000; ++i) {
+      const uint32_t x = rng.next_u32() % c.width, y = rng.next_u32() % c.height;
+      const vec2 j = rng.next_2d(), l = rng.next_2d();
+      const Ray r = c.generate_ray(x, y, j, l);
+      const vec3 p = r.o + (0.5f + 20.0f * rng.next_float()) * r.d;
+      vec2 fp;
+      ASSERT_TRUE(camera_film_point(c, r.o, p, &fp));
+      EXPECT_NEAR(fp.x, float(x) + j.x, 2e-3f) << "lens " << lens;
+      EXPECT_NEAR(fp.y, float(y) + j.y, 2e-3f) << "lens " << lens;
+    }
+    vec2 fp;
+    EXPECT_FALSE(camera_film_point(c, c.position, c.position - c.forward, &fp));  // behind
+  }
+}
+
+// A splat gives pixel j the weight filter(dx) filter(dy) / integral^2 of its offset from j's
+// centre: pixel j's estimate is then the filtered integral that the camera's samples, drawn from
+// the normalised filter about j, estimate. (Their sum over pixels is 1 only for filters whose
+// shifted copies add up to 1, as box and tent do; a narrow Blackman-Harris sums to 1.46.)
+TEST(LightPath, SplatWeightsAreTheNormalisedFilter) {
+  // The profiles' integrals in closed form: Gaussian (bell minus its edge value), and the
+  // Blackman-Harris window (its cosines integrate to 0 over the window).
+  const float r = 1.5f, sigma = r / 3.0f, edge = std::exp(-4.5f);
+  const float gauss = (sigma * std::sqrt(2.0f * kPi) * std::erf(r / (sigma * std::sqrt(2.0f))) -
+                       2.0f * r * edge) / (1.0f - edge);
+  EXPECT_NEAR(filter_profile_integral(PixelFilter::kGaussian, r), gauss, 1e-4f);
+  EXPECT_NEAR(filter_profile_integral(PixelFilter::kBlackmanHarris, 1.0f), 2.0f * 0.35875f, 1e-4f);
+  EXPECT_FLOAT_EQ(filter_profile_integral(PixelFilter::kTent, 1.0f), 1.0f);
+  EXPECT_FLOAT_EQ(filter_profile_integral(PixelFilter::kBox, 0.5f), 1.0f);
+  Pcg32 rng(3, 5);
+  for (PixelFilter f : {PixelFilter::kBox, PixelFilter::kTent, PixelFilter::kGaussian,
+                        PixelFilter::kBlackmanHarris}) {
+    for (float radius : {default_filter_radius(f), 2.0f}) {
+      IntegratorSettings cfg;
+      cfg.width = 40;
+      cfg.height = 30;
+      cfg.filter = f;
+      cfg.filter_radius = radius;
+      const float norm = filter_profile_integral(f, radius);
+      for (int i = 0; i < 200; ++i) {
+        // Near the edges too: pixels outside the image get nothing.
+        const vec2 fp(-2.0f + 44.0f * rng.next_float(), -2.0f + 34.0f * rng.next_float());
+        std::vector<double> got(cfg.width * cfg.height, 0.0);
+        double total = 0.0;
+        splat_film_point(cfg, fp, vec3(1.0f), norm, [&](uint32_t p, vec3 v) {
+          ASSERT_LT(p, got.size());
+          got[p] += v.x;
+          total += v.x;
+        });
+        double expected_total = 0.0;
+        for (uint32_t y = 0; y < cfg.height; ++y)
+          for (uint32_t x = 0; x < cfg.width; ++x) {
+            const double w = filter_profile(f, radius, fp.x - (x + 0.5f)) *
+                             filter_profile(f, radius, fp.y - (y + 0.5f)) / (norm * norm);
+            expected_total += w;
+            EXPECT_NEAR(got[y * cfg.width + x], w, 1e-5) << int(f) << " radius " << radius;
+          }
+        const bool inside = fp.x > radius && fp.x < 40 - radius && fp.y > radius && fp.y < 30 - radius;
+        if (inside && (f == PixelFilter::kBox || (f == PixelFilter::kTent && radius == 1.0f)))
+          EXPECT_NEAR(total, 1.0, 1e-5) << int(f);
+        EXPECT_NEAR(total, expected_total, 1e-5);
+      }
+    }
+  }
+}
+
+// Per-sample images (camera paths plus, with cfg.light_tracing, the sample's light paths) of a
+// scene, summed per pixel and per 4x4 block: a block's variance from its per-sample sums counts
+// the splats' correlation between pixels.
+struct SampleStats {
+  int width = 0, height = 0;
+  uint32_t spp = 0;
+  std::vector<glm::dvec3> sum, sum2;    // per pixel
+  std::vector<glm::dvec3> bsum, bsum2;  // per block of kBlock x kBlock pixels
+  static constexpr int kBlock = 4;
+  glm::dvec3 mean(size_t i) const { return sum[i] / double(spp); }
+  glm::dvec3 var(size_t i) const {
+    const glm::dvec3 m = mean(i);
+    return glm::max((sum2[i] - double(spp) * m * m) / double(spp - 1), glm::dvec3(0.0));
+  }
+  double image_mean() const {
+    double s = 0.0;
+    for (const glm::dvec3& v : sum) s += luminance(vec3(v));
+    return s / (double(spp) * sum.size());
+  }
+};
+
+SampleStats sample_stats(const CompiledScene& cs, const IntegratorSettings& cfg, uint32_t spp,
+                         uint32_t first) {
+  SampleStats st;
+  st.width = int(cfg.width);
+  st.height = int(cfg.height);
+  st.spp = spp;
+  const uint32_t n = cfg.width * cfg.height;
+  const int bw = st.width / SampleStats::kBlock, bh = st.height / SampleStats::kBlock;
+  st.sum.assign(n, glm::dvec3(0.0));
+  st.sum2 = st.sum;
+  st.bsum.assign(size_t(bw) * bh, glm::dvec3(0.0));
+  st.bsum2 = st.bsum;
+  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  const float norm = filter_profile_integral(cfg.filter, cfg.filter_radius);
+  std::vector<std::vector<vec3>> images(threads, std::vector<vec3>(n));
+  for (uint32_t k = 0; k < spp; ++k) {
+    const uint32_t sample = first + k;
+    std::atomic<uint32_t> next{0}, next_light{0};
+    auto work = [&](unsigned t) {
+      std::vector<vec3>& img = images[t];
+      std::fill(img.begin(), img.end(), vec3(0.0f));
+      for (uint32_t p; (p = next.fetch_add(1)) < n;) {
+        const vec3 L = trace_path(cs.view(), cfg, p, sample);
+        if (is_finite(L)) img[p] += L;
+      }
+      if (!cfg.light_tracing) return;
+      for (uint32_t i; (i = next_light.fetch_add(1)) < n;)
+        trace_light_path<kAllFeatures>(cs.view(), cfg, i, sample, n, norm,
+                                       [&](uint32_t p, vec3 v) { img[p] += v; });
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    work(0);
+    for (auto& th : pool) th.join();
+    std::vector<glm::dvec3> blocks(st.bsum.size(), glm::dvec3(0.0));
+    for (uint32_t p = 0; p < n; ++p) {
+      glm::dvec3 v(0.0);
+      for (unsigned t = 0; t < threads; ++t) v += glm::dvec3(images[t][p]);
+      st.sum[p] += v;
+      st.sum2[p] += v * v;
+      const int bx = int(p % cfg.width) / SampleStats::kBlock;
+      const int by = int(p / cfg.width) / SampleStats::kBlock;
+      if (bx < bw && by < bh) blocks[size_t(by) * bw + bx] += v;
+    }
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      st.bsum[b] += blocks[b];
+      st.bsum2[b] += blocks[b] * blocks[b];
+    }
+  }
+  return st;
+}
+
+// The block z-test of two estimates' means (Sidak-corrected, as test::expect_same_means) and the
+// image means within 2%.
+void expect_same_block_means(const SampleStats& a, const SampleStats& b, const std::string& what) {
+  std::vector<double> zs;
+  for (size_t i = 0; i < a.bsum.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      auto stats = [&](const SampleStats& s, double* var) {
+        const double m = s.bsum[i][c] / s.spp;
+        *var = std::max(s.bsum2[i][c] / s.spp - m * m, 0.0) / (s.spp - 1);
+        return m;
+      };
+      double va, vb;
+      const double ma = stats(a, &va), mb = stats(b, &vb);
+      zs.push_back((ma - mb) / std::sqrt(std::max(va + vb, 1e-20)));
+    }
+  const double zmax = test::sidak_z(1e-3, zs.size());
+  int failures = 0;
+  for (size_t i = 0; i < zs.size(); ++i)
+    if (std::abs(zs[i]) > zmax && failures++ < 5)
+      ADD_FAILURE() << what << ": block " << i / 3 << " channel " << i % 3 << " z = " << zs[i];
+  EXPECT_NEAR(a.image_mean(), b.image_mean(), 0.02 * b.image_mean()) << what;
+}
+
+// The summed relative variance per sample (each pixel's over its mean squared plus 0.01, as
+// relMSE weighs it; the means of `ref`).
+double relative_variance(const SampleStats& s, const SampleStats& ref) {
+  double sum = 0.0;
+  for (size_t i = 0; i < s.sum.size(); ++i) {
+    const double m = luminance(vec3(ref.mean(i)));
+    sum += luminance(vec3(s.var(i))) / (m * m + 1e-2);
+  }
+  return sum;
+}
+
+// Light tracing against plain path tracing on a scene: the same means (block z-test), and the
+// relative variance per sample at most `limit` of plain's (printed with the times: their product
+// is the ratio at equal time). LT_SCENE, LT_SIZE and LT_SPP measure another scene.
+void expect_light_tracing_keeps_the_mean(const std::string& default_scene, int default_size,
+                                         uint32_t plain_spp, uint32_t lt_spp, double limit,
+                                         const std::function<void(Scene&, RenderSettings&)>& edit =
+                                             nullptr) {
+  const char* file = std::getenv("LT_SCENE");
+  const std::string path =
+      file ? file : std::string(TRACER_SOURCE_DIR) + "/assets/scenes/" + default_scene;
+  const char* size = std::getenv("LT_SIZE");
+  const char* spp_text = std::getenv("LT_SPP");
+  const int k = size ? std::atoi(size) : default_size;
+  if (spp_text) plain_spp = lt_spp = uint32_t(std::atoi(spp_text));
+  Scene scene = load_scene(path);
+  RenderSettings rs;
+  rs.width = rs.height = k;
+  if (edit && !file) edit(scene, rs);
+  const CompiledScene cs(scene, rs.width, rs.height);
+  ASSERT_TRUE(light_tracing_has_paths(cs)) << path;
+  IntegratorSettings plain = make_integrator_settings(rs);
+  IntegratorSettings lt = plain;
+  lt.light_tracing = 1;
+  const auto t0 = std::chrono::steady_clock::now();
+  const SampleStats a = sample_stats(cs, plain, plain_spp, 0);
+  const auto t1 = std::chrono::steady_clock::now();
+  const SampleStats b = sample_stats(cs, lt, lt_spp, 100000);
+  const auto t2 = std::chrono::steady_clock::now();
+  expect_same_block_means(b, a, "light tracing vs plain");
+  const double ra = relative_variance(a, a), rb = relative_variance(b, a);
+  const double ta = std::chrono::duration<double>(t1 - t0).count() / plain_spp;
+  const double tb = std::chrono::duration<double>(t2 - t1).count() / lt_spp;
+  std::printf("  %s: light tracing / plain: relative variance per sample %.4f, time per sample "
+              "%.2f, product %.4f; means %.4f / %.4f\n",
+              path.c_str(), rb / ra, tb / ta, rb / ra * tb / ta, b.image_mean(), a.image_mean());
+  if (!file) EXPECT_LT(rb, limit * ra);
+}
+
+// The lamp behind glass: the whole room is lit through the slab (light -> glass -> room), which
+// only BSDF-sampled paths found.
+TEST(LightPath, LampBehindGlassKeepsItsMeanWithLessNoise) {
+  expect_light_tracing_keeps_the_mean("glass_lamp.json", 32, 1024, 256, 0.2);
+}
+
+// The glass and mirror balls: their caustics on the floor and walls (light -> ball -> room).
+TEST(LightPath, GlassAndMirrorBallsKeepTheirMeanWithLessNoise) {
+  expect_light_tracing_keeps_the_mean("cornell_spheres.json", 32, 1024, 512, 0.8);
+}
+
+// A thin lens and a wide tent filter: the connections land on the lens and are splatted over
+// four pixels, as the camera's samples are drawn.
+TEST(LightPath, ThinLensAndTentFilterKeepTheMean) {
+  expect_light_tracing_keeps_the_mean(
+      "cornell_spheres.json", 24, 1024, 512, 1.0, [](Scene& scene, RenderSettings& rs) {
+        scene.camera.aperture_radius = 20.0f;
+        rs.filter = PixelFilter::kTent;
+        rs.filter_radius = 1.5f;
+      });
+}
+
+// Which scenes light tracing finds paths in: a light and a delta lobe (smooth glass, mirrors);
+// none in the diffuse box or among rough metals and frosted glass, whose image is the same with
+// it on (the CPU traces no light paths there).
+TEST(LightPath, ScenesWithAndWithoutLightPaths) {
+  auto has = [](const std::string& name) {
+    const Scene s = load_scene(std::string(TRACER_SOURCE_DIR) + "/assets/scenes/" + name);
+    return light_tracing_has_paths(CompiledScene(s, 16, 16));
+  };
+  EXPECT_TRUE(has("glass_lamp.json"));
+  EXPECT_TRUE(has("cornell_spheres.json"));
+  EXPECT_FALSE(has("cornell_box.json"));
+  EXPECT_FALSE(has("rough_materials.json"));
+  const Scene s = load_scene(std::string(TRACER_SOURCE_DIR) + "/assets/scenes/rough_materials.json");
+  const CompiledScene cs(s, 24, 24);
+  RenderSettings rs;
+  rs.width = rs.height = 24;
+  IntegratorSettings cfg = make_integrator_settings(rs);
+  ImageRGB img[2];
+  for (int on = 0; on < 2; ++on) {
+    cfg.light_tracing = uint32_t(on);
+    CpuRenderer r(2);
+    r.set_scene(cs, cfg);
+    r.render(8);
+    img[on] = r.image();
+  }
+  EXPECT_EQ(img[0].pixels, img[1].pixels);
+}
+
+// Without jitter a pixel is its centre's radiance, which no splat gives: the setting is then off.
+TEST(LightPath, NeedsJitter) {
+  RenderSettings rs;
+  rs.light_tracing = true;
+  EXPECT_EQ(make_integrator_settings(rs).light_tracing, 1u);
+  rs.jitter = false;
+  EXPECT_EQ(make_integrator_settings(rs).light_tracing, 0u);
+}
+
+}  // namespace

@@ -1,0 +1,233 @@
+// Light tracing of caustics (render.light_tracing): paths that start on a light, meet a mirror or
+// smooth glass first (a delta event), and are connected to the camera at every vertex after that
+// whose BSDF is not a delta distribution; each connection is splatted into the pixels whose filter
+// covers the point it lands on (Veach 1997 sec. 10.2's t = 1 strategy; pbrt-v4 sec. 13.7's light
+// paths). The path tracer leaves exactly these paths to it: a path whose camera vertex scatters by
+// a non-delta lobe (kPathLightTraced, shade_path) and that reaches an area light after one or more
+// delta events from its last non-delta vertex no longer adds that emission. The two estimators so
+// split the paths between them without weights, and the image keeps its mean. Caustics seen
+// directly (a glass ball's on the floor, a lamp behind glass lighting a room) and the light they
+// bounce on converge without the fireflies of BSDF-sampled paths.
+//
+// Not light-traced (the path tracer keeps them): paths whose camera vertex is a delta event (a
+// caustic seen in a mirror), light from lights at infinity and point lights, and paths through a
+// subsurface material (the light tracer stops there; shade_path clears the flag there).
+//
+// Each sample traces width x height light paths. Light path k of sample s draws from its own
+// PCG32 stream, so a sample's splats depend on (s, seed) alone, as its camera paths do.
+#pragma once
+
+#include "integrator/path.h"
+
+namespace tracer {
+
+// The PCG32 stream of a light path: make_path_rng's "bounce" number, above any a camera path uses
+// (its vertices, random-walk steps and the filter's stream 0xfffe).
+constexpr uint32_t kLightPathStream = 0xfffffff0u;
+
+// The integral of the filter's 1D profile over [-radius, radius] (its splat weights' normaliser):
+// exact for box and tent, a midpoint sum for the others.
+TRACER_HD inline float filter_profile_integral(PixelFilter f, float radius) {
+  if (f == PixelFilter::kBox) return 2.0f * radius;
+  if (f == PixelFilter::kTent) return radius;
+  constexpr int kSteps = 256;
+  float sum = 0.0f;
+  for (int i = 0; i < kSteps; ++i)
+    sum += filter_profile(f, radius, radius * ((2.0f * float(i) + 1.0f) / kSteps - 1.0f));
+  return sum * (2.0f * radius / kSteps);
+}
+
+// Where a point seen from a lens point lands on the film: continuous pixel coordinates (x right,
+// y down; pixel (i, j) covers [i, i + 1) x [j, j + 1)), as Camera::generate_ray maps them. false
+// when the point is not in front of the camera.
+TRACER_HD TRACER_INLINE bool camera_film_point(const Camera& c, vec3 lens, vec3 x, vec2* film) {
+  const vec3 d = x - lens;
+  const float z = glm::dot(d, c.forward);
+  if (!(z > 0.0f)) return false;
+  // The ray from the lens point through x meets the plane of focus at lens + d f / z; through the
+  // lens centre that point is position + f (sx right + sy up + forward). A pinhole's lens point
+  // is the centre, and this is d / z.
+  const vec3 on_plane = (lens - c.position) * fast_rcp(c.focus_distance) + d * fast_rcp(z);
+  const float sx = glm::dot(on_plane, c.right), sy = glm::dot(on_plane, c.up);
+  film->x = 0.5f * (sx / (c.tan_half_fov * c.aspect) + 1.0f) * float(c.width);
+  film->y = 0.5f * (1.0f - sy / c.tan_half_fov) * float(c.height);
+  return true;
+}
+
+// Adds `value` (a connection's contribution to the pixel integral at film point fp) to the pixels
+// whose filter covers fp: splat(pixel, weight * value). The filter is separable and normalised
+// (norm: filter_profile_integral), as the camera's samples are drawn from it.
+template <class Splat>
+TRACER_HD inline void splat_film_point(const IntegratorSettings& cfg, vec2 fp, vec3 value,
+                                       float norm, Splat&& splat) {
+  const float r = cfg.filter_radius;
+  const int x0 = int(glm::ceil(fp.x - 0.5f - r)), x1 = int(glm::floor(fp.x - 0.5f + r));
+  const int y0 = int(glm::ceil(fp.y - 0.5f - r)), y1 = int(glm::floor(fp.y - 0.5f + r));
+  const float inv = 1.0f / (norm * norm);
+  for (int y = glm::max(y0, 0); y <= glm::min(y1, int(cfg.height) - 1); ++y) {
+    const float wy = filter_profile(cfg.filter, r, fp.y - (float(y) + 0.5f));
+    if (wy <= 0.0f) continue;
+    for (int x = glm::max(x0, 0); x <= glm::min(x1, int(cfg.width) - 1); ++x) {
+      const float w = wy * filter_profile(cfg.filter, r, fp.x - (float(x) + 0.5f)) * inv;
+      if (w > 0.0f) splat(uint32_t(y) * cfg.width + uint32_t(x), value * w);
+    }
+  }
+}
+
+// What one light path traced (for the ray counts).
+struct LightPathCounts {
+  uint32_t segments = 0, connections = 0;
+};
+
+// Light path `index` of sample `sample`: traced from a light chosen by power, connected to the
+// camera as the header says; splat(pixel, rgb) receives each contribution to a pixel's mean for
+// this sample (norm: filter_profile_integral of cfg's filter). paths: the light paths per sample.
+template <uint32_t F, class Splat>
+TRACER_HD inline LightPathCounts trace_light_path(const SceneView& s, const IntegratorSettings& cfg,
+                                                  uint32_t index, uint32_t sample, uint32_t paths,
+                                                  float norm, Splat&& splat) {
+  LightPathCounts counts;
+  if (s.light_count == 0) return counts;
+  Pcg32 rng = make_path_rng(index, sample, kLightPathStream, cfg.seed);
+  // The light, by the power sampler's distribution; only area lights (triangles, spheres) are
+  // light-traced: shade_path keeps the paths to the others.
+  const uint32_t li = pick_light(s, rng.next_float());
+  const float select = light_select_pdf(s, li);
+  const Light& light = s.lights[li];
+  if (light.kind != kLightPrimitive || !(select > 0.0f) || !(light.area > 0.0f)) return counts;
+  vec3 p, n;
+  uint32_t material;
+  vec3 le;
+  const vec2 u_point = rng.next_2d();
+  if (!(F & kFeatureSpheres) || light.prim < s.tri_count) {
+    const TriangleVerts tv = load_triangle(s.tri_verts, light.prim);
+    const vec2 b = sample_uniform_triangle(u_point);
+    p = b.x * tv.v0 + b.y * tv.v1 + (1.0f - b.x - b.y) * tv.v2;
+    n = fast_normalize(glm::cross(tv.v1 - tv.v0, tv.v2 - tv.v0));
+    material = s.tri_shading[light.prim].material;
+    le = s.materials[material].emission;
+    if ((F & kFeatureTextures) && s.materials[material].emissive_tex != kInvalid) {
+      const vec2 uv = triangle_uv(s, light.prim, b.y, 1.0f - b.x - b.y);
+      le *= vec3(lookup_texture(s, s.materials[material].emissive_tex, uv));
+    }
+  } else {
+    const Sphere& sph = s.spheres[light.prim - s.tri_count];
+    n = sample_uniform_sphere(u_point);
+    p = sph.center + sph.radius * n;
+    material = sph.material;
+    le = s.materials[material].emission;
+  }
+  const Material& lm = s.materials[material];
+  // The side it leaves from: the front, or either (chosen evenly) for two-sided emission; its
+  // direction by the cosine. Flux weight: Le cos / (select / area * cos / pi * side's chance).
+  const vec2 u_dir = rng.next_2d();
+  const float u_side = rng.next_float();
+  const bool two_sided = (lm.flags & kMaterialTwoSidedEmission) != 0;
+  const vec3 side_n = two_sided && u_side < 0.5f ? -n : n;
+  if (!material_emits(lm, glm::dot(side_n, n) > 0.0f) || is_black(le)) return counts;
+  vec3 beta = le * (kPi * light.area / select * (two_sided ? 2.0f : 1.0f));
+  const vec3 beta0 = beta;
+  Ray ray = spawn_ray(p, n, Frame::from_normal(side_n).to_world(sample_cosine_hemisphere(u_dir)));
+  ray.d = fast_normalize(ray.d);
+  const Camera& cam = s.camera;
+  // The measurement's constant: pixels per unit area of the film plane one unit ahead, over the
+  // light paths per sample.
+  const float film_scale = float(cfg.width) * float(cfg.height) /
+                           (4.0f * cam.tan_half_fov * cam.tan_half_fov * cam.aspect * float(paths));
+  bool chain = false;  // a delta event since the light: the path is the light tracer's
+  for (uint32_t segments = 1;; ++segments) {
+    const Hit hit = intersect_closest<F>(s, ray, kInvalid);
+    ++counts.segments;
+    if (!hit.valid()) return counts;
+    SurfaceHit sh = make_surface_hit<F>(s, ray, hit);
+    Material textured;
+    const Material& m = *hit_material<F>(s, hit.prim, sh, textured);
+    const MaterialType type = (F & kFeatureSpecular) ? m.type : MaterialType::kDiffuse;
+    if ((F & kFeatureSubsurface) && type == MaterialType::kSubsurface) return counts;
+    if (type == MaterialType::kDielectric && !sh.front && !is_black(m.absorption))
+      beta *= glm::exp(-m.absorption * hit.t);
+    const bool transmits = bsdf_transmits(type);
+    const Frame frame = bsdf_frame(m, type, transmits || sh.front ? sh.ns : -sh.ns);
+    const vec3 wl_world = -ray.d;  // towards the light's side
+    const vec3 wl = frame.to_local(wl_world);
+    const float cos_l_geo = glm::abs(glm::dot(wl_world, sh.ng));
+    const bool delta = bsdf_is_delta(m, type);
+    // The path tracer's own rule at a rough transmitter: its BSDF's sample towards the light must
+    // lie on the side the true surface says (shade_path); paths against it are in neither.
+    if (!delta && transmits && (glm::dot(wl_world, sh.ng) > 0.0f) != (wl.z > 0.0f)) return counts;
+    if (chain && !delta && segments + 1 <= cfg.max_depth && cos_l_geo > 0.0f) {
+      // The camera connection: a lens point, the film point it sees x through, and whether the
+      // segment is free.
+      vec3 lens = cam.position;
+      const vec2 u_lens = rng.next_2d();
+      if ((F & kFeatureDepthOfField) && cam.lens_radius > 0.0f) {
+        const vec2 l = cam.lens_radius * sample_uniform_disk_concentric(u_lens);
+        lens += l.x * cam.right + l.y * cam.up;
+      }
+      vec2 fp;
+      const vec3 to_cam = lens - sh.p;
+      const float d2 = glm::dot(to_cam, to_cam);
+      if (d2 > 0.0f && camera_film_point(cam, lens, sh.p, &fp)) {
+        const vec3 wc_world = to_cam * fast_rsqrt(d2);
+        const float geo_c = glm::dot(wc_world, sh.ng);
+        // A reflector sends light only to the side it came from.
+        const bool usable = transmits || geo_c * glm::dot(wl_world, sh.ng) > 0.0f;
+        const vec3 f = usable ? bsdf_eval<F>(m, frame.to_local(wc_world), wl) : vec3(0.0f);
+        if (!is_black(f)) {
+          const float cos_cam = -glm::dot(wc_world, cam.forward);
+          // Radiance towards the camera from the particle's flux (the shading normal's cosine
+          // over the geometric one: the adjoint's correction), times the camera's importance per
+          // unit area at x: |cos at x| / (d^2 cos^3 at the camera) per film-plane area.
+          const vec3 value = beta * f *
+                             (glm::abs(wl.z) / cos_l_geo * glm::abs(geo_c) /
+                              (d2 * cos_cam * cos_cam * cos_cam) * film_scale);
+          Ray r = spawn_ray(sh.p, sh.ng, wc_world);
+          r.tmax = glm::length(lens - r.o);
+          ++counts.connections;
+          if (is_finite(value) && !intersect_any<F>(s, r, kInvalid, kInvalid))
+            splat_film_point(cfg, fp, value, norm, splat);
+        }
+      }
+    }
+    // Go on while a later vertex could still connect within max_depth.
+    if (segments + 2 > cfg.max_depth) return counts;
+    const vec2 u_bsdf = rng.next_2d();
+    const float u_lobe = rng.next_float();
+    const BsdfSample bs = bsdf_sample<F>(m, wl, u_bsdf, u_lobe);
+    if (!bs.valid) return counts;
+    if (!chain && !bs.specular) return counts;  // light -> diffuse: next-event estimation's
+    chain = true;
+    const vec3 wg_world = fast_normalize(frame.to_world(bs.wi));
+    const float side = glm::dot(wg_world, sh.ng);
+    if (!transmits && side * glm::dot(wl_world, sh.ng) <= 0.0f) return counts;
+    if (transmits && !bs.specular && (side > 0.0f) != (bs.wi.z > 0.0f)) return counts;
+    const bool refracted = bs.wi.z * wl.z < 0.0f;
+    vec3 w;
+    if (!bs.specular && refracted) {
+      // The path tracer's BSDF with its arguments as the path tracer would pass them (towards
+      // the camera's side first), over the density that sampled the direction.
+      w = bsdf_eval<F>(m, bs.wi, wl) * (glm::abs(bs.wi.z) / bs.pdf);
+    } else if (bs.specular && refracted) {
+      // Flux crosses a smooth interface unchanged but for Fresnel (the sample's choice): the
+      // radiance weight's 1 / eta^2 (eta = n_transmitted / n_incident) undone.
+      const float eta = wl.z > 0.0f ? m.ior : 1.0f / m.ior;
+      w = bs.weight * (eta * eta);
+    } else {
+      w = bs.weight;  // reflection: reciprocal
+    }
+    // The adjoint's shading-normal correction (Veach 1997 sec. 5.3): |wl.ns| |wg.ng| / (|wl.ng|
+    // |wg.ns|); 1 where the shading normal is the true one.
+    const float cos_g_shading = glm::abs(bs.wi.z);
+    if (cos_l_geo <= 0.0f || cos_g_shading <= 0.0f) return counts;
+    beta *= w * (glm::abs(wl.z) * glm::abs(side) / (cos_l_geo * cos_g_shading));
+    if (cfg.russian_roulette && segments + 1 >= cfg.rr_start_depth) {
+      const float q = glm::min(1.0f, fast_sqrt(max_component(beta / beta0)));
+      if (rng.next_float() >= q) return counts;
+      beta *= fast_rcp(q);
+    }
+    if (is_black(beta) || !is_finite(beta)) return counts;
+    ray = spawn_ray(sh.p, sh.ng, wg_world);
+  }
+}
+
+}  // namespace tracer
