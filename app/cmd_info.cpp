@@ -78,6 +78,9 @@ int run_info(const InfoOptions& o) {
   // Whether manifold NEE has anything to connect through or off (smooth glass or reflectors).
   const bool casters = tracer::mnee_has_casters(cs);
   j["mnee_casters"] = casters;
+  // Whether light tracing finds any path here (an area light and a delta lobe).
+  const bool light_paths = tracer::light_tracing_has_paths(cs);
+  j["light_paths"] = light_paths;
   // Instanced meshes are stored once and placed by every instance: the triangles the instances
   // place, and those stored.
   uint64_t stored = 0;
@@ -210,6 +213,13 @@ int run_info(const InfoOptions& o) {
                       "smooth glass, flat mirrors or mirror spheres): the image is as without "
                       "it, and the GPU runs its usual kernels\n"
                     : std::string())
+            << (scene.settings.light_tracing && !light_paths
+                    ? "light       tracing on, but no light path to find here (no area light, or "
+                      "no mirror, smooth metal or smooth glass): the image is as without it\n"
+                    : scene.settings.light_tracing && !scene.settings.jitter
+                          ? "light       tracing on, but off while jitter is off (splats need "
+                            "jittered pixels)\n"
+                          : std::string())
             << "features    " << tracer::describe_features(cs.features()) << "\n"
             << "GPU kernels " << tracer::spec_name_for_features(cs.features())
             << (gpu.shade_spec != gpu.spec

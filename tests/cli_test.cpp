@@ -156,13 +156,20 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
   EXPECT_EQ(j["gpu_specialization"].get<std::string>(), "spheres+triangles, pinhole, specular");
   EXPECT_EQ(j["reflector_planes"].get<int>(), 0);  // a mirror ball and a glass ball: no planes
   EXPECT_TRUE(j["mnee_casters"].get<bool>());
+  EXPECT_TRUE(j["light_paths"].get<bool>());
   // Rough metals and frosted glass: manifold NEE has nothing to connect through, and says so.
   ASSERT_EQ(test::run_command(exe() + " info " + test::source_dir() +
                                   "/assets/scenes/rough_materials.json --mnee on", &log), 0) << log;
   EXPECT_NE(log.find("nothing here to connect through"), std::string::npos) << log;
+  // ... nor light tracing any light path to find.
+  ASSERT_EQ(test::run_command(exe() + " info " + test::source_dir() +
+                                  "/assets/scenes/rough_materials.json --light-tracing on", &log),
+            0) << log;
+  EXPECT_NE(log.find("no light path to find here"), std::string::npos) << log;
   ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
                                   "/assets/scenes/rough_materials.json", &log), 0) << log;
   EXPECT_FALSE(nlohmann::json::parse(log.substr(log.find('{')))["mnee_casters"].get<bool>());
+  EXPECT_FALSE(nlohmann::json::parse(log.substr(log.find('{')))["light_paths"].get<bool>());
   // The lamp's glass box: six planes of flat reflectors (its faces) for manifold NEE.
   ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
                                   "/assets/scenes/glass_lamp.json", &log), 0) << log;

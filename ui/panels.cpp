@@ -456,9 +456,12 @@ void render_panel(Workbench& wb, PanelState& ps) {
     ImGui::PopStyleColor();
   }
   setting_widget(wb, ps, "render.light_tracing", "light tracing (caustics)");
-  if (wb.settings().light_tracing && !wb.settings().jitter) {
+  if (wb.settings().light_tracing && (!wb.settings().jitter || !wb.light_tracing_has_paths())) {
     ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
-    ImGui::TextWrapped("  off while pixel jitter is off (splats need jittered pixels)");
+    ImGui::TextWrapped(!wb.settings().jitter
+                           ? "  off while pixel jitter is off (splats need jittered pixels)"
+                           : "  no light path to find in this scene (no area light, or no "
+                             "mirror, smooth metal or smooth glass): renders as without it");
     ImGui::PopStyleColor();
   }
   setting_widget(wb, ps, "render.filter", "pixel filter");
@@ -592,6 +595,7 @@ void stats_panel(Workbench& wb, PanelState& ps) {
     if (t.trace > 0)
       ImGui::TextWrapped("  trace %.3f (shadow rays with the next bounce's rays)", t.trace);
     if (t.mnee > 0) ImGui::TextWrapped("  mnee %.3f (manifold NEE's solves)", t.mnee);
+    if (t.light > 0) ImGui::TextWrapped("  light %.3f (light tracing's paths)", t.light);
     if (t.tail_from > 0)
       ImGui::TextWrapped("  tail %.3f (the megakernel from bounce %u on)", t.tail, t.tail_from);
   }

@@ -200,6 +200,7 @@ void Workbench::rebuild(bool geometry) {
                                     geometry ? nullptr : compiled_.get());
   ready_compiled_.reset();
   mnee_casters_ = tracer::mnee_has_casters(*compiled_);
+  light_paths_ = tracer::light_tracing_has_paths(*compiled_);
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(scene_.settings);
   if (!async_) {
     try {
