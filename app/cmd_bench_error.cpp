@@ -314,7 +314,7 @@ Sweep run_sweep(const Config& c, tracer::Renderer& r, const tracer::CompiledScen
   if (c.light_sampler >= 0) cfg.light_sampler = uint32_t(c.light_sampler);
   if (c.guiding >= 0) cfg.guiding = uint32_t(c.guiding);
   if (c.mnee >= 0) cfg.mnee = uint32_t(c.mnee);
-  if (c.light_tracing >= 0) cfg.light_tracing = c.light_tracing && cfg.jitter ? 1u : 0u;
+  if (c.light_tracing >= 0) cfg.light_tracing = uint32_t(c.light_tracing);
   r.set_gpu_options(c.gpu);
   r.set_scene(cs, cfg);
   r.set_aovs(c.denoise);

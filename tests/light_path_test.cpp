@@ -288,13 +288,28 @@ TEST(LightPath, ScenesWithAndWithoutLightPaths) {
   EXPECT_EQ(img[0].pixels, img[1].pixels);
 }
 
-// Without jitter a pixel is its centre's radiance, which no splat gives: the setting is then off.
+// Without jitter a pixel is its centre's radiance, which no splat gives: light tracing does not
+// run, and the CPU's image is the one without it, byte for byte.
 TEST(LightPath, NeedsJitter) {
   RenderSettings rs;
   rs.light_tracing = true;
-  EXPECT_EQ(make_integrator_settings(rs).light_tracing, 1u);
-  rs.jitter = false;
-  EXPECT_EQ(make_integrator_settings(rs).light_tracing, 0u);
+  rs.width = rs.height = 24;
+  IntegratorSettings cfg = make_integrator_settings(rs);
+  EXPECT_TRUE(light_tracing_runs(cfg, true));
+  EXPECT_FALSE(light_tracing_runs(cfg, false));
+  cfg.jitter = 0;
+  EXPECT_FALSE(light_tracing_runs(cfg, true));
+  const Scene s = load_scene(std::string(TRACER_SOURCE_DIR) + "/assets/scenes/glass_lamp.json");
+  const CompiledScene cs(s, 24, 24);
+  ImageRGB img[2];
+  for (int on = 0; on < 2; ++on) {
+    cfg.light_tracing = uint32_t(on);
+    CpuRenderer r(2);
+    r.set_scene(cs, cfg);
+    r.render(4);
+    img[on] = r.image();
+  }
+  EXPECT_EQ(img[0].pixels, img[1].pixels);
 }
 
 }  // namespace

@@ -433,9 +433,12 @@ struct CudaRenderer::Impl {
 
   // Light tracing's paths of a sample (render.light_tracing), after its camera paths.
   bool light_paths = false;  // light_tracing_has_paths(scene): else cfg.light_tracing is off
+  DeviceBuffer<uint32_t> light_next;  // the light kernel's next path (scratch)
   void light_wave(uint32_t sample, bool timed) {
     if (!cfg.light_tracing) return;
-    launch_light_trace(eff.spec, view, cfg, sample, film_view(sample), counters.get(), stream);
+    if (light_next.size() == 0) light_next.resize(1);
+    launch_light_trace(eff.spec, view, flat_params, cfg, sample, film_view(sample),
+                       counters.get(), light_next.get(), stream);
     mark(timed, kLight);
   }
 
@@ -710,8 +713,8 @@ void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
   m.use_device();
   m.cfg = cfg;
   m.cfg.guide = GuideView();
-  // Light tracing with no path to find (no mirror or smooth glass): none traced, the same image.
-  if (!m.light_paths) m.cfg.light_tracing = 0;
+  // Light tracing with no path to find (no mirror or smooth glass) or without jitter: none traced.
+  if (!light_tracing_runs(m.cfg, m.light_paths)) m.cfg.light_tracing = 0;
   m.view.camera.width = cfg.width;
   m.view.camera.height = cfg.height;
   m.view.camera.aspect = float(cfg.width) / float(cfg.height);

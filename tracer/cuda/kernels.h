@@ -171,10 +171,10 @@ void launch_mnee(uint32_t spec, const SceneView& s, const FlatParams& flat,
                  const WavefrontState& w, cudaStream_t stream);
 // Light tracing (render.light_tracing; integrator/light_path.h): the film's n light paths of
 // `sample`, their camera connections added to `film` (after the sample's camera paths); their
-// segments and connections counted as extension and shadow rays.
-void launch_light_trace(uint32_t spec, const SceneView& s, const IntegratorSettings& cfg,
-                        uint32_t sample, const FilmView& film, unsigned long long* counters,
-                        cudaStream_t stream);
+// segments and connections counted as extension and shadow rays. next_path is scratch.
+void launch_light_trace(uint32_t spec, const SceneView& s, const FlatParams& flat,
+                        const IntegratorSettings& cfg, uint32_t sample, const FilmView& film,
+                        unsigned long long* counters, uint32_t* next_path, cudaStream_t stream);
 // Without shadow_queue: over the bounce's queue (every path shaded, with a shadow ray or not);
 // with it: the shadow rays, then the paths to finish, of the shade kernel's shadow queue.
 void launch_shadow(uint32_t spec, const SceneView& s, const FlatParams& flat,

@@ -140,6 +140,10 @@ bool light_tracing_has_paths(const CompiledScene& scene) {
   return false;
 }
 
+bool light_tracing_runs(const IntegratorSettings& cfg, bool has_paths) {
+  return cfg.light_tracing && cfg.jitter && has_paths;
+}
+
 GpuSceneTraits gpu_scene_traits(const CompiledScene& scene, const IntegratorSettings& cfg) {
   GpuSceneTraits t = gpu_scene_traits(scene.view(), scene.flat_list().enabled, cfg);
   t.bvh8_available = !scene.bvh8().nodes.empty();

@@ -64,6 +64,10 @@ bool mnee_has_casters(const CompiledScene& scene);
 // material with a delta lobe. Where not, the renderers trace no light paths (the image is the
 // same: the path tracer leaves nothing to them).
 bool light_tracing_has_paths(const CompiledScene& scene);
+// Whether light tracing runs: asked for, with jittered pixels (a pixel without jitter is its
+// centre's radiance, which no splat gives) and a light path to find (light_tracing_has_paths).
+// Where not, the renderers clear cfg.light_tracing, so that the path tracer leaves it nothing.
+bool light_tracing_runs(const IntegratorSettings& cfg, bool has_paths);
 // From a scene's view (its features and camera) and whether it has a flat list (mnee_casters is
 // left false: the caller knows it from the compiled scene), or from the compiled scene itself.
 GpuSceneTraits gpu_scene_traits(const SceneView& view, bool flat_available,

@@ -74,31 +74,32 @@ TRACER_HD inline void splat_film_point(const IntegratorSettings& cfg, vec2 fp, v
   }
 }
 
-// What one light path traced (for the ray counts).
-struct LightPathCounts {
-  uint32_t segments = 0, connections = 0;
+// A light path between its segments: the ray to trace next and what it carries.
+struct LightPathState {
+  Ray ray;
+  vec3 beta;   // flux weight (radiance x area x solid angle over their densities)
+  vec3 beta0;  // ... as it left the light (Russian roulette's reference)
+  Pcg32 rng;
+  uint32_t segments;  // counting `ray`
+  bool chain;         // a delta event since the light: the path is the light tracer's
 };
 
-// Light path `index` of sample `sample`: traced from a light chosen by power, connected to the
-// camera as the header says; splat(pixel, rgb) receives each contribution to a pixel's mean for
-// this sample (norm: filter_profile_integral of cfg's filter). paths: the light paths per sample.
-template <uint32_t F, class Splat>
-TRACER_HD inline LightPathCounts trace_light_path(const SceneView& s, const IntegratorSettings& cfg,
-                                                  uint32_t index, uint32_t sample, uint32_t paths,
-                                                  float norm, Splat&& splat) {
-  LightPathCounts counts;
-  if (s.light_count == 0) return counts;
-  Pcg32 rng = make_path_rng(index, sample, kLightPathStream, cfg.seed);
-  // The light, by the power sampler's distribution; only area lights (triangles, spheres) are
-  // light-traced: shade_path keeps the paths to the others.
-  const uint32_t li = pick_light(s, rng.next_float());
+// Starts light path `index` of sample `sample`: a light chosen by power (only area lights, the
+// triangles and spheres, are light-traced: shade_path keeps the paths to the others), a point on
+// it by area and a direction by the cosine; false where it carries nothing.
+template <uint32_t F>
+TRACER_HD inline bool start_light_path(const SceneView& s, const IntegratorSettings& cfg,
+                                       uint32_t index, uint32_t sample, LightPathState& st) {
+  if (s.light_count == 0) return false;
+  st.rng = make_path_rng(index, sample, kLightPathStream, cfg.seed);
+  const uint32_t li = pick_light(s, st.rng.next_float());
   const float select = light_select_pdf(s, li);
   const Light& light = s.lights[li];
-  if (light.kind != kLightPrimitive || !(select > 0.0f) || !(light.area > 0.0f)) return counts;
+  if (light.kind != kLightPrimitive || !(select > 0.0f) || !(light.area > 0.0f)) return false;
   vec3 p, n;
   uint32_t material;
   vec3 le;
-  const vec2 u_point = rng.next_2d();
+  const vec2 u_point = st.rng.next_2d();
   if (!(F & kFeatureSpheres) || light.prim < s.tri_count) {
     const TriangleVerts tv = load_triangle(s.tri_verts, light.prim);
     const vec2 b = sample_uniform_triangle(u_point);
@@ -120,113 +121,158 @@ TRACER_HD inline LightPathCounts trace_light_path(const SceneView& s, const Inte
   const Material& lm = s.materials[material];
   // The side it leaves from: the front, or either (chosen evenly) for two-sided emission; its
   // direction by the cosine. Flux weight: Le cos / (select / area * cos / pi * side's chance).
-  const vec2 u_dir = rng.next_2d();
-  const float u_side = rng.next_float();
+  const vec2 u_dir = st.rng.next_2d();
+  const float u_side = st.rng.next_float();
   const bool two_sided = (lm.flags & kMaterialTwoSidedEmission) != 0;
   const vec3 side_n = two_sided && u_side < 0.5f ? -n : n;
-  if (!material_emits(lm, glm::dot(side_n, n) > 0.0f) || is_black(le)) return counts;
-  vec3 beta = le * (kPi * light.area / select * (two_sided ? 2.0f : 1.0f));
-  const vec3 beta0 = beta;
-  Ray ray = spawn_ray(p, n, Frame::from_normal(side_n).to_world(sample_cosine_hemisphere(u_dir)));
-  ray.d = fast_normalize(ray.d);
+  if (!material_emits(lm, glm::dot(side_n, n) > 0.0f) || is_black(le)) return false;
+  st.beta = le * (kPi * light.area / select * (two_sided ? 2.0f : 1.0f));
+  st.beta0 = st.beta;
+  st.ray = spawn_ray(p, n, Frame::from_normal(side_n).to_world(sample_cosine_hemisphere(u_dir)));
+  st.ray.d = fast_normalize(st.ray.d);
+  st.segments = 1;
+  st.chain = false;
+  return true;
+}
+
+// What a light path's vertex asks of its caller: the camera connection's ray (connect: whether
+// there is one; if it is free, splat `value` at film point `film`).
+struct LightConnection {
+  Ray ray;
+  vec3 value;
+  vec2 film;
+  bool connect;
+};
+
+// The vertex st.ray reached (hit): the camera connection it asks for (in *c) and the next
+// segment; false when the path ends. paths: the light paths per sample.
+template <uint32_t F>
+TRACER_HD inline bool light_path_vertex(const SceneView& s, const IntegratorSettings& cfg,
+                                        uint32_t paths, LightPathState& st, const Hit& hit,
+                                        LightConnection* c) {
+  c->connect = false;
+  if (!hit.valid()) return false;
+  SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
+  Material textured;
+  const Material& m = *hit_material<F>(s, hit.prim, sh, textured);
+  const MaterialType type = (F & kFeatureSpecular) ? m.type : MaterialType::kDiffuse;
+  if ((F & kFeatureSubsurface) && type == MaterialType::kSubsurface) return false;
+  if (type == MaterialType::kDielectric && !sh.front && !is_black(m.absorption))
+    st.beta *= glm::exp(-m.absorption * hit.t);
+  const bool transmits = bsdf_transmits(type);
+  const Frame frame = bsdf_frame(m, type, transmits || sh.front ? sh.ns : -sh.ns);
+  const vec3 wl_world = -st.ray.d;  // towards the light's side
+  const vec3 wl = frame.to_local(wl_world);
+  const float cos_l_geo = glm::abs(glm::dot(wl_world, sh.ng));
+  const bool delta = bsdf_is_delta(m, type);
+  // The path tracer's own rule at a rough transmitter: its BSDF's sample towards the light must
+  // lie on the side the true surface says (shade_path); paths against it are in neither.
+  if (!delta && transmits && (glm::dot(wl_world, sh.ng) > 0.0f) != (wl.z > 0.0f)) return false;
   const Camera& cam = s.camera;
-  // The measurement's constant: pixels per unit area of the film plane one unit ahead, over the
-  // light paths per sample.
-  const float film_scale = float(cfg.width) * float(cfg.height) /
-                           (4.0f * cam.tan_half_fov * cam.tan_half_fov * cam.aspect * float(paths));
-  bool chain = false;  // a delta event since the light: the path is the light tracer's
-  for (uint32_t segments = 1;; ++segments) {
-    const Hit hit = intersect_closest<F>(s, ray, kInvalid);
+  if (st.chain && !delta && st.segments + 1 <= cfg.max_depth && cos_l_geo > 0.0f) {
+    // The camera connection: a lens point, the film point it sees x through, and whether the
+    // segment is free.
+    vec3 lens = cam.position;
+    const vec2 u_lens = st.rng.next_2d();
+    if ((F & kFeatureDepthOfField) && cam.lens_radius > 0.0f) {
+      const vec2 l = cam.lens_radius * sample_uniform_disk_concentric(u_lens);
+      lens += l.x * cam.right + l.y * cam.up;
+    }
+    const vec3 to_cam = lens - sh.p;
+    const float d2 = glm::dot(to_cam, to_cam);
+    if (d2 > 0.0f && camera_film_point(cam, lens, sh.p, &c->film)) {
+      const vec3 wc_world = to_cam * fast_rsqrt(d2);
+      const float geo_c = glm::dot(wc_world, sh.ng);
+      // A reflector sends light only to the side it came from.
+      const bool usable = transmits || geo_c * glm::dot(wl_world, sh.ng) > 0.0f;
+      const vec3 f = usable ? bsdf_eval<F>(m, frame.to_local(wc_world), wl) : vec3(0.0f);
+      if (!is_black(f)) {
+        const float cos_cam = -glm::dot(wc_world, cam.forward);
+        // The measurement's constant: pixels per unit area of the film plane one unit ahead,
+        // over the light paths per sample.
+        const float film_scale =
+            float(cfg.width) * float(cfg.height) /
+            (4.0f * cam.tan_half_fov * cam.tan_half_fov * cam.aspect * float(paths));
+        // Radiance towards the camera from the particle's flux (the shading normal's cosine
+        // over the geometric one: the adjoint's correction), times the camera's importance per
+        // unit area at x: |cos at x| / (d^2 cos^3 at the camera) per film-plane area.
+        c->value = st.beta * f *
+                   (glm::abs(wl.z) / cos_l_geo * glm::abs(geo_c) /
+                    (d2 * cos_cam * cos_cam * cos_cam) * film_scale);
+        c->ray = spawn_ray(sh.p, sh.ng, wc_world);
+        c->ray.tmax = glm::length(lens - c->ray.o);
+        c->connect = is_finite(c->value);
+      }
+    }
+  }
+  // Go on while a later vertex could still connect within max_depth.
+  if (st.segments + 2 > cfg.max_depth) return false;
+  const vec2 u_bsdf = st.rng.next_2d();
+  const float u_lobe = st.rng.next_float();
+  const BsdfSample bs = bsdf_sample<F>(m, wl, u_bsdf, u_lobe);
+  if (!bs.valid) return false;
+  if (!st.chain && !bs.specular) return false;  // light -> diffuse: next-event estimation's
+  st.chain = true;
+  const vec3 wg_world = fast_normalize(frame.to_world(bs.wi));
+  const float side = glm::dot(wg_world, sh.ng);
+  if (!transmits && side * glm::dot(wl_world, sh.ng) <= 0.0f) return false;
+  if (transmits && !bs.specular && (side > 0.0f) != (bs.wi.z > 0.0f)) return false;
+  const bool refracted = bs.wi.z * wl.z < 0.0f;
+  vec3 w;
+  if (!bs.specular && refracted) {
+    // The path tracer's BSDF with its arguments as the path tracer would pass them (towards
+    // the camera's side first), over the density that sampled the direction.
+    w = bsdf_eval<F>(m, bs.wi, wl) * (glm::abs(bs.wi.z) / bs.pdf);
+  } else if (bs.specular && refracted) {
+    // Flux crosses a smooth interface unchanged but for Fresnel (the sample's choice): the
+    // radiance weight's 1 / eta^2 (eta = n_transmitted / n_incident) undone.
+    const float eta = wl.z > 0.0f ? m.ior : 1.0f / m.ior;
+    w = bs.weight * (eta * eta);
+  } else {
+    w = bs.weight;  // reflection: reciprocal
+  }
+  // The adjoint's shading-normal correction (Veach 1997 sec. 5.3): |wl.ns| |wg.ng| / (|wl.ng|
+  // |wg.ns|); 1 where the shading normal is the true one.
+  const float cos_g_shading = glm::abs(bs.wi.z);
+  if (cos_l_geo <= 0.0f || cos_g_shading <= 0.0f) return false;
+  st.beta *= w * (glm::abs(wl.z) * glm::abs(side) / (cos_l_geo * cos_g_shading));
+  if (cfg.russian_roulette && st.segments + 1 >= cfg.rr_start_depth) {
+    const float q = glm::min(1.0f, fast_sqrt(max_component(st.beta / st.beta0)));
+    if (st.rng.next_float() >= q) return false;
+    st.beta *= fast_rcp(q);
+  }
+  if (is_black(st.beta) || !is_finite(st.beta)) return false;
+  st.ray = spawn_ray(sh.p, sh.ng, wg_world);
+  st.segments += 1;
+  return true;
+}
+
+// What one light path traced (for the ray counts).
+struct LightPathCounts {
+  uint32_t segments = 0, connections = 0;
+};
+
+// Light path `index` of sample `sample`, whole (the CPU; the GPU's kernel runs the same steps
+// with path regeneration): splat(pixel, rgb) receives each contribution to a pixel's mean for
+// this sample (norm: filter_profile_integral of cfg's filter). paths: the light paths per sample.
+template <uint32_t F, class Splat>
+TRACER_HD inline LightPathCounts trace_light_path(const SceneView& s, const IntegratorSettings& cfg,
+                                                  uint32_t index, uint32_t sample, uint32_t paths,
+                                                  float norm, Splat&& splat) {
+  LightPathCounts counts;
+  LightPathState st;
+  if (!start_light_path<F>(s, cfg, index, sample, st)) return counts;
+  for (;;) {
+    const Hit hit = intersect_closest<F>(s, st.ray, kInvalid);
     ++counts.segments;
-    if (!hit.valid()) return counts;
-    SurfaceHit sh = make_surface_hit<F>(s, ray, hit);
-    Material textured;
-    const Material& m = *hit_material<F>(s, hit.prim, sh, textured);
-    const MaterialType type = (F & kFeatureSpecular) ? m.type : MaterialType::kDiffuse;
-    if ((F & kFeatureSubsurface) && type == MaterialType::kSubsurface) return counts;
-    if (type == MaterialType::kDielectric && !sh.front && !is_black(m.absorption))
-      beta *= glm::exp(-m.absorption * hit.t);
-    const bool transmits = bsdf_transmits(type);
-    const Frame frame = bsdf_frame(m, type, transmits || sh.front ? sh.ns : -sh.ns);
-    const vec3 wl_world = -ray.d;  // towards the light's side
-    const vec3 wl = frame.to_local(wl_world);
-    const float cos_l_geo = glm::abs(glm::dot(wl_world, sh.ng));
-    const bool delta = bsdf_is_delta(m, type);
-    // The path tracer's own rule at a rough transmitter: its BSDF's sample towards the light must
-    // lie on the side the true surface says (shade_path); paths against it are in neither.
-    if (!delta && transmits && (glm::dot(wl_world, sh.ng) > 0.0f) != (wl.z > 0.0f)) return counts;
-    if (chain && !delta && segments + 1 <= cfg.max_depth && cos_l_geo > 0.0f) {
-      // The camera connection: a lens point, the film point it sees x through, and whether the
-      // segment is free.
-      vec3 lens = cam.position;
-      const vec2 u_lens = rng.next_2d();
-      if ((F & kFeatureDepthOfField) && cam.lens_radius > 0.0f) {
-        const vec2 l = cam.lens_radius * sample_uniform_disk_concentric(u_lens);
-        lens += l.x * cam.right + l.y * cam.up;
-      }
-      vec2 fp;
-      const vec3 to_cam = lens - sh.p;
-      const float d2 = glm::dot(to_cam, to_cam);
-      if (d2 > 0.0f && camera_film_point(cam, lens, sh.p, &fp)) {
-        const vec3 wc_world = to_cam * fast_rsqrt(d2);
-        const float geo_c = glm::dot(wc_world, sh.ng);
-        // A reflector sends light only to the side it came from.
-        const bool usable = transmits || geo_c * glm::dot(wl_world, sh.ng) > 0.0f;
-        const vec3 f = usable ? bsdf_eval<F>(m, frame.to_local(wc_world), wl) : vec3(0.0f);
-        if (!is_black(f)) {
-          const float cos_cam = -glm::dot(wc_world, cam.forward);
-          // Radiance towards the camera from the particle's flux (the shading normal's cosine
-          // over the geometric one: the adjoint's correction), times the camera's importance per
-          // unit area at x: |cos at x| / (d^2 cos^3 at the camera) per film-plane area.
-          const vec3 value = beta * f *
-                             (glm::abs(wl.z) / cos_l_geo * glm::abs(geo_c) /
-                              (d2 * cos_cam * cos_cam * cos_cam) * film_scale);
-          Ray r = spawn_ray(sh.p, sh.ng, wc_world);
-          r.tmax = glm::length(lens - r.o);
-          ++counts.connections;
-          if (is_finite(value) && !intersect_any<F>(s, r, kInvalid, kInvalid))
-            splat_film_point(cfg, fp, value, norm, splat);
-        }
-      }
+    LightConnection c;
+    const bool go_on = light_path_vertex<F>(s, cfg, paths, st, hit, &c);
+    if (c.connect) {
+      ++counts.connections;
+      if (!intersect_any<F>(s, c.ray, kInvalid, kInvalid))
+        splat_film_point(cfg, c.film, c.value, norm, splat);
     }
-    // Go on while a later vertex could still connect within max_depth.
-    if (segments + 2 > cfg.max_depth) return counts;
-    const vec2 u_bsdf = rng.next_2d();
-    const float u_lobe = rng.next_float();
-    const BsdfSample bs = bsdf_sample<F>(m, wl, u_bsdf, u_lobe);
-    if (!bs.valid) return counts;
-    if (!chain && !bs.specular) return counts;  // light -> diffuse: next-event estimation's
-    chain = true;
-    const vec3 wg_world = fast_normalize(frame.to_world(bs.wi));
-    const float side = glm::dot(wg_world, sh.ng);
-    if (!transmits && side * glm::dot(wl_world, sh.ng) <= 0.0f) return counts;
-    if (transmits && !bs.specular && (side > 0.0f) != (bs.wi.z > 0.0f)) return counts;
-    const bool refracted = bs.wi.z * wl.z < 0.0f;
-    vec3 w;
-    if (!bs.specular && refracted) {
-      // The path tracer's BSDF with its arguments as the path tracer would pass them (towards
-      // the camera's side first), over the density that sampled the direction.
-      w = bsdf_eval<F>(m, bs.wi, wl) * (glm::abs(bs.wi.z) / bs.pdf);
-    } else if (bs.specular && refracted) {
-      // Flux crosses a smooth interface unchanged but for Fresnel (the sample's choice): the
-      // radiance weight's 1 / eta^2 (eta = n_transmitted / n_incident) undone.
-      const float eta = wl.z > 0.0f ? m.ior : 1.0f / m.ior;
-      w = bs.weight * (eta * eta);
-    } else {
-      w = bs.weight;  // reflection: reciprocal
-    }
-    // The adjoint's shading-normal correction (Veach 1997 sec. 5.3): |wl.ns| |wg.ng| / (|wl.ng|
-    // |wg.ns|); 1 where the shading normal is the true one.
-    const float cos_g_shading = glm::abs(bs.wi.z);
-    if (cos_l_geo <= 0.0f || cos_g_shading <= 0.0f) return counts;
-    beta *= w * (glm::abs(wl.z) * glm::abs(side) / (cos_l_geo * cos_g_shading));
-    if (cfg.russian_roulette && segments + 1 >= cfg.rr_start_depth) {
-      const float q = glm::min(1.0f, fast_sqrt(max_component(beta / beta0)));
-      if (rng.next_float() >= q) return counts;
-      beta *= fast_rcp(q);
-    }
-    if (is_black(beta) || !is_finite(beta)) return counts;
-    ray = spawn_ray(sh.p, sh.ng, wg_world);
+    if (!go_on) return counts;
   }
 }
 

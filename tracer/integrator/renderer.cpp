@@ -21,9 +21,7 @@ IntegratorSettings make_integrator_settings(const RenderSettings& rs) {
   cfg.light_sampler = rs.light_sampler;
   cfg.guiding = rs.guiding ? 1u : 0u;
   cfg.mnee = rs.mnee ? 1u : 0u;
-  // Splats land where the camera's jittered samples would; without jitter a pixel is its centre's
-  // radiance, which no splat can give.
-  cfg.light_tracing = rs.light_tracing && rs.jitter ? 1u : 0u;
+  cfg.light_tracing = rs.light_tracing ? 1u : 0u;  // (light_tracing_runs: with jitter only)
   cfg.filter_radius = rs.filter_radius > 0.0f ? rs.filter_radius : default_filter_radius(rs.filter);
   return cfg;
 }
