@@ -1,16 +1,17 @@
 // Light tracing of caustics (render.light_tracing): paths that start on a light, meet a mirror or
 // smooth glass first (a delta event), and are connected to the camera at every vertex after that
-// whose BSDF is not a delta distribution; each connection is splatted into the pixels whose filter
+// whose BSDF has a wide lobe (light_trace_connects: diffuse, or rough from kGuideMinRoughness up;
+// a narrow glossy lobe would turn connections into fireflies); each connection is splatted into the pixels whose filter
 // covers the point it lands on (Veach 1997 sec. 10.2's t = 1 strategy; pbrt-v4 sec. 13.7's light
 // paths). The path tracer leaves exactly these paths to it: a path whose camera vertex scatters by
-// a non-delta lobe (kPathLightTraced, shade_path) and that reaches an area light after one or more
+// a non-delta lobe of such a BSDF (kPathLightTraced, shade_path) and that reaches an area light after one or more
 // delta events from its last non-delta vertex no longer adds that emission. The two estimators so
 // split the paths between them without weights, and the image keeps its mean. Caustics seen
 // directly (a glass ball's on the floor, a lamp behind glass lighting a room) and the light they
 // bounce on converge without the fireflies of BSDF-sampled paths.
 //
 // Not light-traced (the path tracer keeps them): paths whose camera vertex is a delta event (a
-// caustic seen in a mirror), light from lights at infinity and point lights, and paths through a
+// caustic seen in a mirror) or a narrow glossy one, light from lights at infinity and point lights, and paths through a
 // subsurface material (the light tracer stops there; shade_path clears the flag there).
 //
 // Each sample traces width x height light paths. Light path k of sample s draws from its own
@@ -169,7 +170,8 @@ TRACER_HD inline bool light_path_vertex(const SceneView& s, const IntegratorSett
   // lie on the side the true surface says (shade_path); paths against it are in neither.
   if (!delta && transmits && (glm::dot(wl_world, sh.ng) > 0.0f) != (wl.z > 0.0f)) return false;
   const Camera& cam = s.camera;
-  if (st.chain && !delta && st.segments + 1 <= cfg.max_depth && cos_l_geo > 0.0f) {
+  if (st.chain && light_trace_connects(m, type) && st.segments + 1 <= cfg.max_depth &&
+      cos_l_geo > 0.0f) {
     // The camera connection: a lens point, the film point it sees x through, and whether the
     // segment is free.
     vec3 lens = cam.position;

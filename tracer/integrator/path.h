@@ -100,6 +100,14 @@ TRACER_HD TRACER_INLINE bool guide_wide_bsdf(const Material& m, MaterialType typ
   }
 }
 
+// Where light tracing (render.light_tracing; integrator/light_path.h) joins its paths to the
+// camera, and so which camera vertices' paths it may take: wide lobes (guide_wide_bsdf: diffuse
+// ones, rough ones from kGuideMinRoughness up). Through a narrow glossy lobe a connection's BSDF
+// value is large and rare, a firefly that the camera's own BSDF samples avoid.
+TRACER_HD TRACER_INLINE bool light_trace_connects(const Material& m, MaterialType type) {
+  return guide_wide_bsdf(m, type);
+}
+
 // The optional radiance clamp: a sample brighter than `clamp` in any channel is scaled down to
 // it. This trades fireflies for bias, so the luminance it removes is returned for reporting.
 TRACER_HD TRACER_INLINE vec3 clamp_radiance(vec3 L, float clamp, float* removed) {
@@ -126,9 +134,9 @@ enum PathFlags : uint32_t {
   kPathMneeRefract2 = 1u << 6,
   kPathMneeOther = 1u << 7,
   kPathMneeMirror = 1u << 8,  // ... or exactly one reflection (MneeSolver: a mirror sphere, a flat reflector)
-  // Light tracing (cfg.light_tracing): the camera's vertex scattered by a non-delta lobe and no
-  // subsurface material came since, so emission reached by delta events from a non-delta vertex
-  // is the light tracer's (integrator/light_path.h), not added here.
+  // Light tracing (cfg.light_tracing): the camera's vertex has a wide lobe (light_trace_connects)
+  // and scattered by it, and no subsurface material came since, so emission reached by delta
+  // events from a non-delta vertex is the light tracer's (integrator/light_path.h), not added here.
   kPathLightTraced = 1u << 9,
 };
 // The wavefront keeps the flags in 10 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
@@ -965,8 +973,10 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     // to be), with the light's radiance towards the chain: also from behind a one-sided light,
     // which the chain may reach from its front (a ceiling lit by the light's image in a ball).
     // (Not where the light tracer owns these paths: a camera vertex, or kPathLightTraced.)
-    const bool light_traced = (F & kFeatureSpecular) && cfg.light_tracing &&
-                              (st.depth == 1 ? !diffuse_exit : (st.flags & kPathLightTraced) != 0);
+    const bool light_traced =
+        (F & kFeatureSpecular) && cfg.light_tracing &&
+        (st.depth == 1 ? !diffuse_exit && light_trace_connects(m, type)
+                       : (st.flags & kPathLightTraced) != 0);
     if ((F & kFeatureCaustics) && cfg.mnee && mnee && ls.valid && !ls.infinite && !ls.delta &&
         !is_black(ls.emitted) && st.depth + 2 <= cfg.max_depth && !light_traced) {
       mnee->connect = true;
@@ -1052,7 +1062,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     }
   }
   if ((F & kFeatureSpecular) && cfg.light_tracing) {  // the light tracer's paths
-    if (st.depth == 1 && !bs.specular && !diffuse_exit && type != MaterialType::kSubsurface)
+    if (st.depth == 1 && !bs.specular && !diffuse_exit && light_trace_connects(m, type))
       st.flags |= kPathLightTraced;
     else if (st.depth == 1 || type == MaterialType::kSubsurface)
       st.flags &= ~kPathLightTraced;  // (the light tracer stops at subsurface materials)
