@@ -32,6 +32,24 @@ std::unique_ptr<Renderer> gpu_or_skip_reason(std::string* why) {
   auto r = gpu_or_skip_reason(&why_no_gpu);                              \
   if (!r) GTEST_SKIP() << "no CUDA device, GPU test skipped: " << why_no_gpu
 
+// The batches' summed per-channel variance about their mean; with `ref`, each pixel's relative to
+// ref's mean (over its square plus 0.01, as relMSE weighs it).
+double batch_variance(const std::vector<ImageRGB>& batches, const PixelStats* ref = nullptr) {
+  double sum = 0.0;
+  for (size_t i = 0; i < batches[0].pixels.size(); ++i) {
+    double m = 0, v = 0;
+    for (const ImageRGB& img : batches) m += img.pixels[i];
+    m /= batches.size();
+    for (const ImageRGB& img : batches) v += (img.pixels[i] - m) * (img.pixels[i] - m);
+    if (ref) {
+      const double r = luminance(ref->mean[i / 3]);
+      v /= r * r + 1e-2;
+    }
+    sum += v;
+  }
+  return sum;
+}
+
 struct BlockZ {
   double chi2_per_dof, limit;
 };
@@ -1085,13 +1103,7 @@ TEST(Gpu, GuidingTrainsKeepsTheMeanAndLowersNoise) {
       big.seed = 200 + b;
       batches.push_back(render_gpu(*gpu, s, big, 384, GpuOptions()));
     }
-    for (size_t i = 0; i < batches[0].pixels.size(); ++i) {
-      double m = 0, v = 0;
-      for (const ImageRGB& img : batches) m += img.pixels[i];
-      m /= batches.size();
-      for (const ImageRGB& img : batches) v += (img.pixels[i] - m) * (img.pixels[i] - m);
-      noise[guided] += v;
-    }
+    noise[guided] += batch_variance(batches);
   }
   std::printf("variance, guided / unguided at 384 spp, 256 x 256: %.3f\n", noise[1] / noise[0]);
   EXPECT_LT(noise[1], 0.85 * noise[0]);
@@ -1138,14 +1150,7 @@ void expect_gpu_mnee(const std::string& scene, bool cpu_mnee, bool relative, dou
                   on ? "mnee" : "plain", z.chi2_per_dof, z.limit);
       EXPECT_LT(z.chi2_per_dof, z.limit) << scene << (on ? " mnee" : " plain");
     }
-    for (size_t i = 0; i < batches[0].pixels.size(); ++i) {
-      double m = 0, v = 0;
-      for (const ImageRGB& img : batches) m += img.pixels[i];
-      m /= batches.size();
-      for (const ImageRGB& img : batches) v += (img.pixels[i] - m) * (img.pixels[i] - m);
-      const double ref = luminance(cpu.mean[i / 3]);
-      noise[on] += relative ? v / (ref * ref + 1e-2) : v;
-    }
+    noise[on] += batch_variance(batches, relative ? &cpu : nullptr);
   }
   std::printf("%s: %svariance, mnee / plain at 256 spp, 64 x 64: %.3f\n", scene.c_str(),
               relative ? "relative " : "", noise[1] / noise[0]);
@@ -1205,14 +1210,7 @@ void expect_gpu_light_tracing(const std::string& scene, double limit) {
     std::printf("%s %s: chi2/dof against the CPU's plain %.3f (limit %.3f)\n", scene.c_str(),
                 on ? "light tracing" : "plain", z.chi2_per_dof, z.limit);
     if (on) EXPECT_LT(z.chi2_per_dof, z.limit) << scene;
-    for (size_t i = 0; i < batches[0].pixels.size(); ++i) {
-      double m = 0, v = 0;
-      for (const ImageRGB& img : batches) m += img.pixels[i];
-      m /= batches.size();
-      for (const ImageRGB& img : batches) v += (img.pixels[i] - m) * (img.pixels[i] - m);
-      const double ref = luminance(cpu.mean[i / 3]);
-      noise[on] += v / (ref * ref + 1e-2);
-    }
+    noise[on] += batch_variance(batches, &cpu);
   }
   std::printf("%s: relative variance, light tracing / plain at 256 spp, 64 x 64: %.3f\n",
               scene.c_str(), noise[1] / noise[0]);
