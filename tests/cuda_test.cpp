@@ -1183,9 +1183,11 @@ TEST(Gpu, ManifoldNeeOffMirrorsAloneAgreesWithTheCpu) {
 // the megakernel (even batches) and the wavefront (odd ones); 16 batches of 256 spp at 64x64
 // against the CPU's plain path tracing (block z-test of the batches against 2,048 CPU samples)
 // and their relative variance against the plain GPU batches'.
-void expect_gpu_light_tracing(const std::string& scene, double limit) {
+void expect_gpu_light_tracing(const std::string& scene, double limit,
+                              const std::function<void(Scene&)>& edit = nullptr) {
   REQUIRE_GPU(gpu);
   Scene s = load_scene(source_dir() + "/assets/scenes/" + scene);
+  if (edit) edit(s);
   RenderSettings rs = s.settings;
   rs.width = 64;
   rs.height = 64;
@@ -1225,6 +1227,12 @@ TEST(Gpu, LightTracingKeepsTheMeanAndLowersNoise) {
 // The glass and mirror balls: their caustics light-traced.
 TEST(Gpu, LightTracingOfTheBallsAgreesWithTheCpu) {
   expect_gpu_light_tracing("cornell_spheres.json", 0.8);
+}
+
+// Glass balls placed as instances (the light kernel's variant with the BVH's second level).
+TEST(Gpu, LightTracingThroughInstancesAgreesWithTheCpu) {
+  expect_gpu_light_tracing("cornell_box.json", 0.9,
+                           [](Scene& s) { s = test::instanced_scene(true); });
 }
 
 }  // namespace
