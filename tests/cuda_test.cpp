@@ -1229,6 +1229,16 @@ TEST(Gpu, LightTracingOfTheBallsAgreesWithTheCpu) {
   expect_gpu_light_tracing("cornell_spheres.json", 0.8);
 }
 
+// The balls through a thin lens and a tent filter of radius 1.5 (the light kernel's general
+// variant: lens points, splats over several pixels).
+TEST(Gpu, LightTracingThroughALensAgreesWithTheCpu) {
+  expect_gpu_light_tracing("cornell_spheres.json", 0.9, [](Scene& s) {
+    s.camera.aperture_radius = 20.0f;
+    s.settings.filter = PixelFilter::kTent;
+    s.settings.filter_radius = 1.5f;
+  });
+}
+
 // Glass balls placed as instances (the light kernel's variant with the BVH's second level).
 TEST(Gpu, LightTracingThroughInstancesAgreesWithTheCpu) {
   expect_gpu_light_tracing("cornell_box.json", 0.9,
