@@ -1,5 +1,6 @@
 // `pathtracer info`: what a scene holds (primitives, materials by type, lights), how its BVH came
 // out, and which renderer features it needs.
+#include <cstdio>
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -12,6 +13,13 @@
 
 namespace app {
 namespace {
+
+// A share as a percentage with two decimals ("0.10%").
+std::string percent(float share) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2f%%", 100.0 * share);
+  return buf;
+}
 
 struct InfoOptions {
   std::string scene;
@@ -78,9 +86,13 @@ int run_info(const InfoOptions& o) {
   // Whether manifold NEE has anything to connect through or off (smooth glass or reflectors).
   const bool casters = tracer::mnee_has_casters(cs);
   j["mnee_casters"] = casters;
-  // Whether light tracing finds any path here (an area light and a delta lobe).
-  const bool light_paths = tracer::light_tracing_has_paths(cs);
+  // Light tracing's pilot: the share of its light paths that reach the camera (-1: none can),
+  // and whether that is enough for the renderers to trace them.
+  const float light_yield =
+      tracer::light_path_yield(cs, tracer::make_integrator_settings(scene.settings));
+  const bool light_paths = light_yield >= tracer::kLightTracingMinYield;
   j["light_paths"] = light_paths;
+  j["light_path_yield"] = light_yield;
   // Instanced meshes are stored once and placed by every instance: the triangles the instances
   // place, and those stored.
   uint64_t stored = 0;
@@ -213,9 +225,14 @@ int run_info(const InfoOptions& o) {
                       "smooth glass, flat mirrors or mirror spheres): the image is as without "
                       "it, and the GPU runs its usual kernels\n"
                     : std::string())
-            << (scene.settings.light_tracing && !light_paths
+            << (scene.settings.light_tracing && light_yield < 0.0f
                     ? "light       tracing on, but no light path to find here (no area light, or "
                       "no mirror, smooth metal or smooth glass): the image is as without it\n"
+                    : scene.settings.light_tracing && !light_paths
+                    ? "light       tracing on, but only " + percent(light_yield) +
+                          " of its light paths reach the camera through a mirror or glass "
+                          "(below " + percent(tracer::kLightTracingMinYield) +
+                          "): the path tracer renders alone\n"
                     : scene.settings.light_tracing && !scene.settings.jitter
                           ? "light       tracing on, but off while jitter is off (splats need "
                             "jittered pixels)\n"

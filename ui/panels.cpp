@@ -456,12 +456,19 @@ void render_panel(Workbench& wb, PanelState& ps) {
     ImGui::PopStyleColor();
   }
   setting_widget(wb, ps, "render.light_tracing", "light tracing (caustics)");
-  if (wb.settings().light_tracing && (!wb.settings().jitter || !wb.light_tracing_has_paths())) {
+  const float yield = wb.light_path_yield();
+  if (wb.settings().light_tracing &&
+      (!wb.settings().jitter || yield < tracer::kLightTracingMinYield)) {
     ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyleColorVec4(ImGuiCol_TextDisabled));
-    ImGui::TextWrapped(!wb.settings().jitter
-                           ? "  off while pixel jitter is off (splats need jittered pixels)"
-                           : "  no light path to find in this scene (no area light, or no "
-                             "mirror, smooth metal or smooth glass): renders as without it");
+    if (!wb.settings().jitter)
+      ImGui::TextWrapped("  off while pixel jitter is off (splats need jittered pixels)");
+    else if (yield < 0.0f)
+      ImGui::TextWrapped("  no light path to find in this scene (no area light, or no mirror, "
+                         "smooth metal or smooth glass): renders as without it");
+    else
+      ImGui::TextWrapped("  only %.2f%% of its light paths reach the camera through a mirror or "
+                         "glass (below %.0f%%): the path tracer renders alone",
+                         100.0f * yield, 100.0f * tracer::kLightTracingMinYield);
     ImGui::PopStyleColor();
   }
   setting_widget(wb, ps, "render.filter", "pixel filter");

@@ -200,8 +200,8 @@ void Workbench::rebuild(bool geometry) {
                                     geometry ? nullptr : compiled_.get());
   ready_compiled_.reset();
   mnee_casters_ = tracer::mnee_has_casters(*compiled_);
-  light_paths_ = tracer::light_tracing_has_paths(*compiled_);
   const tracer::IntegratorSettings cfg = tracer::make_integrator_settings(scene_.settings);
+  light_yield_ = scene_.settings.light_tracing ? tracer::light_path_yield(*compiled_, cfg) : 1.0f;
   if (!async_) {
     try {
       renderer_->set_gpu_options(scene_.gpu);

@@ -90,8 +90,9 @@ class Workbench {
   tracer::Renderer* gpu_renderer();  // the CUDA renderer when it is the active backend
   // Whether the scene has anything manifold NEE connects through or off (mnee_has_casters).
   bool mnee_has_casters() const { return mnee_casters_; }
-  // Whether light tracing finds any path in the scene (light_tracing_has_paths).
-  bool light_tracing_has_paths() const { return light_paths_; }
+  // Light tracing's pilot (light_path_yield; 1 while light tracing is off): the share of its
+  // light paths that reach the camera, -1 where it finds none at all.
+  float light_path_yield() const { return light_yield_; }
   // The denoiser on the viewport (display.denoise, image/denoise.h): on and available. It
   // denoises the mean that is shown, never the accumulator (toggling it never restarts), at
   // once after each restart and then at most every kDenoiseInterval seconds or when the render
@@ -181,7 +182,7 @@ class Workbench {
   std::unique_ptr<tracer::Renderer> renderer_;
   std::shared_ptr<tracer::CompiledScene> compiled_;
   bool mnee_casters_ = true;  // mnee_has_casters(*compiled_)
-  bool light_paths_ = true;   // light_tracing_has_paths(*compiled_)
+  float light_yield_ = 1.0f;  // light_path_yield(*compiled_, ...) with light tracing on
   bool dirty_ = true, geometry_dirty_ = true, display_dirty_ = true;
   WorkbenchStats stats_;
   double since_reset_s_ = 0.0;

@@ -22,12 +22,12 @@ std::string CpuRenderer::device_name() const {
 void CpuRenderer::set_scene(const CompiledScene& scene, const IntegratorSettings& cfg) {
   scene_ = &scene;
   mnee_casters_ = mnee_has_casters(scene);
-  light_paths_ = light_tracing_has_paths(scene);
   set_settings(cfg);
 }
 
 void CpuRenderer::set_settings(const IntegratorSettings& cfg) {
   cfg_ = cfg;
+  light_paths_ = cfg.light_tracing && scene_ && light_tracing_has_paths(*scene_, cfg);
   cfg_.guide = GuideView();
   const size_t n = size_t(cfg.width) * cfg.height * 3;
   for (auto* b : {&sum_even_, &sum_odd_, &pass_even_, &pass_odd_}) b->assign(n, 0.0);

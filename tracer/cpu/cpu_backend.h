@@ -47,7 +47,7 @@ class CpuRenderer final : public Renderer {
   int threads_;
   const CompiledScene* scene_ = nullptr;
   bool mnee_casters_ = false;  // mnee_has_casters(*scene_): else no manifold NEE requests
-  bool light_paths_ = false;   // light_tracing_has_paths(*scene_): else no light paths
+  bool light_paths_ = false;   // light_tracing_has_paths(*scene_, cfg_): else no light paths
   IntegratorSettings cfg_;
   std::vector<double> sum_even_, sum_odd_;    // 3 per pixel: samples 0, 2, 4... and 1, 3, 5...
   std::vector<double> pass_even_, pass_odd_;  // this call's sums, added when it completes

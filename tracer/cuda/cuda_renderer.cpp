@@ -432,7 +432,7 @@ struct CudaRenderer::Impl {
   }
 
   // Light tracing's paths of a sample (render.light_tracing), after its camera paths.
-  bool light_paths = false;  // light_tracing_has_paths(scene): else cfg.light_tracing is off
+  bool light_paths = false;  // light_tracing_has_paths(scene, cfg): else cfg.light_tracing is off
   DeviceBuffer<uint32_t> light_next;  // the light kernel's next path (scratch)
   void light_wave(uint32_t sample, bool timed) {
     if (!cfg.light_tracing) return;
@@ -702,7 +702,6 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.point_lights.upload(scene.point_lights());
   m.view.point_lights = scene.point_lights().empty() ? nullptr : m.point_lights.get();
   m.features = scene.features();
-  m.light_paths = light_tracing_has_paths(scene);
   m.compiled = &scene;
   m.has_scene = true;
   set_settings(cfg);
@@ -713,6 +712,7 @@ void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
   m.use_device();
   m.cfg = cfg;
   m.cfg.guide = GuideView();
+  m.light_paths = cfg.light_tracing && m.compiled && light_tracing_has_paths(*m.compiled, cfg);
   // Light tracing with no path to find (no mirror or smooth glass) or without jitter: none traced.
   if (!light_tracing_runs(m.cfg, m.light_paths)) m.cfg.light_tracing = 0;
   m.view.camera.width = cfg.width;

@@ -8,7 +8,7 @@
 #include "bvh/bvh8.h"
 #include "bvh/flat_list.h"
 #include "core/features.h"
-#include "integrator/path.h"
+#include "integrator/light_path.h"
 #include "scene/compiled_scene.h"
 #include "scene/scene.h"
 
@@ -118,7 +118,9 @@ bool mnee_has_casters(const CompiledScene& scene) {
   return false;
 }
 
-bool light_tracing_has_paths(const CompiledScene& scene) {
+namespace {
+// Whether light tracing can find any path: an area light and a material with a delta lobe.
+bool light_tracing_can_find(const CompiledScene& scene) {
   bool area_light = false;
   for (uint32_t i = 0; i < scene.view().light_count; ++i)
     area_light = area_light || scene.view().lights[i].kind == kLightPrimitive;
@@ -138,6 +140,25 @@ bool light_tracing_has_paths(const CompiledScene& scene) {
     }
   }
   return false;
+}
+}  // namespace
+
+float light_path_yield(const CompiledScene& scene, const IntegratorSettings& cfg) {
+  if (!light_tracing_can_find(scene)) return -1.0f;
+  IntegratorSettings c = cfg;
+  c.light_tracing = 1;
+  uint32_t reached = 0;
+  for (uint32_t i = 0; i < kLightPilotPaths; ++i) {
+    bool any = false;
+    trace_light_path<kAllFeatures>(scene.view(), c, i, 0x7fffffffu, kLightPilotPaths, 1.0f,
+                                   [&any](uint32_t, vec3) { any = true; });
+    reached += any ? 1u : 0u;
+  }
+  return float(reached) / float(kLightPilotPaths);
+}
+
+bool light_tracing_has_paths(const CompiledScene& scene, const IntegratorSettings& cfg) {
+  return light_path_yield(scene, cfg) >= kLightTracingMinYield;
 }
 
 bool light_tracing_runs(const IntegratorSettings& cfg, bool has_paths) {

@@ -60,12 +60,23 @@ struct GpuSceneTraits {
 // it has none (rough glass and metals only, say) the GPU runs the usual kernels and the CPU makes
 // no requests.
 bool mnee_has_casters(const CompiledScene& scene);
-// Whether light tracing (render.light_tracing) can find any path here: an area light and a
-// material with a delta lobe. Where not, the renderers trace no light paths (the image is the
-// same: the path tracer leaves nothing to them).
-bool light_tracing_has_paths(const CompiledScene& scene);
+// Light tracing's pilot (render.light_tracing): the share of its light paths that reach the
+// camera (a free connection that lands on the film), of kLightPilotPaths traced on the host with
+// cfg's camera, depth and seed (deterministic); -1 where it can find no path at all (no area
+// light, or no material with a delta lobe). A few milliseconds.
+float light_path_yield(const CompiledScene& scene, const IntegratorSettings& cfg);
+constexpr uint32_t kLightPilotPaths = 8192;
+// Below this share light tracing is futile: smallpt's lamp, a huge sphere of which a sliver pokes
+// into the room (none reach the camera; 32x worse at equal time). Near it the gain is small
+// either way: the materials scene (0.17% at 64x64, 0.33% at its 1024x448; 0.83x at equal time at
+// 512x512), glass balls placed as instances (0.44%; 0.53x the variance per sample). Far above
+// it: the glass and mirror balls (7%; 7.1x at equal time), the lamp behind glass (66%; 11x).
+constexpr float kLightTracingMinYield = 0.002f;
+// Whether light tracing has paths worth tracing here: light_path_yield >= kLightTracingMinYield.
+// Where not, the renderers trace no light paths (the path tracer then leaves nothing to them).
+bool light_tracing_has_paths(const CompiledScene& scene, const IntegratorSettings& cfg);
 // Whether light tracing runs: asked for, with jittered pixels (a pixel without jitter is its
-// centre's radiance, which no splat gives) and a light path to find (light_tracing_has_paths).
+// centre's radiance, which no splat gives) and paths worth tracing (light_tracing_has_paths).
 // Where not, the renderers clear cfg.light_tracing, so that the path tracer leaves it nothing.
 bool light_tracing_runs(const IntegratorSettings& cfg, bool has_paths);
 // From a scene's view (its features and camera) and whether it has a flat list (mnee_casters is
