@@ -166,6 +166,11 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
                                   "/assets/scenes/rough_materials.json --light-tracing on", &log),
             0) << log;
   EXPECT_NE(log.find("no light path to find here"), std::string::npos) << log;
+  // smallpt: its light paths almost never reach the camera (its lamp mostly outside the room).
+  ASSERT_EQ(test::run_command(exe() + " info " + test::source_dir() +
+                                  "/assets/scenes/smallpt.json --light-tracing on", &log), 0)
+      << log;
+  EXPECT_NE(log.find("the path tracer renders alone"), std::string::npos) << log;
   ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
                                   "/assets/scenes/rough_materials.json", &log), 0) << log;
   EXPECT_FALSE(nlohmann::json::parse(log.substr(log.find('{')))["mnee_casters"].get<bool>());
