@@ -467,7 +467,7 @@ void render_panel(Workbench& wb, PanelState& ps) {
                          "smooth metal or smooth glass): renders as without it");
     else
       ImGui::TextWrapped("  only %.2f%% of its light paths reach the camera through a mirror or "
-                         "glass (below %.0f%%): the path tracer renders alone",
+                         "glass (below %.1f%%): the path tracer renders alone",
                          100.0f * yield, 100.0f * tracer::kLightTracingMinYield);
     ImGui::PopStyleColor();
   }
