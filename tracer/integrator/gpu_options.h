@@ -66,11 +66,9 @@ bool mnee_has_casters(const CompiledScene& scene);
 // light, or no material with a delta lobe). A few milliseconds.
 float light_path_yield(const CompiledScene& scene, const IntegratorSettings& cfg);
 constexpr uint32_t kLightPilotPaths = 8192;
-// Below this share light tracing is futile: smallpt's lamp, a huge sphere of which a sliver pokes
-// into the room (none reach the camera; 32x worse at equal time). Near it the gain is small
-// either way: the materials scene (0.17% at 64x64, 0.33% at its 1024x448; 0.83x at equal time at
-// 512x512), glass balls placed as instances (0.44%; 0.53x the variance per sample). Far above
-// it: the glass and mirror balls (7%; 7.1x at equal time), the lamp behind glass (66%; 11x).
+// Below this share light tracing is futile: its cost buys splats almost nowhere (smallpt's lamp,
+// a huge sphere of which a sliver pokes into the room, sends none to the camera). Near it the gain
+// is small either way; the scenes it helps most lie far above (PERFORMANCE.md rows 131-132).
 constexpr float kLightTracingMinYield = 0.002f;
 // Whether light tracing has paths worth tracing here: light_path_yield >= kLightTracingMinYield.
 // Where not, the renderers trace no light paths (the path tracer then leaves nothing to them).
