@@ -296,6 +296,24 @@ TEST(LightPath, InstancedGlassKeepsItsMean) {
       [](Scene& scene, RenderSettings&) { scene = test::instanced_scene(true); });
 }
 
+// Frosted glass behind the glass ball's caustic (the mirror ball made rough glass of roughness
+// 0.4): light paths through the glass ball go on through the frosted ball (rough transmission by
+// the path tracer's BSDF with its arguments reversed) and are joined to the camera on it (a wide
+// lobe), both ways through its surface.
+TEST(LightPath, FrostedGlassKeepsItsMean) {
+  expect_light_tracing_keeps_the_mean(
+      "cornell_spheres.json", 24, 2048, 1024, 1.2, [](Scene& scene, RenderSettings&) {
+        for (NamedMaterial& nm : scene.materials)
+          if (nm.name == "mirror") {
+            nm.material = Material();
+            nm.material.type = MaterialType::kDielectric;
+            nm.material.ior = 1.5f;
+            nm.material.roughness = 0.4f;
+            nm.material.albedo = vec3(1.0f);
+          }
+      });
+}
+
 // Which scenes light tracing finds paths worth tracing in (light_path_yield's pilot): the lamp
 // behind glass (66% of its light paths reach the camera), the glass and mirror balls (7%), glass
 // balls placed as instances (0.44%); none at all in the diffuse box or among rough metals and
