@@ -121,6 +121,19 @@ Scene small_asset(const char* name, RenderSettings* rs) {
   return s;
 }
 
+// An asset scene, edited, and its settings at 64x64 with seed 7: the size of the tests of the
+// caustic estimators (manifold NEE, light tracing) against the CPU.
+Scene caustic_asset(const std::string& name, const std::function<void(Scene&)>& edit,
+                    RenderSettings* rs) {
+  Scene s = load_scene(source_dir() + "/assets/scenes/" + name);
+  if (edit) edit(s);
+  *rs = s.settings;
+  rs->width = 64;
+  rs->height = 64;
+  rs->seed = 7;
+  return s;
+}
+
 // The GPU renders what the CPU renders, in the wavefront and the megakernel: with the same seed
 // (the same paths) over 90% of the pixel values agree to 1e-3, and 16 batches of independent
 // seeds pass the block z-test against the CPU's per-pixel mean and variance.
@@ -1117,12 +1130,8 @@ TEST(Gpu, GuidingTrainsKeepsTheMeanAndLowersNoise) {
 void expect_gpu_mnee(const std::string& scene, bool cpu_mnee, bool relative, double limit,
                      const std::function<void(Scene&)>& edit = nullptr) {
   REQUIRE_GPU(gpu);
-  Scene s = load_scene(source_dir() + "/assets/scenes/" + scene);
-  if (edit) edit(s);
-  RenderSettings rs = s.settings;
-  rs.width = 64;
-  rs.height = 64;
-  rs.seed = 7;
+  RenderSettings rs;
+  const Scene s = caustic_asset(scene, edit, &rs);
   RenderSettings mnee_rs = rs;
   mnee_rs.mnee = true;
   const PixelStats cpu = render_pixel_stats(s, cpu_mnee ? mnee_rs : rs, 2048);
@@ -1186,12 +1195,8 @@ TEST(Gpu, ManifoldNeeOffMirrorsAloneAgreesWithTheCpu) {
 void expect_gpu_light_tracing(const std::string& scene, double limit,
                               const std::function<void(Scene&)>& edit = nullptr) {
   REQUIRE_GPU(gpu);
-  Scene s = load_scene(source_dir() + "/assets/scenes/" + scene);
-  if (edit) edit(s);
-  RenderSettings rs = s.settings;
-  rs.width = 64;
-  rs.height = 64;
-  rs.seed = 7;
+  RenderSettings rs;
+  const Scene s = caustic_asset(scene, edit, &rs);
   RenderSettings lt_rs = rs;
   lt_rs.light_tracing = true;
   const PixelStats cpu = render_pixel_stats(s, rs, 2048);

@@ -270,7 +270,7 @@ FrameStats CpuRenderer::render_pass(uint32_t spp) {
   if (guide_.ready()) cfg.guide = guide_.view(next_);
   // Manifold NEE with nothing to connect through: no requests (the same image, as on the GPU).
   if (!mnee_casters_) cfg.mnee = 0;
-  // Light tracing with no path to find (no mirror or smooth glass) or without jitter: none traced.
+  // Light tracing with no path worth tracing or without jitter: none traced.
   if (!light_tracing_runs(cfg, light_paths_)) cfg.light_tracing = 0;
   SceneView view = scene_->view();
   if (!simd_traversal_) view.cpu_bvh = CpuBvhView();

@@ -432,7 +432,6 @@ struct CudaRenderer::Impl {
   }
 
   // Light tracing's paths of a sample (render.light_tracing), after its camera paths.
-  bool light_paths = false;  // light_tracing_has_paths(scene, cfg): else cfg.light_tracing is off
   DeviceBuffer<uint32_t> light_next;  // the light kernel's next path (scratch)
   void light_wave(uint32_t sample, bool timed) {
     if (!cfg.light_tracing) return;
@@ -712,9 +711,10 @@ void CudaRenderer::set_settings(const IntegratorSettings& cfg) {
   m.use_device();
   m.cfg = cfg;
   m.cfg.guide = GuideView();
-  m.light_paths = cfg.light_tracing && m.compiled && light_tracing_has_paths(*m.compiled, cfg);
-  // Light tracing with no path to find (no mirror or smooth glass) or without jitter: none traced.
-  if (!light_tracing_runs(m.cfg, m.light_paths)) m.cfg.light_tracing = 0;
+  // Light tracing with no path worth tracing or without jitter: none traced.
+  const bool light_paths =
+      cfg.light_tracing && m.compiled && light_tracing_has_paths(*m.compiled, cfg);
+  if (!light_tracing_runs(m.cfg, light_paths)) m.cfg.light_tracing = 0;
   m.view.camera.width = cfg.width;
   m.view.camera.height = cfg.height;
   m.view.camera.aspect = float(cfg.width) / float(cfg.height);

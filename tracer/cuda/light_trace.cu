@@ -17,17 +17,9 @@ __global__ void __launch_bounds__(kBlock) light_kernel(SceneView view,
                                                        uint32_t* next_path) {
   constexpr uint32_t F = features_of<Spec>() | (Flat ? kFeatureFlatList : 0u);
   const SceneView s = Flat ? with_flat_params(view, flat) : view;
+  // Added as the camera paths' radiance is (clamped, counted), never as the first to the film.
   auto splat = [&](uint32_t pixel, vec3 v) {
-    float cut;
-    v = clamp_radiance(v, film.clamp, &cut);
-    if (cut > 0.0f) {  // rare: plain atomics
-      atomicAdd(film.clamped, 1ull);
-      atomicAdd(film.clamped_luminance, double(cut));
-    }
-    float4* a = film.accum + pixel;
-    atomicAdd(&a->x, v.x);
-    atomicAdd(&a->y, v.y);
-    atomicAdd(&a->z, v.z);
+    add_to_film(film, pixel, v, false, &counters[kCounterNonfinite]);
   };
   LightPathState st;
   bool alive = false, exhausted = false;

@@ -125,20 +125,13 @@ bool light_tracing_can_find(const CompiledScene& scene) {
   for (uint32_t i = 0; i < scene.view().light_count; ++i)
     area_light = area_light || scene.view().lights[i].kind == kLightPrimitive;
   if (!area_light) return false;
-  // A delta event: a mirror, smooth metal or glass, a smooth coat (a subsurface material's
-  // boundary stops light paths). Textures may make a material smooth metal per texel.
-  for (const Material& m : scene.materials()) {
-    if (m.has_textures()) return true;
-    switch (m.type) {
-      case MaterialType::kMirror: return true;
-      case MaterialType::kConductor:
-      case MaterialType::kDielectric:
-      case MaterialType::kCoatedDiffuse:
-        if (m.roughness <= 0.0f) return true;
-        break;
-      default: break;
-    }
-  }
+  // A delta event: a delta BSDF (but a subsurface material's boundary, which stops light paths)
+  // or a smooth coat's lobe. Textures may make a material smooth metal per texel.
+  for (const Material& m : scene.materials())
+    if (m.has_textures() ||
+        (bsdf_is_delta(m, m.type) && m.type != MaterialType::kSubsurface) ||
+        (m.type == MaterialType::kCoatedDiffuse && m.roughness <= 0.0f))
+      return true;
   return false;
 }
 }  // namespace
