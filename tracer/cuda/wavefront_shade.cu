@@ -39,7 +39,7 @@ __device__ __forceinline__ void store_mnee_request(const WavefrontState& w, uint
     r[j * n] = make_float4(v.x, v.y, v.z, __uint_as_float(x));
   };
   const uint32_t bits = q.depth | (q.connect ? 1u << 28 : 0u) | (q.partition ? 1u << 29 : 0u) |
-                        (q.mirror ? 1u << 30 : 0u);
+                        (q.mirror ? 1u << 30 : 0u) | (q.single ? 1u << 31 : 0u);
   put(0, q.p, 0u);
   put(1, q.ng_viewer, bits);
   if (q.connect) {
@@ -79,6 +79,7 @@ __device__ __forceinline__ MneeRequest load_mnee_request(const WavefrontState& w
   q.connect = (bits >> 28) & 1u;
   q.partition = (bits >> 29) & 1u;
   q.mirror = (bits >> 30) & 1u;
+  q.single = (bits >> 31) & 1u;
   if (q.connect) {
     q.segments = get(2, q.frame_n);
     q.ls.prim = get(3, q.wo);

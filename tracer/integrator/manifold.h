@@ -6,10 +6,11 @@
 // term that turns the light sample's area density into a density of directions at x.
 //
 // Used by path.h's MneeSolver and mnee_resolve (render.mnee:
-// the CPU and the wavefront's mnee stage). The surfaces are the two analytic kinds the target
-// scenes' casters are made of, a plane (a flat face of a box or mesh) and a sphere; a mesh with
-// interpolated normals needs its vertices moved along the mesh (re-projected by a ray, as Hanika
-// does). Through one sphere the chains are found exactly instead (sphere_refraction_chains,
+// the CPU and the wavefront's mnee stage). The surfaces are a plane (a flat face of a box or
+// mesh), a sphere, and a triangle with interpolated vertex normals (kSmooth: a water surface),
+// whose vertex moves in the triangle's plane with the normal extrapolated beyond its edges; the
+// solver then traces the segment to it and, where a neighbouring triangle is hit, solves again on
+// that one (Hanika et al. re-project by a ray in the same way). Through one sphere the chains are found exactly instead (sphere_refraction_chains,
 // sphere_reflection_chain, at the end): Newton from one seed finds one chain of several, or none
 // near the sphere's rim, and what it misses stays BSDF sampling's noise.
 //
@@ -39,22 +40,61 @@ constexpr float kManifoldTolerance = 1e-6f;
 constexpr float kManifoldAccept = 2e-5f;
 
 struct SpecularSurface {
-  enum Kind : uint8_t { kPlane, kSphere };
+  enum Kind : uint8_t { kPlane, kSphere, kSmooth };
   Kind kind = kPlane;
-  vec3 a = vec3(0.0f);  // plane: a point on it; sphere: its centre
-  vec3 n = vec3(0.0f, 0.0f, 1.0f);  // plane: its unit normal (the outside)
+  vec3 a = vec3(0.0f);  // plane: a point on it; sphere: its centre; smooth: its first vertex
+  vec3 n = vec3(0.0f, 0.0f, 1.0f);  // plane, smooth: the unit (geometric) normal (the outside)
   float radius = 0.0f;  // sphere
   float eta = 0.0f;     // index of refraction inside (outside: 1); 0: a mirror
-  // The outward unit normal at p (on the surface).
-  TRACER_HD vec3 normal(vec3 p) const { return kind == kPlane ? n : (p - a) / radius; }
+  // smooth: a triangle whose shading normal is interpolated from its vertices' (a water surface
+  // of a mesh with normals), as make_surface_hit does: N = n0 + b1 dn1 + b2 dn2 at barycentrics
+  // b1 = (p - a).d1, b2 = (p - a).d2 (d1, d2: the dual basis of the edges), normalised and
+  // turned to n's side. Vertices move in the triangle's plane (beyond its edges the
+  // interpolation goes on linearly; the solver's check re-seeds on the triangle a ray finds).
+  vec3 n0 = vec3(0.0f), dn1 = vec3(0.0f), dn2 = vec3(0.0f), d1 = vec3(0.0f), d2 = vec3(0.0f);
+  // The outward unit (shading) normal at p (on the surface).
+  TRACER_HD vec3 normal(vec3 p) const {
+    if (kind == kSmooth) {
+      const vec3 q = p - a;
+      const vec3 m = n0 + glm::dot(q, d1) * dn1 + glm::dot(q, d2) * dn2;
+      const float l = glm::length(m);
+      return l > 0.0f ? (glm::dot(m, n) < 0.0f ? -m : m) / l : n;
+    }
+    return kind == kPlane ? n : (p - a) / radius;
+  }
+  // The normal of the plane a vertex moves in (manifold_moved): the surface's tangent plane,
+  // for a smooth triangle its own plane.
+  TRACER_HD vec3 move_normal(vec3 p) const { return kind == kSphere ? (p - a) / radius : n; }
   // p moved back onto the surface: the plane's nearest point, or along the sphere's radius.
   TRACER_HD vec3 project(vec3 p) const {
-    if (kind == kPlane) return p - glm::dot(p - a, n) * n;
+    if (kind != kSphere) return p - glm::dot(p - a, n) * n;
     const vec3 d = p - a;
     const float l = glm::length(d);
     return l > 0.0f ? a + d * (radius / l) : a + vec3(0.0f, 0.0f, radius);
   }
 };
+
+// A smooth triangle (vertices v0, v1, v2, vertex normals m0, m1, m2) as a specular surface of
+// index eta; a plane where it has no normals (m0 zero) or they are all its own.
+TRACER_HD inline SpecularSurface smooth_triangle(vec3 v0, vec3 v1, vec3 v2, vec3 m0, vec3 m1,
+                                                 vec3 m2, float eta) {
+  SpecularSurface s;
+  const vec3 e1 = v1 - v0, e2 = v2 - v0, c = glm::cross(e1, e2);
+  const float area2 = glm::length(c);
+  s.a = v0;
+  s.n = area2 > 0.0f ? c / area2 : vec3(0.0f, 0.0f, 1.0f);
+  s.eta = eta;
+  s.kind = SpecularSurface::kPlane;
+  if (!(area2 > 0.0f) || glm::dot(m0, m0) == 0.0f) return s;
+  s.n0 = m0;
+  s.dn1 = m1 - m0;
+  s.dn2 = m2 - m0;
+  s.d1 = glm::cross(e2, s.n) / area2;
+  s.d2 = glm::cross(s.n, e1) / area2;
+  if (glm::dot(s.dn1, s.dn1) + glm::dot(s.dn2, s.dn2) > 0.0f) s.kind = SpecularSurface::kSmooth;
+  else if (glm::abs(glm::dot(glm::normalize(m0), s.n)) < 1.0f - 1e-6f) s.kind = SpecularSurface::kSmooth;
+  return s;
+}
 
 // A chain between x and y: its surfaces in order from x and the vertices on them.
 struct ManifoldChain {
@@ -108,7 +148,7 @@ TRACER_HD inline ManifoldChain manifold_moved(const ManifoldChain& ch, const flo
 #endif
   for (uint32_t i = 0; i < kManifoldMaxChain; ++i) {
     if (i >= ch.k) break;
-    const Frame f = Frame::from_normal(ch.surface[i].normal(ch.p[i]));
+    const Frame f = Frame::from_normal(ch.surface[i].move_normal(ch.p[i]));
     m.p[i] = ch.surface[i].project(ch.p[i] + step[2 * i] * f.t + step[2 * i + 1] * f.b);
   }
   return m;
@@ -166,10 +206,11 @@ TRACER_HD inline void manifold_block(const Frame& T, vec3 w, float eta_over_l, c
   }
 }
 
-// The constraint Jacobian of the chain (2k x 2k) for steps of each vertex in its tangent frame
+// The constraint Jacobian of the chain (2k x 2k) for steps of each vertex in its move frame
 // (manifold_moved), analytically (Zeltner et al. 2020, sec. 4.3, in half-vector form): with
-// dh_i = eta_a P_a (da - dp_i) / L_a + eta_b P_b (db - dp_i) / L_b and, on a sphere of radius r,
-// the frame turning with the normal (dn = dp / r), which where h is along n adds -(h.n) dp / r.
+// dh_i = eta_a P_a (da - dp_i) / L_a + eta_b P_b (db - dp_i) / L_b, and the constraint frame
+// turning with the normal, which where h is along n adds -(h.n) t_r.dn: on a sphere of radius r
+// dn = dp / r; on a smooth triangle dn = (I - n n^T) (dn1 dp.d1 + dn2 dp.d2) / |N|.
 // The frame's turn is exact at a solution (the geometry term's Jacobian) and off it by a term of
 // the size of the residual, which keeps Newton's convergence quadratic. Also dC/dy, the last
 // vertex's 2x3 derivative by the light point (dcdy, optional). False where a vertex is invalid.
@@ -183,12 +224,17 @@ TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y,
 #pragma unroll
 #endif
     for (uint32_t j = 0; j < 4; ++j) J[i][j] = 0.0f;
-  Frame frames[kManifoldMaxChain];
+  Frame frames[kManifoldMaxChain], moves[kManifoldMaxChain];
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
   for (uint32_t i = 0; i < kManifoldMaxChain; ++i)
-    if (i < ch.k) frames[i] = Frame::from_normal(ch.surface[i].normal(ch.p[i]));
+    if (i < ch.k) {
+      frames[i] = Frame::from_normal(ch.surface[i].normal(ch.p[i]));
+      moves[i] = ch.surface[i].kind == SpecularSurface::kSmooth
+                     ? Frame::from_normal(ch.surface[i].n)
+                     : frames[i];
+    }
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
@@ -204,23 +250,36 @@ TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y,
     const vec2 eta = manifold_etas(s, nrm, wa, wb);
     const Frame& T = frames[i];
     float block[2][2];
-    // d/dp_i: -(eta_a P_a / L_a + eta_b P_b / L_b), and the sphere's turning frame.
+    // d/dp_i: -(eta_a P_a / L_a + eta_b P_b / L_b), and the turning frame.
     float self[2][2];
-    manifold_block(T, wa, eta.x / la, T, self);
-    manifold_block(T, wb, eta.y / lb, T, block);
-    const float turn = s.kind == SpecularSurface::kSphere
-                           ? glm::dot(eta.x * wa + eta.y * wb, nrm) / s.radius
-                           : 0.0f;
+    manifold_block(T, wa, eta.x / la, moves[i], self);
+    manifold_block(T, wb, eta.y / lb, moves[i], block);
+    const float hn = glm::dot(eta.x * wa + eta.y * wb, nrm);
+    float turn[2][2] = {{0.0f, 0.0f}, {0.0f, 0.0f}};
+    if (s.kind == SpecularSurface::kSphere) {
+      turn[0][0] = turn[1][1] = hn / s.radius;
+    } else if (s.kind == SpecularSurface::kSmooth) {
+      const vec3 q = ch.p[i] - s.a;
+      const vec3 m = s.n0 + glm::dot(q, s.d1) * s.dn1 + glm::dot(q, s.d2) * s.dn2;
+      const float l = glm::length(m);
+      if (!(l > 0.0f)) return false;
+      const float sign = glm::dot(m, s.n) < 0.0f ? -1.0f : 1.0f;  // turned to n's side
+      const vec3 g[2] = {moves[i].t, moves[i].b}, t[2] = {T.t, T.b};
+      for (int c = 0; c < 2; ++c) {
+        const vec3 dm = (sign * hn / l) * (glm::dot(g[c], s.d1) * s.dn1 + glm::dot(g[c], s.d2) * s.dn2);
+        for (int r = 0; r < 2; ++r) turn[r][c] = glm::dot(t[r], dm);
+      }
+    }
     for (int r = 0; r < 2; ++r)
       for (int c = 0; c < 2; ++c)
-        J[2 * i + r][2 * i + c] = -(self[r][c] + block[r][c]) - (r == c ? turn : 0.0f);
+        J[2 * i + r][2 * i + c] = -(self[r][c] + block[r][c]) - turn[r][c];
     if (i > 0) {  // a = p_{i-1}
-      manifold_block(T, wa, eta.x / la, frames[i - 1], block);
+      manifold_block(T, wa, eta.x / la, moves[i - 1], block);
       for (int r = 0; r < 2; ++r)
         for (int c = 0; c < 2; ++c) J[2 * i + r][2 * (i - 1) + c] = block[r][c];
     }
     if (i + 1 < ch.k) {  // b = p_{i+1}
-      manifold_block(T, wb, eta.y / lb, frames[i + 1], block);
+      manifold_block(T, wb, eta.y / lb, moves[i + 1], block);
       for (int r = 0; r < 2; ++r)
         for (int c = 0; c < 2; ++c) J[2 * i + r][2 * (i + 1) + c] = block[r][c];
     } else if (dcdy) {  // b = y: eta_b P_b / L_b, projected on the frame
@@ -356,7 +415,7 @@ TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y
   const vec3 d0 = ch.p[0] - x;
   const float l0 = glm::length(d0);
   const vec3 w0 = d0 / l0;
-  const Frame f0 = Frame::from_normal(ch.surface[0].normal(ch.p[0]));
+  const Frame f0 = Frame::from_normal(ch.surface[0].move_normal(ch.p[0]));
   vec3 dw[2];
   for (int axis = 0; axis < 2; ++axis) {
     const vec3 t = axis == 0 ? f.t : f.b;

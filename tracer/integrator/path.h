@@ -127,8 +127,9 @@ enum PathFlags : uint32_t {
   kPathMediumLeak = 1u << 3,    // ended: left a medium without crossing its boundary (counted)
   // Manifold NEE (cfg.mnee): the last non-delta vertex sampled the lights (its offset origin in
   // PathState::mnee_o); the refractions since (1 or 2: bits 5, 6) and whether anything else (a
-  // reflection, a third refraction) came since. Emission reached through exactly two
-  // refractions is not added where manifold NEE found that path from the vertex (shade_path).
+  // reflection, a third refraction) came since. Emission reached through exactly one or two
+  // refractions, or one reflection, is not added where manifold NEE found that path from the
+  // vertex (shade_path).
   kPathMneeFrom = 1u << 4,
   kPathMneeRefract1 = 1u << 5,
   kPathMneeRefract2 = 1u << 6,
@@ -269,6 +270,7 @@ constexpr uint32_t kMneeMaxSpheres = 16;
 constexpr uint32_t kMneeEveryCaster = kInvalid;
 constexpr uint32_t kMneeFlatGlass = kInvalid - 1;
 constexpr uint32_t kMneeNoCaster = kInvalid - 2;
+constexpr uint32_t kMneeOneRefraction = kInvalid - 3;  // one smooth glass surface (water)
 
 // Manifold NEE's work at one vertex (shade_path fills it; mnee_resolve does it): on the CPU
 // right after shading, in the wavefront in a stage of its own (the mnee kernel: the solves and
@@ -277,6 +279,7 @@ struct MneeRequest {
   bool connect = false;    // the connection's arguments follow
   bool partition = false;  // an emission hit whose contribution manifold NEE may own
   bool mirror = false;     // ... reached off a mirror sphere (else through two refractions)
+  bool single = false;     // ... reached through one refraction (a receiver under water)
   uint32_t depth = 0;      // the vertex's depth (PathState::depth when it was shaded)
   // connect: the vertex, its viewer's side, the frame's normal and wo in it, its BSDF, the light
   // sample (le: the light's front radiance times the path's throughput) and the segments left
@@ -321,6 +324,17 @@ TRACER_HD inline MneeHit mnee_trace(const SceneView& s, const MneeRay& r) {
   return a;
 }
 
+// Triangle `prim` of the scene (not of an instance) as manifold NEE's surface: its plane, and its
+// interpolated normals where it has them (SpecularSurface::kSmooth).
+TRACER_HD inline SpecularSurface mnee_triangle_surface(const SceneView& s, uint32_t prim) {
+  const TriangleVerts tv = load_triangle(s.tri_verts, prim);
+  const TriangleShading& ts = s.tri_shading[prim];
+  const vec3 z(0.0f);
+  const bool normals = ts.has_normals != 0;  // as make_surface_hit
+  return smooth_triangle(tv.v0, tv.v1, tv.v2, normals ? ts.n0 : z, normals ? ts.n1 : z,
+                         normals ? ts.n2 : z, s.materials[ts.material].ior);
+}
+
 // Manifold NEE's solves for one request, as a machine that asks for one ray at a time (next) and
 // is handed its hit: the caller traces every ray at one place, so that on the GPU a warp's
 // threads trace together whatever each is solving, through one copy of the traversal's code (the
@@ -334,6 +348,13 @@ TRACER_HD inline MneeHit mnee_trace(const SceneView& s, const MneeRay& r) {
 //   glass is in the way but that fails (a way in through one face of a box that would leave
 //   through another by total internal reflection) from the light's. Through parallel faces (a
 //   pane, a slab) manifold_slab solves it in one dimension first, then Newton's method in 3D;
+// - through one smooth glass surface (2 segments: a receiver under water, or a light in it):
+//   where the straight segment's first hit from o is a glass triangle and the ray refracted there
+//   does not meet that glass again (it leaves the glass, or is totally reflected), Newton's
+//   method on the mesh: each step solved on the current triangle (its interpolated normals,
+//   SpecularSurface::kSmooth) and put back on the mesh by a ray from o (Hanika et al.'s
+//   re-projection), which may land on another triangle of that glass (a wavy water surface of
+//   many small triangles), halved while it does not lower |C|;
 // - through each glass sphere of the first kMneeMaxSpheres (3): every chain in the plane of o, y
 //   and the centre (SphereChainScan), polished by Newton in 3D;
 // - off each mirror sphere (sphere_reflection_chain, polished by Newton) and each plane of flat
@@ -341,8 +362,9 @@ TRACER_HD inline MneeHit mnee_trace(const SceneView& s, const MneeRay& r) {
 //   conductors; the line to y's mirror image in the plane within the bounds of its triangles:
 //   exact) (2): the one reflection.
 // Each chain's segments must then be what rays see: each reaches the next vertex, on the same
-// material and surface, whose shading normal is the surface's (no interpolated or mapped
-// normals; a reflector: a triangle of the plane or the sphere, seen first from o), the last one
+// material and surface, whose shading normal is the surface's (interpolated normals only on the
+// one-refraction chain; no mapped normals; a reflector: a triangle of the plane or the sphere,
+// seen first from o), the last one
 // free to the light, which must emit towards its last vertex (mnee_light_faces). Its throughput:
 // the transmissions as the BSDF weighs them (Fresnel, tint, the eta^2 of radiance, Beer-Lambert
 // absorption inside), or the reflectance (a mirror's or smooth conductor's, or glass's Fresnel
@@ -350,7 +372,10 @@ TRACER_HD inline MneeHit mnee_trace(const SceneView& s, const MneeRay& r) {
 // BSDF-sampled path can ask whether this estimator covers it (the partition).
 template <uint32_t F>
 struct MneeSolver {
-  enum Phase : uint8_t { kTask, kSeed, kWalk, kCheck, kCasters, kSphereChains, kShadow };
+  enum Phase : uint8_t {
+    kTask, kSeed, kWalk, kCheck, kSingle, kSingleStep, kSingleProject, kCasters, kSphereChains,
+    kShadow
+  };
   Phase phase = kTask;
   int task = -1;  // 0: the partition's solve, 1: the connection's
   // The task's ends, its segments left and the casters it tries.
@@ -365,6 +390,14 @@ struct MneeSolver {
   // that side met glass first.
   int side = 0, seed_step = 0;
   bool glass = false;
+  // The one-refraction chain: its seed's triangle and point; whether the chain being solved is
+  // it; its walk's constraint values and |C|, Newton step (in the triangle's plane), iterations
+  // and the step's halvings.
+  uint32_t single_prim = kInvalid, single_it = 0, single_halving = 0;
+  vec3 single_p = vec3(0.0f);
+  bool single = false;
+  float single_c[2] = {0.0f, 0.0f}, single_norm = 0.0f;
+  vec2 single_step = vec2(0.0f);
   // The check: the segment asked for, its origin, the throughput so far; a reflection's caster.
   uint32_t segment = 0, caster = kMneeNoCaster;
   vec3 from = vec3(0.0f), throughput = vec3(1.0f);
@@ -437,6 +470,20 @@ struct MneeSolver {
     return true;
   }
 
+  // The ray from o through the one-refraction chain's vertex moved by single_step in its
+  // triangle's plane, which finds where that point lies on the mesh (kSingleProject).
+  TRACER_HD void single_project(MneeRay& out) {
+    const Frame g = Frame::from_normal(ch.surface[0].n);
+    const vec3 d = ch.p[0] + single_step.x * g.t + single_step.y * g.b - o;
+    const float len = glm::length(d);
+    ray.o = o;
+    ray.d = len > 0.0f ? d / len : glm::normalize(ch.p[0] - o);
+    ray.tmax = 2.0f * (dist + len);
+    ray.pad = 0.0f;
+    phase = kSingleProject;
+    ask(out, false, kInvalid);
+  }
+
   // A chain found (its throughput in `throughput`).
   TRACER_HD void found(const MneeRequest& q) {
     if (task == 0) {
@@ -473,8 +520,11 @@ struct MneeSolver {
           spheres = (F & kFeatureSpheres) ? glm::min(s.sphere_count, kMneeMaxSpheres) : 0u;
           casters = segments >= 2 ? spheres + s.reflector_plane_count : 0u;
           phase = kCasters;
-          if (segments >= 3 && (only == kMneeEveryCaster || only == kMneeFlatGlass) &&
-              dist > 0.0f) {
+          single_prim = kInvalid;
+          single = false;
+          if (((segments >= 3 && only == kMneeFlatGlass) ||
+               (segments >= 2 && only == kMneeOneRefraction) || only == kMneeEveryCaster) &&
+              segments >= 2 && dist > 0.0f) {
             side = seed_step = 0;
             glass = false;
             seed_ray(0);
@@ -492,6 +542,11 @@ struct MneeSolver {
             glass = glass || mnee_glass(ms);
             ok = mnee_glass(ms) && !((F & kFeatureSpheres) && !prim_is_triangle(s, h.prim) &&
                                      h.prim - s.tri_count < s.sphere_count);
+            // The one-refraction chain's seed: o's first hit, a glass triangle of the scene's.
+            if (ok && side == 0 && seed_step == 0 && h.prim < s.tri_count) {
+              single_prim = h.prim;
+              single_p = h.p;
+            }
             if (ok) {
               const uint32_t i = uint32_t(side ? 1 - seed_step : seed_step);
               SpecularSurface& su = ch.surface[i];
@@ -515,10 +570,12 @@ struct MneeSolver {
               } else {
                 ch.k = 2;
                 ok = material[0] == material[1];  // in and out of one glass
+                if (ok && side == 0) single_prim = kInvalid;  // it does not leave the glass
+                ok = ok && segments >= 3 && only != kMneeOneRefraction;
                 // Through parallel faces (a pane, a slab) solved in one dimension first.
                 if (ok) {
                   manifold_slab(ch, o, y);
-                  after_check = kCasters;
+                  after_check = kSingle;
                   reflection = false;
                   phase = kWalk;
                   continue;
@@ -527,17 +584,17 @@ struct MneeSolver {
             }
           }
           // No seed from this side: from the light's where o's met glass, else no flat chain.
-          if (glass && side == 0) {
+          if (glass && side == 0 && segments >= 3 && only != kMneeOneRefraction) {
             seed_from_light(out);
             return true;
           }
-          phase = kCasters;
+          phase = kSingle;
           continue;
         }
         case kWalk: {  // Newton's method on the chain, then its check (one copy of each)
           if (!manifold_walk(ch, o, y)) {
             // A flat chain that fails from o's side where o's ray met glass: from the light's.
-            if (after_check == kCasters && !reflection && side == 0 && glass) {
+            if (after_check == kSingle && side == 0 && glass) {
               seed_from_light(out);
               return true;
             }
@@ -570,14 +627,18 @@ struct MneeSolver {
             ok = ok && !(glm::length(h.p - ch.p[segment]) > 1e-3f * dist) &&
                  h.material == material[segment] &&
                  !(glm::abs(glm::dot(h.ns, n)) < 1.0f - 1e-5f);
+            // One refraction: o and y on the two sides of the triangle's plane.
+            if (single)
+              ok = ok && glm::dot(o - ch.p[0], ch.surface[0].n) *
+                                 glm::dot(y - ch.p[0], ch.surface[0].n) < 0.0f;
             if (ok) {
               // The transmission as the BSDF weighs it (bsdf.h, smooth dielectric), on the side
-              // the path arrives from o; inside (the second vertex) after Beer-Lambert's
-              // attenuation.
+              // the path arrives from o; after Beer-Lambert's attenuation where the segment ran
+              // inside (the second vertex; o under water).
               const Material& mi = s.materials[material[segment]];
               const float c = glm::dot(-ray.d, n);
               const float eta = c > 0.0f ? mi.ior : 1.0f / mi.ior;
-              if (segment > 0 && !is_black(mi.absorption))
+              if ((segment > 0 || glm::dot(ray.d, h.ng) > 0.0f) && !is_black(mi.absorption))
                 throughput *= glm::exp(-mi.absorption * glm::length(ch.p[segment] - from));
               throughput *=
                   mi.albedo * ((1.0f - material_fresnel(mi, glm::abs(c), eta)) / (eta * eta));
@@ -594,7 +655,7 @@ struct MneeSolver {
           // The last vertex (`from`; a reflection's: its point): the light must emit towards it
           // and be free from it.
           if (ok && mnee_light_faces<F>(s, light_prim, y, ny, o, from)) {
-            const vec3 nl = ch.surface[ch.k - 1].normal(ch.p[ch.k - 1]);
+            const vec3 nl = ch.surface[ch.k - 1].move_normal(ch.p[ch.k - 1]);
             ray = reflection ? spawn_ray_to(ch.p[0], nl, y, ny)
                              : spawn_ray_to(from, glm::dot(y - from, nl) > 0.0f ? nl : -nl, y, ny);
             phase = kShadow;
@@ -608,6 +669,72 @@ struct MneeSolver {
           if (!h.valid) found(q);
           phase = after_check;
           continue;
+        case kSingle: {  // the one-refraction chain from its seed
+          phase = kCasters;
+          if (single_prim == kInvalid || segments < 2 ||
+              (only != kMneeEveryCaster && only != kMneeOneRefraction))
+            continue;
+          material[0] = s.tri_shading[single_prim].material;
+          ch.k = 1;
+          ch.surface[0] = mnee_triangle_surface(s, single_prim);
+          ch.p[0] = single_p;
+          single = true;
+          reflection = false;
+          after_check = kCasters;
+          single_it = 0;
+          if (!manifold_constraints(ch, o, y, single_c)) continue;
+          single_norm = manifold_norm(single_c, 2);
+          phase = kSingleStep;
+          continue;
+        }
+        case kSingleStep: {  // a Newton step on the current triangle, or the end of the walk
+          phase = kCasters;
+          if (single_norm <= kManifoldTolerance || single_it >= kManifoldIterations) {
+            if (single_norm <= kManifoldAccept && start_check(out)) return true;
+            continue;
+          }
+          float J[4][4];
+          float r[2 * kManifoldMaxChain] = {-single_c[0], -single_c[1]},
+                d[2 * kManifoldMaxChain] = {};
+          if (!manifold_jacobian(ch, o, y, J) || !manifold_solve(J, r, 2, d)) continue;
+          single_step = vec2(d[0], d[1]);
+          single_halving = 0;
+          single_project(out);
+          return true;
+        }
+        case kSingleProject: {  // the step's point put back on the mesh by the ray from o
+          bool improved = false;
+          if (h.valid && h.material == material[0] && h.prim < s.tri_count) {
+            ManifoldChain next = ch;
+            next.surface[0] = mnee_triangle_surface(s, h.prim);
+            next.p[0] = h.p;
+            float cn[2 * kManifoldMaxChain] = {};
+            if (manifold_constraints(next, o, y, cn) && manifold_norm(cn, 2) < single_norm) {
+              const float before = single_norm;
+              ch = next;
+              single_c[0] = cn[0];
+              single_c[1] = cn[1];
+              single_norm = manifold_norm(cn, 2);
+              ++single_it;
+              improved = true;
+              // Close enough and no longer converging fast: float's rounding has the rest.
+              if (single_norm <= kManifoldAccept && single_norm > 0.25f * before)
+                single_it = kManifoldIterations;
+            }
+          }
+          if (improved) {
+            phase = kSingleStep;
+            continue;
+          }
+          if (single_norm > kManifoldAccept && ++single_halving < kManifoldHalvings) {
+            single_step *= 0.5f;
+            single_project(out);
+            return true;
+          }
+          phase = kCasters;
+          if (single_norm <= kManifoldAccept && start_check(out)) return true;
+          continue;
+        }
         case kSphereChains:  // a glass sphere's next chain
           if ((F & kFeatureSpheres) && scan.next(ch)) {
             phase = kWalk;
@@ -616,6 +743,7 @@ struct MneeSolver {
           phase = kCasters;
           continue;
         case kCasters: {  // the next sphere or plane
+          single = false;
           if (next_caster >= casters) {
             phase = kTask;
             continue;
@@ -687,14 +815,15 @@ TRACER_HD inline MneeSolver<F> mnee_begin(const SceneView& s, const MneeRequest&
   // manifold NEE tries) where it is glass, or for a mirror path a mirror; else for a mirror path
   // the plane of flat reflectors it lies on, and otherwise flat glass (kMneeNoCaster: manifold NEE
   // does not own it).
-  uint32_t caster = q.mirror ? kMneeNoCaster : kMneeFlatGlass;
+  uint32_t caster = q.mirror ? kMneeNoCaster : q.single ? kMneeOneRefraction : kMneeFlatGlass;
   if ((F & kFeatureSpheres) && q.partition) {
     const uint32_t spheres = glm::min(s.sphere_count, kMneeMaxSpheres);
     for (uint32_t i = 0; i < spheres; ++i) {
       const Sphere& sph = s.spheres[i];
       if (glm::abs(glm::length(q.seg_o - sph.center) - sph.radius) > tol) continue;
       const Material& mi = s.materials[sph.material];
-      if (q.mirror ? !is_black(mnee_mirror_reflectance(mi, 1.0f)) : mnee_glass(mi)) caster = i;
+      if (q.single) caster = kMneeNoCaster;  // (one refraction into a sphere: not solved)
+      else if (q.mirror ? !is_black(mnee_mirror_reflectance(mi, 1.0f)) : mnee_glass(mi)) caster = i;
       break;
     }
   }
@@ -875,8 +1004,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           w = 0.0f;
         }
       }
-      // Reached through exactly two refractions from a vertex that sampled the lights: manifold
-      // NEE's, where from that vertex it finds this path (the chain whose last vertex this
+      // Reached through exactly two refractions (or one, or one reflection) from a vertex that
+      // sampled the lights: manifold NEE's, where from that vertex it finds this path (the chain whose last vertex this
       // segment left from) to this point of a light it could have chosen there. The two
       // estimators so split the paths exactly, also where the solve fails (no bias).
       const uint32_t mnee_bits = st.flags & (kPathMneeFrom | kPathMneeRefract1 |
@@ -888,9 +1017,11 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
         w = 0.0f;  // the light tracer's: an area light it emits from, after delta events
       } else if ((F & kFeatureCaustics) && cfg.mnee && mnee && sh.light != kInvalid &&
           (mnee_bits == (kPathMneeFrom | kPathMneeRefract2) ||
+           mnee_bits == (kPathMneeFrom | kPathMneeRefract1) ||
            mnee_bits == (kPathMneeFrom | kPathMneeMirror))) {
         mnee->partition = w > 0.0f;
         mnee->mirror = (mnee_bits & kPathMneeMirror) != 0;
+        mnee->single = (mnee_bits & kPathMneeRefract1) != 0;
         mnee->depth = st.depth;
         mnee->from_o = st.mnee_o;
         mnee->from_normal = st.mnee_normal;
