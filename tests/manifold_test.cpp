@@ -52,20 +52,26 @@ void seed_on_line(ManifoldChain& ch, vec3 x, vec3 y) {
 // reflecting or refracting), leaving o at the last one and d the direction it leaves in; false
 // where a surface is missed or light is totally reflected. A hit nearer than min_t is the surface
 // the ray starts on.
-bool trace_chain(const ManifoldChain& ch, vec3& o, vec3& d, double min_t) {
+// The distance along d from o to the surface (its plane; a sphere's nearer hit in front); NaN
+// where there is none.
+double surface_t(const SpecularSurface& s, vec3 o, vec3 d, double min_t) {
+  if (s.kind == SpecularSurface::kPlane) return glm::dot(s.a - o, s.n) / double(glm::dot(d, s.n));
+  const vec3 oc = o - s.a;
+  const double b = glm::dot(oc, d), c = glm::dot(oc, oc) - s.radius * s.radius;
+  const double disc = b * b - c;
+  if (disc < 0) return std::nan("");
+  const double t = -b - std::sqrt(disc);
+  return t <= min_t ? -b + std::sqrt(disc) : t;
+}
+double surface_t(const SmoothSurface& s, vec3 o, vec3 d, double) {
+  return glm::dot(s.a - o, s.n) / double(glm::dot(d, s.n));  // the triangle's plane
+}
+
+template <class Chain>
+bool trace_chain(const Chain& ch, vec3& o, vec3& d, double min_t) {
   for (uint32_t i = 0; i < ch.k; ++i) {
-    const SpecularSurface& s = ch.surface[i];
-    double t;
-    if (s.kind != SpecularSurface::kSphere) {  // a plane, or a smooth triangle's plane
-      t = glm::dot(s.a - o, s.n) / double(glm::dot(d, s.n));
-    } else {  // the nearer hit in front
-      const vec3 oc = o - s.a;
-      const double b = glm::dot(oc, d), c = glm::dot(oc, oc) - s.radius * s.radius;
-      const double disc = b * b - c;
-      if (disc < 0) return false;
-      t = -b - std::sqrt(disc);
-      if (t <= min_t) t = -b + std::sqrt(disc);
-    }
+    const auto& s = ch.surface[i];
+    const double t = surface_t(s, o, d, min_t);
     if (!(t > min_t)) return false;
     o = o + float(t) * d;
     vec3 n = s.normal(o);
@@ -84,7 +90,8 @@ bool trace_chain(const ManifoldChain& ch, vec3& o, vec3& d, double min_t) {
 }
 
 // trace_chain from x along d, on to the plane z = light_z.
-bool trace_forward(const ManifoldChain& ch, vec3 x, vec3 d, float light_z, vec3* hit) {
+template <class Chain>
+bool trace_forward(const Chain& ch, vec3 x, vec3 d, float light_z, vec3* hit) {
   vec3 o = x;
   if (!trace_chain(ch, o, d, 1e-6) || !(d.z != 0.0f)) return false;
   const float t = (light_z - o.z) / d.z;
@@ -95,7 +102,8 @@ bool trace_forward(const ManifoldChain& ch, vec3 x, vec3 d, float light_z, vec3*
 
 // |d omega / d A| at x towards direction d0 by central differences of forward tracing: the
 // inverse of the area on the light that a unit of solid angle around d0 maps to.
-double forward_geometry(const ManifoldChain& ch, vec3 x, vec3 d0, float light_z) {
+template <class Chain>
+double forward_geometry(const Chain& ch, vec3 x, vec3 d0, float light_z) {
   const Frame f = Frame::from_normal(d0);
   const float e = 1e-3f;
   vec3 h[4];
@@ -106,7 +114,8 @@ double forward_geometry(const ManifoldChain& ch, vec3 x, vec3 d0, float light_z)
   return 1.0 / glm::length(glm::cross(du, dv));  // (the light's plane is z = const)
 }
 
-void expect_jacobian_matches_differences(const ManifoldChain& ch, vec3 x, vec3 y, double tol,
+template <class Chain>
+void expect_jacobian_matches_differences(const Chain& ch, vec3 x, vec3 y, double tol,
                                          const char* what) {
   const uint32_t n = 2 * ch.k;
   float J[4][4];
@@ -259,11 +268,10 @@ TEST(Manifold, PerpendicularFacesMatchForwardTracing) {
 TEST(Manifold, SmoothTriangleRefractionMatchesForwardTracing) {
   const vec3 m0 = glm::normalize(vec3(0.2f, 0.0f, 1.0f)), m1 = glm::normalize(vec3(-0.1f, 0.15f, 1.0f)),
              m2 = glm::normalize(vec3(0.0f, -0.2f, 1.0f));
-  ManifoldChain ch;
+  SmoothChain ch;
   ch.k = 1;
   ch.surface[0] = smooth_triangle(vec3(-2.0f, -2.0f, 1.0f), vec3(3.0f, -2.0f, 1.0f),
                                   vec3(-2.0f, 3.0f, 1.0f), m0, m1, m2, 1.33f);
-  ASSERT_EQ(ch.surface[0].kind, SpecularSurface::kSmooth);
   // At a vertex the normal is that vertex's.
   EXPECT_NEAR(glm::length(ch.surface[0].normal(vec3(3.0f, -2.0f, 1.0f)) - m1), 0.0f, 1e-6f);
   const vec3 x(0.1f, 0.2f, 0.0f);
@@ -274,7 +282,7 @@ TEST(Manifold, SmoothTriangleRefractionMatchesForwardTracing) {
     ASSERT_TRUE(trace_forward(ch, x, glm::normalize(d0), 3.0f, &y)) << d0.x;
     const vec3 d = y - x;
     ch.p[0] = x + ((1.0f - x.z) / d.z) * d;  // the straight line's crossing
-    const ManifoldChain seed = ch;
+    const SmoothChain seed = ch;
     if (!manifold_walk(ch, x, y)) continue;
     ++solved;
     EXPECT_NEAR(glm::length(glm::normalize(ch.p[0] - x) - glm::normalize(d0)), 0.0f, 1e-3f);
@@ -291,12 +299,25 @@ TEST(Manifold, SmoothTriangleRefractionMatchesForwardTracing) {
     expect_jacobian_matches_differences(seed, x, y, 0.1, "smooth triangle at the seed");
   }
   EXPECT_GE(solved, 3);
-  // With the normals all the plane's, the geometry term is the flat water's.
-  ManifoldChain flat = ch;
-  flat.surface[0] = smooth_triangle(vec3(-2.0f, -2.0f, 1.0f), vec3(3.0f, -2.0f, 1.0f),
-                                    vec3(-2.0f, 3.0f, 1.0f), vec3(0, 0, 1), vec3(0, 0, 1),
-                                    vec3(0, 0, 1), 1.33f);
-  EXPECT_EQ(flat.surface[0].kind, SpecularSurface::kPlane);
+  // With the normals all the plane's (or none), the geometry term is flat water's (the plane's).
+  const vec3 up(0.0f, 0.0f, 1.0f), none(0.0f);
+  for (const vec3 m : {up, none}) {
+    SmoothChain flat;
+    flat.k = 1;
+    flat.surface[0] = smooth_triangle(vec3(-2.0f, -2.0f, 1.0f), vec3(3.0f, -2.0f, 1.0f),
+                                      vec3(-2.0f, 3.0f, 1.0f), m, m, m, 1.33f);
+    ManifoldChain plane_chain;
+    plane_chain.k = 1;
+    plane_chain.surface[0] = plane(1.0f, up, 1.33f);
+    const vec3 y(0.7f, -0.4f, 3.0f);
+    flat.p[0] = plane_chain.p[0] = vec3(0.2f, 0.0f, 1.0f);
+    ASSERT_TRUE(manifold_walk(flat, x, y));
+    ASSERT_TRUE(manifold_walk(plane_chain, x, y));
+    EXPECT_NEAR(glm::length(flat.p[0] - plane_chain.p[0]), 0.0f, 1e-5f);
+    EXPECT_NEAR(manifold_geometry(flat, x, y, vec3(0, 0, -1)) /
+                    manifold_geometry(plane_chain, x, y, vec3(0, 0, -1)),
+                1.0, 1e-4);
+  }
 }
 
 TEST(Manifold, MirrorBallReflectsTheLightAndMatchesForwardTracing) {

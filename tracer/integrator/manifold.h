@@ -7,10 +7,10 @@
 //
 // Used by path.h's MneeSolver and mnee_resolve (render.mnee:
 // the CPU and the wavefront's mnee stage). The surfaces are a plane (a flat face of a box or
-// mesh), a sphere, and a triangle with interpolated vertex normals (kSmooth: a water surface),
-// whose vertex moves in the triangle's plane with the normal extrapolated beyond its edges; the
-// solver then traces the segment to it and, where a neighbouring triangle is hit, solves again on
-// that one (Hanika et al. re-project by a ray in the same way). Through one sphere the chains are found exactly instead (sphere_refraction_chains,
+// mesh) and a sphere (SpecularSurface), and for the one-refraction chain a triangle with
+// interpolated vertex normals (SmoothSurface: a water surface), whose vertex moves in the
+// triangle's plane; the solver puts each step back on the mesh by a ray (Hanika et al.'s
+// re-projection), so the walk crosses from triangle to triangle. Through one sphere the chains are found exactly instead (sphere_refraction_chains,
 // sphere_reflection_chain, at the end): Newton from one seed finds one chain of several, or none
 // near the sphere's rim, and what it misses stays BSDF sampling's noise.
 //
@@ -40,74 +40,115 @@ constexpr float kManifoldTolerance = 1e-6f;
 constexpr float kManifoldAccept = 2e-5f;
 
 struct SpecularSurface {
-  enum Kind : uint8_t { kPlane, kSphere, kSmooth };
+  enum Kind : uint8_t { kPlane, kSphere };
   Kind kind = kPlane;
-  vec3 a = vec3(0.0f);  // plane: a point on it; sphere: its centre; smooth: its first vertex
-  vec3 n = vec3(0.0f, 0.0f, 1.0f);  // plane, smooth: the unit (geometric) normal (the outside)
+  vec3 a = vec3(0.0f);  // plane: a point on it; sphere: its centre
+  vec3 n = vec3(0.0f, 0.0f, 1.0f);  // plane: its unit normal (the outside)
   float radius = 0.0f;  // sphere
   float eta = 0.0f;     // index of refraction inside (outside: 1); 0: a mirror
-  // smooth: a triangle whose shading normal is interpolated from its vertices' (a water surface
-  // of a mesh with normals), as make_surface_hit does: N = n0 + b1 dn1 + b2 dn2 at barycentrics
-  // b1 = (p - a).d1, b2 = (p - a).d2 (d1, d2: the dual basis of the edges), normalised and
-  // turned to n's side. Vertices move in the triangle's plane (beyond its edges the
-  // interpolation goes on linearly; the solver's check re-seeds on the triangle a ray finds).
-  vec3 n0 = vec3(0.0f), dn1 = vec3(0.0f), dn2 = vec3(0.0f), d1 = vec3(0.0f), d2 = vec3(0.0f);
-  // The outward unit (shading) normal at p (on the surface).
-  TRACER_HD vec3 normal(vec3 p) const {
-    if (kind == kSmooth) {
-      const vec3 q = p - a;
-      const vec3 m = n0 + glm::dot(q, d1) * dn1 + glm::dot(q, d2) * dn2;
-      const float l = glm::length(m);
-      return l > 0.0f ? (glm::dot(m, n) < 0.0f ? -m : m) / l : n;
-    }
-    return kind == kPlane ? n : (p - a) / radius;
-  }
-  // The normal of the plane a vertex moves in (manifold_moved): the surface's tangent plane,
-  // for a smooth triangle its own plane.
-  TRACER_HD vec3 move_normal(vec3 p) const { return kind == kSphere ? (p - a) / radius : n; }
+  static constexpr bool kMovesInTangent = true;
+  // The outward unit normal at p (on the surface).
+  TRACER_HD vec3 normal(vec3 p) const { return kind == kPlane ? n : (p - a) / radius; }
+  // The normal of the plane a vertex moves in (manifold_moved): the tangent plane.
+  TRACER_HD vec3 move_normal(vec3 p) const { return normal(p); }
   // p moved back onto the surface: the plane's nearest point, or along the sphere's radius.
   TRACER_HD vec3 project(vec3 p) const {
-    if (kind != kSphere) return p - glm::dot(p - a, n) * n;
+    if (kind == kPlane) return p - glm::dot(p - a, n) * n;
     const vec3 d = p - a;
     const float l = glm::length(d);
     return l > 0.0f ? a + d * (radius / l) : a + vec3(0.0f, 0.0f, radius);
   }
+  // The constraint frame's turn with the normal (manifold_jacobian): -(h.n) t_r.dn for a move
+  // along the move frame's axis c; on a sphere of radius r dn = dp / r, on a plane none.
+  TRACER_HD void turn(vec3, float hn, const Frame&, const Frame&, float out[2][2]) const {
+    const float t = kind == kSphere ? hn / radius : 0.0f;
+    out[0][0] = out[1][1] = t;
+    out[0][1] = out[1][0] = 0.0f;
+  }
 };
 
-// A smooth triangle (vertices v0, v1, v2, vertex normals m0, m1, m2) as a specular surface of
-// index eta; a plane where it has no normals (m0 zero) or they are all its own.
-TRACER_HD inline SpecularSurface smooth_triangle(vec3 v0, vec3 v1, vec3 v2, vec3 m0, vec3 m1,
-                                                 vec3 m2, float eta) {
-  SpecularSurface s;
+// A triangle whose shading normal is interpolated from its vertices' (a water surface of a mesh
+// with normals), as make_surface_hit does: N = n0 + b1 dn1 + b2 dn2 at barycentrics
+// b1 = (p - a).d1, b2 = (p - a).d2 (d1, d2: the dual basis of the edges), normalised and turned
+// to n's side (n: the unit geometric normal, the outside; a: the first vertex). Its vertex moves
+// in the triangle's plane; beyond its edges the interpolation goes on linearly, and the solver
+// puts each step back on the mesh by a ray (path.h, the one-refraction chain). Kept apart from
+// SpecularSurface so that the two-vertex chains keep their size in the GPU's registers.
+struct SmoothSurface {
+  vec3 a = vec3(0.0f), n = vec3(0.0f, 0.0f, 1.0f);
+  float eta = 0.0f;
+  static constexpr bool kMovesInTangent = false;
+  vec3 n0 = vec3(0.0f, 0.0f, 1.0f), dn1 = vec3(0.0f), dn2 = vec3(0.0f), d1 = vec3(0.0f),
+       d2 = vec3(0.0f);
+  // The interpolated normal before normalising, turned to n's side (sign: the turn).
+  TRACER_HD vec3 raw(vec3 p, float* sign) const {
+    const vec3 q = p - a;
+    const vec3 m = n0 + glm::dot(q, d1) * dn1 + glm::dot(q, d2) * dn2;
+    *sign = glm::dot(m, n) < 0.0f ? -1.0f : 1.0f;
+    return *sign * m;
+  }
+  TRACER_HD vec3 normal(vec3 p) const {
+    float sign;
+    const vec3 m = raw(p, &sign);
+    const float l = glm::length(m);
+    return l > 0.0f ? m / l : n;
+  }
+  TRACER_HD vec3 move_normal(vec3) const { return n; }
+  TRACER_HD vec3 project(vec3 p) const { return p - glm::dot(p - a, n) * n; }
+  // dn = (I - n n^T) (dn1 dp.d1 + dn2 dp.d2) / |N| (turned with N).
+  TRACER_HD void turn(vec3 p, float hn, const Frame& T, const Frame& G, float out[2][2]) const {
+    float sign;
+    const float l = glm::length(raw(p, &sign));
+    const float k = l > 0.0f ? sign * hn / l : 0.0f;
+    const vec3 g[2] = {G.t, G.b}, t[2] = {T.t, T.b};
+    for (int c = 0; c < 2; ++c) {
+      const vec3 dm = k * (glm::dot(g[c], d1) * dn1 + glm::dot(g[c], d2) * dn2);
+      for (int r = 0; r < 2; ++r) out[r][c] = glm::dot(t[r], dm);
+    }
+  }
+};
+
+// A triangle (vertices v0, v1, v2, vertex normals m0, m1, m2, all zero where it has none: then
+// its own normal) of index eta as a smooth surface.
+TRACER_HD inline SmoothSurface smooth_triangle(vec3 v0, vec3 v1, vec3 v2, vec3 m0, vec3 m1,
+                                               vec3 m2, float eta) {
+  SmoothSurface s;
   const vec3 e1 = v1 - v0, e2 = v2 - v0, c = glm::cross(e1, e2);
   const float area2 = glm::length(c);
   s.a = v0;
   s.n = area2 > 0.0f ? c / area2 : vec3(0.0f, 0.0f, 1.0f);
   s.eta = eta;
-  s.kind = SpecularSurface::kPlane;
+  s.n0 = s.n;
   if (!(area2 > 0.0f) || glm::dot(m0, m0) == 0.0f) return s;
   s.n0 = m0;
   s.dn1 = m1 - m0;
   s.dn2 = m2 - m0;
   s.d1 = glm::cross(e2, s.n) / area2;
   s.d2 = glm::cross(s.n, e1) / area2;
-  if (glm::dot(s.dn1, s.dn1) + glm::dot(s.dn2, s.dn2) > 0.0f) s.kind = SpecularSurface::kSmooth;
-  else if (glm::abs(glm::dot(glm::normalize(m0), s.n)) < 1.0f - 1e-6f) s.kind = SpecularSurface::kSmooth;
   return s;
 }
 
-// A chain between x and y: its surfaces in order from x and the vertices on them.
-struct ManifoldChain {
+// A chain between x and y: its surfaces in order from x and the vertices on them (up to K).
+template <class Surface, uint32_t K>
+struct ManifoldChainOf {
+  static constexpr uint32_t kMax = K;
+  // Whether a vertex moves in its surface's tangent plane (not so a smooth triangle's: in its
+  // own plane, while its normal is the interpolated one).
+  static constexpr bool kMovesInTangent = Surface::kMovesInTangent;
   uint32_t k = 0;
-  SpecularSurface surface[kManifoldMaxChain];
-  vec3 p[kManifoldMaxChain];
+  Surface surface[K];
+  vec3 p[K];
 };
+using ManifoldChain = ManifoldChainOf<SpecularSurface, kManifoldMaxChain>;
+// The one-refraction chain through a smooth triangle (path.h).
+using SmoothChain = ManifoldChainOf<SmoothSurface, 1>;
+
 
 // The 2 constraint values of vertex i of the chain, between a (towards x) and b (towards y); false
 // where the vertex's directions are on sides its kind cannot join (a mirror's: both outside; a
 // refraction's: opposite sides).
-TRACER_HD inline bool manifold_constraint(const SpecularSurface& s, vec3 p, vec3 a, vec3 b,
-                                          float* c) {
+template <class Surface>
+TRACER_HD inline bool manifold_constraint(const Surface& s, vec3 p, vec3 a, vec3 b, float* c) {
   const vec3 n = s.normal(p);
   const vec3 wi = glm::normalize(a - p), wo = glm::normalize(b - p);
   const float ci = glm::dot(wi, n), co = glm::dot(wo, n);
@@ -128,11 +169,12 @@ TRACER_HD inline bool manifold_constraint(const SpecularSurface& s, vec3 p, vec3
 // All 2k constraint values of the chain between x and y; false where a vertex is invalid.
 // (The loops over a chain's vertices run to kManifoldMaxChain and stop at k, unrolled, so that
 // every index is a constant and the GPU keeps the chain in registers, not in local memory.)
-TRACER_HD inline bool manifold_constraints(const ManifoldChain& ch, vec3 x, vec3 y, float* c) {
+template <class Chain>
+TRACER_HD inline bool manifold_constraints(const Chain& ch, vec3 x, vec3 y, float* c) {
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
-  for (uint32_t i = 0; i < kManifoldMaxChain; ++i) {
+  for (uint32_t i = 0; i < Chain::kMax; ++i) {
     if (i >= ch.k) break;
     const vec3 a = i == 0 ? x : ch.p[i - 1], b = i + 1 == ch.k ? y : ch.p[i + 1];
     if (!manifold_constraint(ch.surface[i], ch.p[i], a, b, c + 2 * i)) return false;
@@ -141,12 +183,13 @@ TRACER_HD inline bool manifold_constraints(const ManifoldChain& ch, vec3 x, vec3
 }
 
 // The chain with vertex i moved by (du, dv) in its tangent frame and put back on its surface.
-TRACER_HD inline ManifoldChain manifold_moved(const ManifoldChain& ch, const float* step) {
-  ManifoldChain m = ch;
+template <class Chain>
+TRACER_HD inline Chain manifold_moved(const Chain& ch, const float* step) {
+  Chain m = ch;
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
-  for (uint32_t i = 0; i < kManifoldMaxChain; ++i) {
+  for (uint32_t i = 0; i < Chain::kMax; ++i) {
     if (i >= ch.k) break;
     const Frame f = Frame::from_normal(ch.surface[i].move_normal(ch.p[i]));
     m.p[i] = ch.surface[i].project(ch.p[i] + step[2 * i] * f.t + step[2 * i + 1] * f.b);
@@ -189,7 +232,8 @@ TRACER_HD inline bool manifold_solve(const float J[4][4], const float* r, uint32
 
 // The weights of vertex i's half vector h = eta_a wa + eta_b wb (1 and 1 for a mirror; for a
 // refraction the index on each direction's side), as manifold_constraint forms it.
-TRACER_HD inline vec2 manifold_etas(const SpecularSurface& s, vec3 n, vec3 wa, vec3 wb) {
+template <class Surface>
+TRACER_HD inline vec2 manifold_etas(const Surface& s, vec3 n, vec3 wa, vec3 wb) {
   if (s.eta == 0.0f) return vec2(1.0f);
   return vec2(glm::dot(wa, n) > 0.0f ? 1.0f : s.eta, glm::dot(wb, n) > 0.0f ? 1.0f : s.eta);
 }
@@ -214,8 +258,10 @@ TRACER_HD inline void manifold_block(const Frame& T, vec3 w, float eta_over_l, c
 // The frame's turn is exact at a solution (the geometry term's Jacobian) and off it by a term of
 // the size of the residual, which keeps Newton's convergence quadratic. Also dC/dy, the last
 // vertex's 2x3 derivative by the light point (dcdy, optional). False where a vertex is invalid.
-TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y, float J[4][4],
+template <class Chain>
+TRACER_HD inline bool manifold_jacobian(const Chain& ch, vec3 x, vec3 y, float J[4][4],
                                         vec3* dcdy = nullptr) {
+  constexpr uint32_t K = Chain::kMax;
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
@@ -224,23 +270,22 @@ TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y,
 #pragma unroll
 #endif
     for (uint32_t j = 0; j < 4; ++j) J[i][j] = 0.0f;
-  Frame frames[kManifoldMaxChain], moves[kManifoldMaxChain];
+  Frame frames[K], moves[K];
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
-  for (uint32_t i = 0; i < kManifoldMaxChain; ++i)
+  for (uint32_t i = 0; i < K; ++i)
     if (i < ch.k) {
       frames[i] = Frame::from_normal(ch.surface[i].normal(ch.p[i]));
-      moves[i] = ch.surface[i].kind == SpecularSurface::kSmooth
-                     ? Frame::from_normal(ch.surface[i].n)
-                     : frames[i];
+      moves[i] = Chain::kMovesInTangent ? frames[i]
+                                        : Frame::from_normal(ch.surface[i].move_normal(ch.p[i]));
     }
 #if defined(__CUDACC__)
 #pragma unroll
 #endif
-  for (uint32_t i = 0; i < kManifoldMaxChain; ++i) {
+  for (uint32_t i = 0; i < K; ++i) {
     if (i >= ch.k) break;
-    const SpecularSurface& s = ch.surface[i];
+    const auto& s = ch.surface[i];
     const vec3 a = i == 0 ? x : ch.p[i - 1], b = i + 1 == ch.k ? y : ch.p[i + 1];
     const vec3 da = a - ch.p[i], db = b - ch.p[i];
     const float la = glm::length(da), lb = glm::length(db);
@@ -251,25 +296,10 @@ TRACER_HD inline bool manifold_jacobian(const ManifoldChain& ch, vec3 x, vec3 y,
     const Frame& T = frames[i];
     float block[2][2];
     // d/dp_i: -(eta_a P_a / L_a + eta_b P_b / L_b), and the turning frame.
-    float self[2][2];
+    float self[2][2], turn[2][2];
     manifold_block(T, wa, eta.x / la, moves[i], self);
     manifold_block(T, wb, eta.y / lb, moves[i], block);
-    const float hn = glm::dot(eta.x * wa + eta.y * wb, nrm);
-    float turn[2][2] = {{0.0f, 0.0f}, {0.0f, 0.0f}};
-    if (s.kind == SpecularSurface::kSphere) {
-      turn[0][0] = turn[1][1] = hn / s.radius;
-    } else if (s.kind == SpecularSurface::kSmooth) {
-      const vec3 q = ch.p[i] - s.a;
-      const vec3 m = s.n0 + glm::dot(q, s.d1) * s.dn1 + glm::dot(q, s.d2) * s.dn2;
-      const float l = glm::length(m);
-      if (!(l > 0.0f)) return false;
-      const float sign = glm::dot(m, s.n) < 0.0f ? -1.0f : 1.0f;  // turned to n's side
-      const vec3 g[2] = {moves[i].t, moves[i].b}, t[2] = {T.t, T.b};
-      for (int c = 0; c < 2; ++c) {
-        const vec3 dm = (sign * hn / l) * (glm::dot(g[c], s.d1) * s.dn1 + glm::dot(g[c], s.d2) * s.dn2);
-        for (int r = 0; r < 2; ++r) turn[r][c] = glm::dot(t[r], dm);
-      }
-    }
+    s.turn(ch.p[i], glm::dot(eta.x * wa + eta.y * wb, nrm), T, moves[i], turn);
     for (int r = 0; r < 2; ++r)
       for (int c = 0; c < 2; ++c)
         J[2 * i + r][2 * i + c] = -(self[r][c] + block[r][c]) - turn[r][c];
@@ -304,7 +334,8 @@ TRACER_HD inline float manifold_norm(const float* c, uint32_t n) {
 // Newton's method from the chain's current vertices (the seed) to a chain that joins x and y by
 // its specular laws; false when it does not converge (or a vertex ends on a side its kind cannot
 // join).
-TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y) {
+template <class Chain>
+TRACER_HD inline bool manifold_walk(Chain& ch, vec3 x, vec3 y) {
   const uint32_t n = 2 * ch.k;
   float c[2 * kManifoldMaxChain];
   if (n == 0 || !manifold_constraints(ch, x, y, c)) return false;
@@ -321,7 +352,7 @@ TRACER_HD inline bool manifold_walk(ManifoldChain& ch, vec3 x, vec3 y) {
     // A step that does not lower |C| is shortened by halves (kManifoldHalvings tries in all).
     bool improved = false;
     for (uint32_t halving = 0; halving < kManifoldHalvings && !improved; ++halving) {
-      const ManifoldChain next = manifold_moved(ch, d);
+      const Chain next = manifold_moved(ch, d);
       float cn[2 * kManifoldMaxChain] = {};
       if (manifold_constraints(next, x, y, cn) && manifold_norm(cn, n) < norm) {
         ch = next;
@@ -401,7 +432,8 @@ TRACER_HD inline bool manifold_slab(ManifoldChain& ch, vec3 x, vec3 y) {
 // function theorem: the chain's steps move with y as dP/dy = -J^-1 dC/dy (J the constraint
 // Jacobian at the solution), and omega_x follows the first vertex. For an empty chain it is the
 // usual cos_y / r^2.
-TRACER_HD inline float manifold_geometry(const ManifoldChain& ch, vec3 x, vec3 y, vec3 ny) {
+template <class Chain>
+TRACER_HD inline float manifold_geometry(const Chain& ch, vec3 x, vec3 y, vec3 ny) {
   const Frame f = Frame::from_normal(ny);
   if (ch.k == 0) {
     const vec3 d = y - x;

@@ -324,9 +324,9 @@ TRACER_HD inline MneeHit mnee_trace(const SceneView& s, const MneeRay& r) {
   return a;
 }
 
-// Triangle `prim` of the scene (not of an instance) as manifold NEE's surface: its plane, and its
-// interpolated normals where it has them (SpecularSurface::kSmooth).
-TRACER_HD inline SpecularSurface mnee_triangle_surface(const SceneView& s, uint32_t prim) {
+// Triangle `prim` of the scene (not of an instance) as the one-refraction chain's surface: its
+// plane, and its interpolated normals where it has them (SmoothSurface).
+TRACER_HD inline SmoothSurface mnee_triangle_surface(const SceneView& s, uint32_t prim) {
   const TriangleVerts tv = load_triangle(s.tri_verts, prim);
   const TriangleShading& ts = s.tri_shading[prim];
   const vec3 z(0.0f);
@@ -398,6 +398,18 @@ struct MneeSolver {
   bool single = false;
   float single_c[2] = {0.0f, 0.0f}, single_norm = 0.0f;
   vec2 single_step = vec2(0.0f);
+  SmoothChain sch;
+
+  // The chain being checked (the one-refraction chain's or ch): its length, vertex i and the
+  // normals there.
+  TRACER_HD uint32_t chain_k() const { return single ? 1u : ch.k; }
+  TRACER_HD vec3 vertex(uint32_t i) const { return single ? sch.p[0] : ch.p[i]; }
+  TRACER_HD vec3 vertex_normal(uint32_t i) const {
+    return single ? sch.surface[0].normal(sch.p[0]) : ch.surface[i].normal(ch.p[i]);
+  }
+  TRACER_HD vec3 vertex_move_normal(uint32_t i) const {
+    return single ? sch.surface[0].n : ch.surface[i].move_normal(ch.p[i]);
+  }
   // The check: the segment asked for, its origin, the throughput so far; a reflection's caster.
   uint32_t segment = 0, caster = kMneeNoCaster;
   vec3 from = vec3(0.0f), throughput = vec3(1.0f);
@@ -452,7 +464,7 @@ struct MneeSolver {
     from = o;
     throughput = vec3(1.0f);
     segment = 0;
-    if (!segment_ray(ch.p[0])) return false;
+    if (!segment_ray(vertex(0))) return false;
     phase = kCheck;
     ask(out, false, kInvalid);
     return true;
@@ -473,11 +485,11 @@ struct MneeSolver {
   // The ray from o through the one-refraction chain's vertex moved by single_step in its
   // triangle's plane, which finds where that point lies on the mesh (kSingleProject).
   TRACER_HD void single_project(MneeRay& out) {
-    const Frame g = Frame::from_normal(ch.surface[0].n);
-    const vec3 d = ch.p[0] + single_step.x * g.t + single_step.y * g.b - o;
+    const Frame g = Frame::from_normal(sch.surface[0].n);
+    const vec3 d = sch.p[0] + single_step.x * g.t + single_step.y * g.b - o;
     const float len = glm::length(d);
     ray.o = o;
-    ray.d = len > 0.0f ? d / len : glm::normalize(ch.p[0] - o);
+    ray.d = len > 0.0f ? d / len : glm::normalize(sch.p[0] - o);
     ray.tmax = 2.0f * (dist + len);
     ray.pad = 0.0f;
     phase = kSingleProject;
@@ -487,13 +499,14 @@ struct MneeSolver {
   // A chain found (its throughput in `throughput`).
   TRACER_HD void found(const MneeRequest& q) {
     if (task == 0) {
-      covered = covered || glm::length(ch.p[ch.k - 1] - q.seg_o) <= tol;
+      covered = covered || glm::length(vertex(chain_k() - 1) - q.seg_o) <= tol;
       return;
     }
-    const vec3 w1 = glm::normalize(ch.p[0] - o);
+    const vec3 w1 = glm::normalize(vertex(0) - o);
     if (!(glm::dot(w1, q.ng_viewer) > 0.0f)) return;
     const vec3 wi = frame.to_local(w1);
-    const float g = manifold_geometry(ch, o, q.ls.p, q.ls.n);
+    const float g = single ? manifold_geometry(sch, o, q.ls.p, q.ls.n)
+                           : manifold_geometry(ch, o, q.ls.p, q.ls.n);
     if (g > 0.0f)
       sum += bsdf_eval<F>(q.m, q.wo, wi) * glm::abs(wi.z) * throughput * (g / area_pdf);
   }
@@ -606,7 +619,7 @@ struct MneeSolver {
           continue;
         }
         case kCheck: {  // the hit of the segment to vertex `segment`
-          const vec3 n = ch.surface[segment].normal(ch.p[segment]);
+          const vec3 n = vertex_normal(segment);
           bool ok = h.valid;
           if (reflection) {
             const bool sphere = caster < kMneeMaxSpheres;
@@ -624,13 +637,13 @@ struct MneeSolver {
               from = ch.p[0];
             }
           } else {
-            ok = ok && !(glm::length(h.p - ch.p[segment]) > 1e-3f * dist) &&
+            ok = ok && !(glm::length(h.p - vertex(segment)) > 1e-3f * dist) &&
                  h.material == material[segment] &&
                  !(glm::abs(glm::dot(h.ns, n)) < 1.0f - 1e-5f);
             // One refraction: o and y on the two sides of the triangle's plane.
             if (single)
-              ok = ok && glm::dot(o - ch.p[0], ch.surface[0].n) *
-                                 glm::dot(y - ch.p[0], ch.surface[0].n) < 0.0f;
+              ok = ok && glm::dot(o - sch.p[0], sch.surface[0].n) *
+                                 glm::dot(y - sch.p[0], sch.surface[0].n) < 0.0f;
             if (ok) {
               // The transmission as the BSDF weighs it (bsdf.h, smooth dielectric), on the side
               // the path arrives from o; after Beer-Lambert's attenuation where the segment ran
@@ -639,14 +652,14 @@ struct MneeSolver {
               const float c = glm::dot(-ray.d, n);
               const float eta = c > 0.0f ? mi.ior : 1.0f / mi.ior;
               if ((segment > 0 || glm::dot(ray.d, h.ng) > 0.0f) && !is_black(mi.absorption))
-                throughput *= glm::exp(-mi.absorption * glm::length(ch.p[segment] - from));
+                throughput *= glm::exp(-mi.absorption * glm::length(vertex(segment) - from));
               throughput *=
                   mi.albedo * ((1.0f - material_fresnel(mi, glm::abs(c), eta)) / (eta * eta));
               from = spawn_ray(h.p, h.ng, ray.d).o;
             }
           }
-          if (ok && ++segment < ch.k) {
-            ok = segment_ray(ch.p[segment]);
+          if (ok && ++segment < chain_k()) {
+            ok = segment_ray(vertex(segment));
             if (ok) {
               ask(out, false, kInvalid);
               return true;
@@ -655,7 +668,7 @@ struct MneeSolver {
           // The last vertex (`from`; a reflection's: its point): the light must emit towards it
           // and be free from it.
           if (ok && mnee_light_faces<F>(s, light_prim, y, ny, o, from)) {
-            const vec3 nl = ch.surface[ch.k - 1].move_normal(ch.p[ch.k - 1]);
+            const vec3 nl = vertex_move_normal(chain_k() - 1);
             ray = reflection ? spawn_ray_to(ch.p[0], nl, y, ny)
                              : spawn_ray_to(from, glm::dot(y - from, nl) > 0.0f ? nl : -nl, y, ny);
             phase = kShadow;
@@ -675,14 +688,14 @@ struct MneeSolver {
               (only != kMneeEveryCaster && only != kMneeOneRefraction))
             continue;
           material[0] = s.tri_shading[single_prim].material;
-          ch.k = 1;
-          ch.surface[0] = mnee_triangle_surface(s, single_prim);
-          ch.p[0] = single_p;
+          sch.k = 1;
+          sch.surface[0] = mnee_triangle_surface(s, single_prim);
+          sch.p[0] = single_p;
           single = true;
           reflection = false;
           after_check = kCasters;
           single_it = 0;
-          if (!manifold_constraints(ch, o, y, single_c)) continue;
+          if (!manifold_constraints(sch, o, y, single_c)) continue;
           single_norm = manifold_norm(single_c, 2);
           phase = kSingleStep;
           continue;
@@ -696,7 +709,7 @@ struct MneeSolver {
           float J[4][4];
           float r[2 * kManifoldMaxChain] = {-single_c[0], -single_c[1]},
                 d[2 * kManifoldMaxChain] = {};
-          if (!manifold_jacobian(ch, o, y, J) || !manifold_solve(J, r, 2, d)) continue;
+          if (!manifold_jacobian(sch, o, y, J) || !manifold_solve(J, r, 2, d)) continue;
           single_step = vec2(d[0], d[1]);
           single_halving = 0;
           single_project(out);
@@ -705,13 +718,13 @@ struct MneeSolver {
         case kSingleProject: {  // the step's point put back on the mesh by the ray from o
           bool improved = false;
           if (h.valid && h.material == material[0] && h.prim < s.tri_count) {
-            ManifoldChain next = ch;
+            SmoothChain next = sch;
             next.surface[0] = mnee_triangle_surface(s, h.prim);
             next.p[0] = h.p;
             float cn[2 * kManifoldMaxChain] = {};
             if (manifold_constraints(next, o, y, cn) && manifold_norm(cn, 2) < single_norm) {
               const float before = single_norm;
-              ch = next;
+              sch = next;
               single_c[0] = cn[0];
               single_c[1] = cn[1];
               single_norm = manifold_norm(cn, 2);
