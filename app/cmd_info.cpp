@@ -83,6 +83,8 @@ int run_info(const InfoOptions& o) {
   // The planes of flat mirrors and glass faces manifold NEE reflects off (scene_view.h).
   j["reflector_planes"] = v.reflector_plane_count;
   j["too_many_reflector_planes"] = cs.too_many_reflector_planes();
+  // The planes of flat glass faces light tracing joins the camera through (a tank's front).
+  j["window_planes"] = v.window_plane_count;
   // Whether manifold NEE has anything to connect through or off (smooth glass or reflectors).
   const bool casters = tracer::mnee_has_casters(cs);
   j["mnee_casters"] = casters;
@@ -220,6 +222,11 @@ int run_info(const InfoOptions& o) {
                                 std::to_string(tracer::kMaxReflectorPlanes) +
                                 " planes (manifold NEE does not reflect off them)\n"
                           : std::string())
+            << (v.window_plane_count > 0
+                    ? "windows     " + std::to_string(v.window_plane_count) +
+                          " planes of flat glass faces (light tracing joins the camera through "
+                          "each)\n"
+                    : std::string())
             << (scene.settings.mnee && !casters
                     ? "mnee        on, but nothing here to connect through or reflect off (no "
                       "smooth glass, flat mirrors or mirror spheres): the image is as without "

@@ -1241,6 +1241,12 @@ TEST(Gpu, LightTracingOfTheBallsAgreesWithTheCpu) {
   expect_gpu_light_tracing("cornell_spheres.json", 0.8);
 }
 
+// The water tank seen through its front (tank.json): light paths joined to the camera through
+// the window's refraction (window_path, rays traced in the light kernel).
+TEST(Gpu, LightTracingThroughAWindowAgreesWithTheCpu) {
+  expect_gpu_light_tracing("tank.json", 0.6);
+}
+
 // The balls through a thin lens and a tent filter of radius 1.5 (the light kernel's general
 // variant: lens points, splats over several pixels).
 TEST(Gpu, LightTracingThroughALensAgreesWithTheCpu) {

@@ -319,6 +319,19 @@ TEST(LightPath, FrostedGlassKeepsItsMean) {
 // balls placed as instances (0.44%); none at all in the diffuse box or among rough metals and
 // frosted glass; too few in smallpt (its lamp mostly outside the room: none), where it would
 // lose. There the CPU traces no light paths and the image is the one without them, byte for
+// A water tank (tank.json: a box of water filling the room's lower part, its faces other than
+// the front and the top hidden behind the walls) seen through its flat front: the floor, the
+// walls and the short block in the water are lit through the water's top (light -> water ->
+// floor), and the camera sees them through the front (camera -> front -> floor): light tracing
+// joins them to the camera through the front's refraction (window_path), and the path tracer
+// leaves those paths to it (path_behind_window). The same mean, less noise.
+TEST(LightPath, TankSeenThroughItsFrontKeepsItsMean) {
+  const Scene s = load_scene(std::string(TRACER_SOURCE_DIR) + "/assets/scenes/tank.json");
+  const CompiledScene cs(s, 16, 16);
+  EXPECT_EQ(cs.view().window_plane_count, 6u) << "the water box's six faces";
+  expect_light_tracing_keeps_the_mean("tank.json", 32, 1024, 256, 0.5);
+}
+
 // byte.
 TEST(LightPath, ScenesWithAndWithoutLightPaths) {
   auto yield = [](const std::string& name) {

@@ -66,6 +66,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<TriangleShading> tri_shading;
   DeviceBuffer<Sphere> spheres;
   DeviceBuffer<ReflectorPlane> reflector_planes;
+  DeviceBuffer<WindowPlane> window_planes;
   DeviceBuffer<Material> materials;
   DeviceBuffer<Light> lights;
   DeviceBuffer<float> light_cdf;
@@ -626,6 +627,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.tri_shading.upload(scene.tri_shading());
   m.spheres.upload(scene.spheres());
   m.reflector_planes.upload(scene.reflector_planes());
+  m.window_planes.upload(scene.window_planes());
   m.materials.upload(scene.materials());
   m.lights.upload(scene.lights());
   m.light_cdf.upload(scene.light_cdf());
@@ -663,6 +665,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.tri_shading = m.tri_shading.get();
   m.view.spheres = m.spheres.get();
   m.view.reflector_planes = scene.reflector_planes().empty() ? nullptr : m.reflector_planes.get();
+  m.view.window_planes = scene.window_planes().empty() ? nullptr : m.window_planes.get();
   m.view.materials = m.materials.get();
   m.view.lights = m.lights.get();
   m.view.light_cdf = m.light_cdf.get();

@@ -40,7 +40,8 @@ __global__ void __launch_bounds__(kBlock) light_kernel(SceneView view,
     const Hit hit = intersect_closest<F>(s, st.ray, kInvalid);
     ++segments;
     LightConnection c;
-    alive = light_path_vertex<F>(s, cfg, film.n, st, hit, &c);
+    alive = light_path_vertex<F>(s, cfg, film.n, norm, st, hit, &c, splat);
+    connections += c.window_rays;
     if (c.connect) {
       ++connections;
       if (!intersect_any<F>(s, c.ray, kInvalid, kInvalid))

@@ -137,21 +137,90 @@ TRACER_HD inline bool start_light_path(const SceneView& s, const IntegratorSetti
 }
 
 // What a light path's vertex asks of its caller: the camera connection's ray (connect: whether
-// there is one; if it is free, splat `value` at film point `film`).
+// there is one; if it is free, splat `value` at film point `film`); and the rays the vertex
+// traced itself for its connections through windows (window_rays).
 struct LightConnection {
   Ray ray;
   vec3 value;
   vec2 film;
   bool connect;
+  uint32_t window_rays;
 };
+
+// The camera connection of vertex x (unit geometric normal ng) through window plane w (one
+// refraction, the window's glass on x's side: a floor seen through the front of a water tank):
+// the point p on the window where the path from the lens point refracts to x (unique for a
+// plane: manifold_walk from the straight line's crossing), checked by rays (from x the first hit
+// is the window's glass at p, from p the lens is free). Gives the measurement's factors that
+// replace the straight connection's: the generalized geometry term |d omega_lens / d A_x| times
+// the window's transmission as the path tracer weighs the camera's ray (Fresnel, tint, 1 /
+// eta^2), the film point, the direction from x, the lens's cosine; false where there is no such
+// path. *rays counts the rays traced.
+struct WindowPath {
+  float geometry;
+  vec3 transmission, w_x;
+  vec2 film;
+  float cos_cam;
+};
+template <uint32_t F>
+TRACER_HD inline bool window_path(const SceneView& s, const WindowPlane& w, vec3 lens, vec3 x,
+                                  vec3 ng, uint32_t* rays, WindowPath* out) {
+  const float hx = glm::dot(x - w.a, w.n), hl = glm::dot(lens - w.a, w.n);
+  if (!(hx * hl < 0.0f)) return false;  // on the two sides of its plane
+  ManifoldChain ch;
+  ch.k = 1;
+  ch.surface[0].kind = SpecularSurface::kPlane;
+  ch.surface[0].a = w.a;
+  ch.surface[0].n = w.n;
+  ch.surface[0].eta = w.eta;
+  ch.p[0] = lens + (hl / (hl - hx)) * (x - lens);  // the straight line's crossing
+  if (!manifold_walk(ch, lens, x)) return false;
+  const vec3 p = ch.surface[0].project(ch.p[0]);
+  if (!w.bounds_hold(p, s.window_tol)) return false;
+  const Camera& cam = s.camera;
+  if (!camera_film_point(cam, lens, p, &out->film)) return false;
+  // From x the first hit is the window at p.
+  const vec3 to_p = p - x;
+  const float lp = glm::length(to_p);
+  if (!(lp > 0.0f)) return false;
+  out->w_x = to_p / lp;
+  Ray r = spawn_ray(x, ng, out->w_x);
+  r.tmax = lp * 1.01f + s.window_tol;
+  ++*rays;
+  const Hit h = intersect_closest<F>(s, r, kInvalid);
+  if (!h.valid() || !prim_is_triangle(s, h.prim)) return false;
+  const SurfaceHit sh = make_surface_hit<F>(s, r, h);
+  if (!(glm::length(sh.p - p) <= 1e-3f * lp + s.window_tol) ||
+      !w.holds(sh.p, sh.ng, sh.material, s.window_tol))
+    return false;
+  // From the window the lens is free.
+  const vec3 dl = lens - p;
+  Ray rl = spawn_ray(sh.p, glm::dot(dl, sh.ng) > 0.0f ? sh.ng : -sh.ng, glm::normalize(dl));
+  rl.tmax = glm::length(lens - rl.o);
+  ++*rays;
+  if (intersect_any<F>(s, rl, kInvalid, kInvalid)) return false;
+  const float g = manifold_geometry(ch, lens, x, ng);
+  if (!(g > 0.0f)) return false;
+  // The camera's ray through the window as shade_path weighs it (smooth dielectric: the
+  // transmission's Fresnel, tint and 1 / eta^2 on the side it arrives from).
+  const Material& m = s.materials[w.material];
+  const vec3 dc = -glm::normalize(dl);  // from the lens towards p
+  const float c = glm::dot(-dc, w.n);
+  const float eta = c > 0.0f ? w.eta : 1.0f / w.eta;
+  out->transmission = m.albedo * ((1.0f - material_fresnel(m, glm::abs(c), eta)) / (eta * eta));
+  out->geometry = g;
+  out->cos_cam = glm::dot(dc, cam.forward);
+  return out->cos_cam > 0.0f;
+}
 
 // The vertex st.ray reached (hit): the camera connection it asks for (in *c) and the next
 // segment; false when the path ends. paths: the light paths per sample.
-template <uint32_t F>
+template <uint32_t F, class Splat>
 TRACER_HD inline bool light_path_vertex(const SceneView& s, const IntegratorSettings& cfg,
-                                        uint32_t paths, LightPathState& st, const Hit& hit,
-                                        LightConnection* c) {
+                                        uint32_t paths, float norm, LightPathState& st,
+                                        const Hit& hit, LightConnection* c, Splat&& splat) {
   c->connect = false;
+  c->window_rays = 0;
   if (!hit.valid()) return false;
   SurfaceHit sh = make_surface_hit<F>(s, st.ray, hit);
   Material textured;
@@ -180,6 +249,11 @@ TRACER_HD inline bool light_path_vertex(const SceneView& s, const IntegratorSett
       const vec2 l = cam.lens_radius * sample_uniform_disk_concentric(u_lens);
       lens += l.x * cam.right + l.y * cam.up;
     }
+    // The measurement's constant: pixels per unit area of the film plane one unit ahead, over
+    // the light paths per sample.
+    const float film_scale =
+        float(cfg.width) * float(cfg.height) /
+        (4.0f * cam.tan_half_fov * cam.tan_half_fov * cam.aspect * float(paths));
     const vec3 to_cam = lens - sh.p;
     const float d2 = glm::dot(to_cam, to_cam);
     if (d2 > 0.0f && camera_film_point(cam, lens, sh.p, &c->film)) {
@@ -190,11 +264,6 @@ TRACER_HD inline bool light_path_vertex(const SceneView& s, const IntegratorSett
       const vec3 f = usable ? bsdf_eval<F>(m, frame.to_local(wc_world), wl) : vec3(0.0f);
       if (!is_black(f)) {
         const float cos_cam = -glm::dot(wc_world, cam.forward);
-        // The measurement's constant: pixels per unit area of the film plane one unit ahead,
-        // over the light paths per sample.
-        const float film_scale =
-            float(cfg.width) * float(cfg.height) /
-            (4.0f * cam.tan_half_fov * cam.tan_half_fov * cam.aspect * float(paths));
         // Radiance towards the camera from the particle's flux (the shading normal's cosine
         // over the geometric one: the adjoint's correction), times the camera's importance per
         // unit area at x: |cos at x| / (d^2 cos^3 at the camera) per film-plane area.
@@ -205,6 +274,21 @@ TRACER_HD inline bool light_path_vertex(const SceneView& s, const IntegratorSett
         c->ray.tmax = glm::length(lens - c->ray.o);
         c->connect = is_finite(c->value);
       }
+    }
+    // Through each window (one refraction, one more segment; the path tracer leaves these paths
+    // to the light tracer where its camera ray crossed a window to such a vertex, shade_path).
+    for (uint32_t k = 0; st.segments + 2 <= cfg.max_depth && k < s.window_plane_count; ++k) {
+      WindowPath wp;
+      if (!window_path<F>(s, s.window_planes[k], lens, sh.p, sh.ng, &c->window_rays, &wp))
+        continue;
+      const float geo_w = glm::dot(wp.w_x, sh.ng);
+      const bool usable = transmits || geo_w * glm::dot(wl_world, sh.ng) > 0.0f;
+      const vec3 f = usable ? bsdf_eval<F>(m, frame.to_local(wp.w_x), wl) : vec3(0.0f);
+      if (is_black(f)) continue;
+      const vec3 value = st.beta * f * wp.transmission *
+                         (glm::abs(wl.z) / cos_l_geo * wp.geometry /
+                          (wp.cos_cam * wp.cos_cam * wp.cos_cam) * film_scale);
+      if (is_finite(value)) splat_film_point(cfg, wp.film, value, norm, splat);
     }
   }
   // Go on while a later vertex could still connect within max_depth.
@@ -268,7 +352,8 @@ TRACER_HD inline LightPathCounts trace_light_path(const SceneView& s, const Inte
     const Hit hit = intersect_closest<F>(s, st.ray, kInvalid);
     ++counts.segments;
     LightConnection c;
-    const bool go_on = light_path_vertex<F>(s, cfg, paths, st, hit, &c);
+    const bool go_on = light_path_vertex<F>(s, cfg, paths, norm, st, hit, &c, splat);
+    counts.connections += c.window_rays;
     if (c.connect) {
       ++counts.connections;
       if (!intersect_any<F>(s, c.ray, kInvalid, kInvalid))

@@ -135,9 +135,11 @@ enum PathFlags : uint32_t {
   kPathMneeRefract2 = 1u << 6,
   kPathMneeOther = 1u << 7,
   kPathMneeMirror = 1u << 8,  // ... or exactly one reflection (MneeSolver: a mirror sphere, a flat reflector)
-  // Light tracing (cfg.light_tracing): the camera's vertex has a wide lobe (light_trace_connects)
-  // and scattered by it, and no subsurface material came since, so emission reached by delta
-  // events from a non-delta vertex is the light tracer's (integrator/light_path.h), not added here.
+  // Light tracing (cfg.light_tracing): the camera's vertex (the first, or the second behind a
+  // window the camera ray refracted through: set there at the first, path_behind_window) has a
+  // wide lobe (light_trace_connects) and scattered by it, and no subsurface material came since,
+  // so emission reached by delta events from a non-delta vertex is the light tracer's
+  // (integrator/light_path.h), not added here.
   kPathLightTraced = 1u << 9,
 };
 // The wavefront keeps the flags in 10 bits beside PathState::prev_normal's 12 (cuda/kernels.h).
@@ -897,6 +899,21 @@ TRACER_HD inline vec3 mnee_resolve(const SceneView& s, const IntegratorSettings&
   return mnee_finish<F>(s, cfg, q, sv);
 }
 
+// Light tracing's windows (SceneView::window_planes): whether a hit lies on one (a scene
+// triangle in a window plane), and whether the path's vertex at st.depth is the one behind the
+// window its camera ray refracted through (kPathLightTraced set there, at the first vertex, by
+// that refraction).
+TRACER_HD inline bool on_window(const SceneView& s, uint32_t prim, const SurfaceHit& sh) {
+  if (!prim_is_triangle(s, prim) || prim >= s.tri_count) return false;
+  for (uint32_t k = 0; k < s.window_plane_count; ++k)
+    if (s.window_planes[k].holds(sh.p, sh.ng, sh.material, s.window_tol)) return true;
+  return false;
+}
+TRACER_HD inline bool path_behind_window(const PathState& st) {
+  return st.depth == 2 && (st.flags & (kPathLightTraced | kPathPrevSpecular)) ==
+                              (kPathLightTraced | kPathPrevSpecular);
+}
+
 // Shades the hit of st.ray. Adds emission to st.radiance, may fill `shadow`, and returns whether
 // the path continues, in which case st.ray is the next segment. Forced inline: nvcc outlines it
 // in the specular kernels once the material switch is large, and the call then passes the scene,
@@ -1026,7 +1043,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       if ((F & kFeatureSpecular) && cfg.light_tracing && sh.light != kInvalid &&
           (st.flags & (kPathLightTraced | kPathPrevSpecular)) ==
               (kPathLightTraced | kPathPrevSpecular) &&
-          light_select_pdf(s, sh.light) > 0.0f) {
+          !path_behind_window(st) && light_select_pdf(s, sh.light) > 0.0f) {
         w = 0.0f;  // the light tracer's: an area light it emits from, after delta events
       } else if ((F & kFeatureCaustics) && cfg.mnee && mnee && sh.light != kInvalid &&
           (mnee_bits == (kPathMneeFrom | kPathMneeRefract2) ||
@@ -1119,8 +1136,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     // (Not where the light tracer owns these paths: a camera vertex, or kPathLightTraced.)
     const bool light_traced =
         (F & kFeatureSpecular) && cfg.light_tracing &&
-        (st.depth == 1 ? !diffuse_exit && light_trace_connects(m, type)
-                       : (st.flags & kPathLightTraced) != 0);
+        (st.depth == 1 || path_behind_window(st) ? !diffuse_exit && light_trace_connects(m, type)
+                                                 : (st.flags & kPathLightTraced) != 0);
     if ((F & kFeatureCaustics) && cfg.mnee && mnee && ls.valid && !ls.infinite && !ls.delta &&
         !is_black(ls.emitted) && st.depth + 2 <= cfg.max_depth && !light_traced) {
       mnee->connect = true;
@@ -1206,9 +1223,15 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     }
   }
   if ((F & kFeatureSpecular) && cfg.light_tracing) {  // the light tracer's paths
-    if (st.depth == 1 && !bs.specular && !diffuse_exit && light_trace_connects(m, type))
+    // The camera's vertex: the first, or the second where the camera ray refracted through a
+    // window (light_path.h joins the camera through it); at the first, such a refraction.
+    const bool camera_vertex = st.depth == 1 || path_behind_window(st);
+    if (camera_vertex && !bs.specular && !diffuse_exit && light_trace_connects(m, type))
       st.flags |= kPathLightTraced;
-    else if (st.depth == 1 || type == MaterialType::kSubsurface)
+    else if (st.depth == 1 && bs.specular && type == MaterialType::kDielectric &&
+             side * glm::dot(wo_world, sh.ng) < 0.0f && on_window(s, hit.prim, sh))
+      st.flags |= kPathLightTraced;
+    else if (camera_vertex || type == MaterialType::kSubsurface)
       st.flags &= ~kPathLightTraced;  // (the light tracer stops at subsurface materials)
   }
   if ((F & kFeatureCaustics) && cfg.mnee) {  // manifold NEE's partition (kPathMneeFrom)

@@ -3,8 +3,10 @@
 // tree and the scene's feature flags.
 #include "scene/compiled_scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <unordered_map>
 
 #include "materials/bsdf.h"
 
@@ -94,6 +96,74 @@ std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>
     }
   }
   return planes;
+}
+
+
+// The window planes (scene_view.h, WindowPlane): triangles of smooth glass, flat shaded, grouped
+// by plane and material (normals within 1e-5, offsets within tol), the kMaxWindowPlanes of the
+// largest area (a tank's front; not the few flat triangles of a water surface's calm patches).
+// Triangles meet their plane through a hash of its quantised normal and offset; a plane split
+// between two cells merges when the largest are kept, so no plane is listed twice (light tracing
+// would count its paths twice).
+std::vector<WindowPlane> window_planes_of(const std::vector<TriangleVerts>& verts,
+                                          const std::vector<TriangleShading>& shading,
+                                          const std::vector<Material>& materials,
+                                          uint32_t tri_count, float tol) {
+  struct Candidate {
+    WindowPlane plane;
+    float area;
+  };
+  std::vector<Candidate> candidates;
+  std::unordered_map<uint64_t, size_t> cell;
+  const float step = glm::max(100.0f * tol, 1e-30f);
+  for (uint32_t i = 0; i < tri_count; ++i) {
+    const TriangleShading& ts = shading[i];
+    const Material& m = materials[ts.material];
+    if (!mnee_glass(m)) continue;
+    const TriangleVerts& t = verts[i];
+    const vec3 c = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
+    const float len = glm::length(c);
+    if (!(len > 0.0f)) continue;
+    const vec3 n = c / len;
+    bool flat = true;  // no normals, or its own
+    if (ts.has_normals)
+      for (const vec3 v : {ts.n0, ts.n1, ts.n2})
+        flat = flat && (glm::dot(v, v) == 0.0f ||
+                        glm::abs(glm::dot(glm::normalize(v), n)) >= 1.0f - 1e-5f);
+    if (!flat) continue;
+    uint64_t key = ts.material;
+    for (const float q : {n.x * 1e3f, n.y * 1e3f, n.z * 1e3f, glm::dot(n, t.v0) / step})
+      key = key * 1000003u + uint64_t(int64_t(glm::floor(q)));
+    auto it = cell.find(key);
+    if (it == cell.end()) {
+      it = cell.emplace(key, candidates.size()).first;
+      candidates.push_back({{t.v0, m.ior, n, ts.material, t.v0, t.v0}, 0.0f});
+    }
+    Candidate& cd = candidates[it->second];
+    cd.area += 0.5f * len;
+    for (const vec3 v : {t.v0, t.v1, t.v2}) {
+      cd.plane.lo = glm::min(cd.plane.lo, v);
+      cd.plane.hi = glm::max(cd.plane.hi, v);
+    }
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& x, const Candidate& y) { return x.area > y.area; });
+  std::vector<WindowPlane> kept;
+  for (const Candidate& cd : candidates) {
+    const WindowPlane& q = cd.plane;
+    WindowPlane* same = nullptr;
+    for (WindowPlane& k : kept)
+      if (k.material == q.material && glm::dot(k.n, q.n) > 1.0f - 1e-5f &&
+          glm::abs(glm::dot(q.a - k.a, k.n)) <= tol)
+        same = &k;
+    if (same) {
+      same->lo = glm::min(same->lo, q.lo);
+      same->hi = glm::max(same->hi, q.hi);
+    } else if (kept.size() < kMaxWindowPlanes) {
+      kept.push_back(q);
+    }
+  }
+  return kept;
 }
 
 }  // namespace
@@ -457,6 +527,18 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
       reflector_planes_of(tri_verts_, tri_shading_, materials_, tri_count, &too_many_reflectors_);
   view_.reflector_planes = reflector_planes_.empty() ? nullptr : reflector_planes_.data();
   view_.reflector_plane_count = uint32_t(reflector_planes_.size());
+  {
+    Aabb all;
+    for (uint32_t i = 0; i < tri_count; ++i) {
+      all.grow(tri_verts_[i].v0);
+      all.grow(tri_verts_[i].v1);
+      all.grow(tri_verts_[i].v2);
+    }
+    view_.window_tol = tri_count ? 1e-5f * glm::length(all.hi - all.lo) : 0.0f;
+  }
+  window_planes_ = window_planes_of(tri_verts_, tri_shading_, materials_, tri_count, view_.window_tol);
+  view_.window_planes = window_planes_.empty() ? nullptr : window_planes_.data();
+  view_.window_plane_count = uint32_t(window_planes_.size());
   view_.texture_count = uint32_t(textures_.size());
   view_.node_count = uint32_t(bvh_->nodes.size());
   view_.tri_count = tri_count;

@@ -69,6 +69,9 @@ class CompiledScene {
   // True when the scene's flat reflectors lie in more than kMaxReflectorPlanes planes (none
   // listed).
   bool too_many_reflector_planes() const { return too_many_reflectors_; }
+  // The window planes of smooth glass (view().window_planes points at them; none where there
+  // are more than kMaxWindowPlanes).
+  const std::vector<WindowPlane>& window_planes() const { return window_planes_; }
 
  private:
   // Shared with the compiled scenes of later edits that keep the geometry.
@@ -97,6 +100,7 @@ class CompiledScene {
   std::vector<PointLight> point_lights_;
   std::vector<ReflectorPlane> reflector_planes_;
   bool too_many_reflectors_ = false;
+  std::vector<WindowPlane> window_planes_;
   SceneView view_;
 };
 

@@ -73,6 +73,30 @@ struct ReflectorPlane {
 // facets) lists none, since every vertex would try each.
 constexpr uint32_t kMaxReflectorPlanes = 16;
 
+// A plane of flat faces of smooth glass of one material (a window: the front of a water tank),
+// through which light tracing joins a vertex behind it to the camera by the one refraction
+// there (integrator/light_path.h), and whose camera rays' transmissions give the light tracer
+// the path's next vertex (shade_path).
+struct WindowPlane {
+  vec3 a;  // a point on it
+  float eta;
+  vec3 n;  // its unit normal (the glass's outside)
+  uint32_t material;
+  vec3 lo, hi;  // the bounds of its triangles
+  TRACER_HD bool bounds_hold(vec3 p, float margin) const {
+    return !glm::any(glm::lessThan(p, lo - margin)) && !glm::any(glm::greaterThan(p, hi + margin));
+  }
+  // Whether a hit (point p, unit geometric normal ng, material m) lies on one of its triangles'
+  // plane (tol: the offset allowed).
+  TRACER_HD bool holds(vec3 p, vec3 ng, uint32_t m, float tol) const {
+    return m == material && glm::dot(ng, n) >= 1.0f - 1e-5f && glm::abs(glm::dot(p - a, n)) <= tol &&
+           bounds_hold(p, tol);
+  }
+};
+// At most this many are listed, the largest (a box of water is six; light tracing solves a
+// refraction through each at every vertex that connects).
+constexpr uint32_t kMaxWindowPlanes = 8;
+
 // The whole scene as the integrator reads it: the geometry that ray queries read (TraceView) and
 // the shading data, materials, lights, textures and camera.
 struct SceneView : TraceView {
@@ -100,6 +124,11 @@ struct SceneView : TraceView {
   // The planes of flat smooth reflectors (reflector_plane_count <= kMaxReflectorPlanes).
   const ReflectorPlane* reflector_planes = nullptr;
   uint32_t reflector_plane_count = 0;
+  // The window planes of smooth glass (window_plane_count <= kMaxWindowPlanes) and the offset
+  // within which a point lies on one.
+  const WindowPlane* window_planes = nullptr;
+  uint32_t window_plane_count = 0;
+  float window_tol = 0.0f;
   uint32_t texture_count = 0;
   uint32_t material_count = 0, light_count = 0, finite_light_count = 0;
   uint32_t features = 0;
