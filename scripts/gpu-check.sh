@@ -251,7 +251,10 @@ if [ "$MODE" = guiding ] || [ "$MODE" = caustics ] || [ "$MODE" = light ]; then
   # the technique (caustics, light: also with guiding beside it) on the caustic scenes (the lamp behind glass, glass
   # and mirror spheres, rough materials, Bitterli's water caustic: copy it to
   # .devbuild/bitterli/water-caustic and carry it) and the diffuse Cornell box; then the
-  # same-time pictures. Carry $DIST (and the Bitterli folder).
+  # same-time pictures. Carry $DIST (and the Bitterli folder). BENCH_ARGS go to bench (e.g.
+  # "--width 512 --height 512 --set render.light_tracing=on": the reference, and every
+  # configuration without light_tracing=off, light-traced: the water caustic's plain reference
+  # never converges).
   if [ "$MODE" = guiding ]; then
     FLAG=--guiding; DEFAULT_CONFIGS=wavefront,wavefront+guiding=on
   elif [ "$MODE" = caustics ]; then
@@ -269,7 +272,7 @@ if [ "$MODE" = guiding ] || [ "$MODE" = caustics ] || [ "$MODE" = light ]; then
     name=$(basename "$(dirname "$path")"); [ "$name" = scenes ] && name=$sc
     echo "==== bench --error $name"
     $DIST/pathtracer bench "$path" --error --backend cuda --reference-spp ${REF_SPP:-16384} \
-      --configs ${CONFIGS:-$DEFAULT_CONFIGS} --time-limit $T --out $D/$name 2>&1 |
+      --configs ${CONFIGS:-$DEFAULT_CONFIGS} --time-limit $T --out $D/$name ${BENCH_ARGS:-} 2>&1 |
       grep -vE "^\s*$" | tail -10
     for g in off on; do
       $DIST/pathtracer render "$path" --backend cuda $FLAG $g --time ${PIC_TIME:-2} \

@@ -38,6 +38,10 @@ enum SceneFeature : uint32_t {
   // integrator/path.h), compiled into the CPU's code and the wavefront's caustic shade kernels
   // only (kSpecCaustics); live where IntegratorSettings::mnee is set.
   kFeatureCaustics = 1u << 15,
+  // Not a scene feature: light tracing's camera connections through windows (SceneView::
+  // window_planes, integrator/light_path.h), compiled into the CPU's code and the light
+  // kernel's variants for scenes that list windows only (their code slows the others' kernel).
+  kFeatureWindows = 1u << 16,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;

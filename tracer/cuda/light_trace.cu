@@ -8,14 +8,15 @@
 namespace tracer {
 namespace {
 
-template <uint32_t Spec, bool Flat>
+template <uint32_t Spec, bool Flat, bool Windows>
 __global__ void __launch_bounds__(kBlock) light_kernel(SceneView view,
                                                        const __grid_constant__ FlatParams flat,
                                                        IntegratorSettings cfg, uint32_t sample,
                                                        FilmView film, float norm,
                                                        unsigned long long* counters,
                                                        uint32_t* next_path) {
-  constexpr uint32_t F = features_of<Spec>() | (Flat ? kFeatureFlatList : 0u);
+  constexpr uint32_t F = features_of<Spec>() | (Flat ? kFeatureFlatList : 0u) |
+                         (Windows ? kFeatureWindows : 0u);
   const SceneView s = Flat ? with_flat_params(view, flat) : view;
   // Added as the camera paths' radiance is (clamped, counted), never as the first to the film.
   auto splat = [&](uint32_t pixel, vec3 v) {
@@ -52,12 +53,12 @@ __global__ void __launch_bounds__(kBlock) light_kernel(SceneView view,
   warp_add(&counters[kCounterShadow], connections);
 }
 
-template <uint32_t Spec, bool Flat>
+template <uint32_t Spec, bool Flat, bool Windows = false>
 void launch(const SceneView& s, const FlatParams& flat, const IntegratorSettings& cfg,
             uint32_t sample, const FilmView& film, float norm, unsigned long long* counters,
             uint32_t* next_path, cudaStream_t stream) {
-  light_kernel<Spec, Flat>
-      <<<persistent_blocks(light_kernel<Spec, Flat>, film.n), kBlock, 0, stream>>>(
+  light_kernel<Spec, Flat, Windows>
+      <<<persistent_blocks(light_kernel<Spec, Flat, Windows>, film.n), kBlock, 0, stream>>>(
           s, flat, cfg, sample, film, norm, counters, next_path);
 }
 
@@ -71,7 +72,15 @@ void launch_light_trace(uint32_t spec, const SceneView& s, const FlatParams& fla
   // Light paths need delta materials (specular); the general variants carry the lens, the
   // lights beyond emitters and instances (whose scenes have no flat list).
 #define CALL(S, FLAT) launch<S, FLAT>(s, flat, cfg, sample, film, norm, counters, next_path, stream)
-  if (spec & kSpecInstances) CALL(kInstancesSpec, false);
+#define CALLW(S, FLAT) \
+  launch<S, FLAT, true>(s, flat, cfg, sample, film, norm, counters, next_path, stream)
+  // Scenes with windows (the path tracer leaves the paths behind them to this kernel): the
+  // general variants with the window connections.
+  if (s.window_plane_count > 0) {
+    if (spec & kSpecInstances) CALLW(kInstancesSpec, false);
+    else if (s.use_flat) CALLW(kGeneralSpec, true);
+    else CALLW(kGeneralSpec, false);
+  } else if (spec & kSpecInstances) CALL(kInstancesSpec, false);
   else if (s.use_flat) {
     if (spec & (kSpecLights | kSpecDepthOfField)) CALL(kGeneralSpec, true);
     else if (spec & kSpecSpheres) CALL(kSpecSpecular | kSpecSpheres, true);
@@ -82,6 +91,7 @@ void launch_light_trace(uint32_t spec, const SceneView& s, const FlatParams& fla
     else CALL(kSpecSpecular, false);
   }
 #undef CALL
+#undef CALLW
   TRACER_CUDA_CHECK_LAUNCH("light_kernel");
 }
 

@@ -167,6 +167,11 @@ TRACER_HD inline bool window_path(const SceneView& s, const WindowPlane& w, vec3
                                   vec3 ng, uint32_t* rays, WindowPath* out) {
   const float hx = glm::dot(x - w.a, w.n), hl = glm::dot(lens - w.a, w.n);
   if (!(hx * hl < 0.0f)) return false;  // on the two sides of its plane
+  // The refraction point lies between the feet of x and the lens on the plane (both angles on one
+  // side of the normal): no solve where that segment's box misses the window's triangles'.
+  const vec3 fx = x - hx * w.n, fl = lens - hl * w.n;
+  const vec3 lo = glm::min(fx, fl) - s.window_tol, hi = glm::max(fx, fl) + s.window_tol;
+  if (glm::any(glm::lessThan(hi, w.lo)) || glm::any(glm::greaterThan(lo, w.hi))) return false;
   ManifoldChain ch;
   ch.k = 1;
   ch.surface[0].kind = SpecularSurface::kPlane;
@@ -277,7 +282,9 @@ TRACER_HD inline bool light_path_vertex(const SceneView& s, const IntegratorSett
     }
     // Through each window (one refraction, one more segment; the path tracer leaves these paths
     // to the light tracer where its camera ray crossed a window to such a vertex, shade_path).
-    for (uint32_t k = 0; st.segments + 2 <= cfg.max_depth && k < s.window_plane_count; ++k) {
+    for (uint32_t k = 0; (F & kFeatureWindows) && st.segments + 2 <= cfg.max_depth &&
+                         k < s.window_plane_count;
+         ++k) {
       WindowPath wp;
       if (!window_path<F>(s, s.window_planes[k], lens, sh.p, sh.ng, &c->window_rays, &wp))
         continue;

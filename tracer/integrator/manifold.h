@@ -337,7 +337,7 @@ TRACER_HD inline float manifold_norm(const float* c, uint32_t n) {
 template <class Chain>
 TRACER_HD inline bool manifold_walk(Chain& ch, vec3 x, vec3 y) {
   const uint32_t n = 2 * ch.k;
-  float c[2 * kManifoldMaxChain];
+  float c[2 * kManifoldMaxChain] = {};
   if (n == 0 || !manifold_constraints(ch, x, y, c)) return false;
   float norm = manifold_norm(c, n);
   for (uint32_t it = 0; it < kManifoldIterations && norm > kManifoldTolerance; ++it) {

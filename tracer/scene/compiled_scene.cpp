@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
+#include "bvh/traverse.h"
 #include "materials/bsdf.h"
 
 namespace tracer {
@@ -100,27 +101,28 @@ std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>
 
 
 // The window planes (scene_view.h, WindowPlane): triangles of smooth glass, flat shaded, grouped
-// by plane and material (normals within 1e-5, offsets within tol), the kMaxWindowPlanes of the
-// largest area (a tank's front; not the few flat triangles of a water surface's calm patches).
-// Triangles meet their plane through a hash of its quantised normal and offset; a plane split
-// between two cells merges when the largest are kept, so no plane is listed twice (light tracing
-// would count its paths twice).
-std::vector<WindowPlane> window_planes_of(const std::vector<TriangleVerts>& verts,
-                                          const std::vector<TriangleShading>& shading,
-                                          const std::vector<Material>& materials,
-                                          uint32_t tri_count, float tol) {
+// by plane and material (normals within 1e-5, offsets within tol), through which something
+// other than that glass is seen (a ray into the glass from one of the plane's first triangles
+// meets another surface first: a tank's front, not a glass slab's faces, whose paths behind
+// them are all inside the glass), the kMaxWindowPlanes of the largest area (a tank's front; not
+// the few flat triangles of a water surface's calm patches). Triangles meet their plane through
+// a hash of its quantised normal and offset; a plane split between two cells merges when the
+// largest are kept, so no plane is listed twice (light tracing would count its paths twice).
+std::vector<WindowPlane> window_planes_of(const SceneView& s, uint32_t tri_count) {
   struct Candidate {
     WindowPlane plane;
     float area;
+    bool open;
   };
+  const float tol = s.window_tol;
   std::vector<Candidate> candidates;
   std::unordered_map<uint64_t, size_t> cell;
   const float step = glm::max(100.0f * tol, 1e-30f);
   for (uint32_t i = 0; i < tri_count; ++i) {
-    const TriangleShading& ts = shading[i];
-    const Material& m = materials[ts.material];
+    const TriangleShading& ts = s.tri_shading[i];
+    const Material& m = s.materials[ts.material];
     if (!mnee_glass(m)) continue;
-    const TriangleVerts& t = verts[i];
+    const TriangleVerts& t = s.tri_verts[i];
     const vec3 c = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
     const float len = glm::length(c);
     if (!(len > 0.0f)) continue;
@@ -137,9 +139,33 @@ std::vector<WindowPlane> window_planes_of(const std::vector<TriangleVerts>& vert
     auto it = cell.find(key);
     if (it == cell.end()) {
       it = cell.emplace(key, candidates.size()).first;
-      candidates.push_back({{t.v0, m.ior, n, ts.material, t.v0, t.v0}, 0.0f});
+      candidates.push_back({{t.v0, m.ior, n, ts.material, t.v0, t.v0}, 0.0f, false});
     }
     Candidate& cd = candidates[it->second];
+    // Open: from the triangle's centre into the glass, five rays (along the normal and tilted
+    // 45 degrees four ways; the first triangles of the plane, until one sees out).
+    if (!cd.open && cd.area < 64.0f * 0.5f * len) {
+      const vec3 centre = (t.v0 + t.v1 + t.v2) / 3.0f;
+      const Frame f = Frame::from_normal(-n);
+      for (int d = 0; d < 5 && !cd.open; ++d) {
+        const vec3 dir = d == 0 ? -n
+                                : glm::normalize(f.n + ((d & 1) ? 1.0f : -1.0f) *
+                                                           (d < 3 ? f.t : f.b));
+        Ray r;
+        r.o = offset_ray_origin(centre, -n);
+        r.d = dir;
+        r.tmax = kInfinity;
+        r.pad = 0.0f;
+        const Hit h = intersect_closest(static_cast<const TraceView&>(s), r, i);
+        if (!h.valid()) continue;
+        const uint32_t hm = h.prim < s.tri_count
+                                ? s.tri_shading[h.prim].material
+                                : (h.prim - s.tri_count < s.sphere_count
+                                       ? s.spheres[h.prim - s.tri_count].material
+                                       : kInvalid);
+        cd.open = hm != ts.material;
+      }
+    }
     cd.area += 0.5f * len;
     for (const vec3 v : {t.v0, t.v1, t.v2}) {
       cd.plane.lo = glm::min(cd.plane.lo, v);
@@ -159,7 +185,7 @@ std::vector<WindowPlane> window_planes_of(const std::vector<TriangleVerts>& vert
     if (same) {
       same->lo = glm::min(same->lo, q.lo);
       same->hi = glm::max(same->hi, q.hi);
-    } else if (kept.size() < kMaxWindowPlanes) {
+    } else if (cd.open && kept.size() < kMaxWindowPlanes) {
       kept.push_back(q);
     }
   }
@@ -527,18 +553,6 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
       reflector_planes_of(tri_verts_, tri_shading_, materials_, tri_count, &too_many_reflectors_);
   view_.reflector_planes = reflector_planes_.empty() ? nullptr : reflector_planes_.data();
   view_.reflector_plane_count = uint32_t(reflector_planes_.size());
-  {
-    Aabb all;
-    for (uint32_t i = 0; i < tri_count; ++i) {
-      all.grow(tri_verts_[i].v0);
-      all.grow(tri_verts_[i].v1);
-      all.grow(tri_verts_[i].v2);
-    }
-    view_.window_tol = tri_count ? 1e-5f * glm::length(all.hi - all.lo) : 0.0f;
-  }
-  window_planes_ = window_planes_of(tri_verts_, tri_shading_, materials_, tri_count, view_.window_tol);
-  view_.window_planes = window_planes_.empty() ? nullptr : window_planes_.data();
-  view_.window_plane_count = uint32_t(window_planes_.size());
   view_.texture_count = uint32_t(textures_.size());
   view_.node_count = uint32_t(bvh_->nodes.size());
   view_.tri_count = tri_count;
@@ -581,6 +595,19 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
     view_.flat_solids = flat_.solids.data();
     view_.flat_solid_count = uint32_t(flat_.solids.size());
   }
+  // Light tracing's windows, once rays can be traced.
+  {
+    Aabb all;
+    for (uint32_t i = 0; i < tri_count; ++i) {
+      all.grow(tri_verts_[i].v0);
+      all.grow(tri_verts_[i].v1);
+      all.grow(tri_verts_[i].v2);
+    }
+    view_.window_tol = tri_count ? 1e-5f * glm::length(all.hi - all.lo) : 0.0f;
+  }
+  window_planes_ = window_planes_of(view_, tri_count);
+  view_.window_planes = window_planes_.empty() ? nullptr : window_planes_.data();
+  view_.window_plane_count = uint32_t(window_planes_.size());
 }
 
 }  // namespace tracer
