@@ -354,7 +354,7 @@ TRACER_HD inline SmoothSurface mnee_triangle_surface(const SceneView& s, uint32_
 //   where the straight segment's first hit from o is a glass triangle and the ray refracted there
 //   does not meet that glass again (it leaves the glass, or is totally reflected), Newton's
 //   method on the mesh: each step solved on the current triangle (its interpolated normals,
-//   SpecularSurface::kSmooth) and put back on the mesh by a ray from o (Hanika et al.'s
+//   SmoothSurface) and put back on the mesh by a ray from o (Hanika et al.'s
 //   re-projection), which may land on another triangle of that glass (a wavy water surface of
 //   many small triangles), halved while it does not lower |C|;
 // - through each glass sphere of the first kMneeMaxSpheres (3): every chain in the plane of o, y
