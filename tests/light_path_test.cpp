@@ -332,6 +332,18 @@ TEST(LightPath, TankSeenThroughItsFrontKeepsItsMean) {
   expect_light_tracing_keeps_the_mean("tank.json", 32, 1024, 256, 0.5);
 }
 
+// The tank through a thin lens and a tent filter of radius 1.5: each connection through the
+// window solved from its own lens point, splatted over several pixels.
+TEST(LightPath, TankThroughALensKeepsItsMean) {
+  expect_light_tracing_keeps_the_mean(
+      "tank.json", 24, 1024, 256, 0.6, [](Scene& scene, RenderSettings& rs) {
+        scene.camera.aperture_radius = 20.0f;
+        scene.camera.focus_distance = 1000.0f;
+        rs.filter = PixelFilter::kTent;
+        rs.filter_radius = 1.5f;
+      });
+}
+
 // byte.
 TEST(LightPath, ScenesWithAndWithoutLightPaths) {
   auto yield = [](const std::string& name) {
