@@ -41,25 +41,28 @@ std::string describe_features(uint32_t f) {
 
 namespace {
 
+// Whether a triangle (unit geometric normal n) is flat shaded: no vertex normals, or each zero
+// (make_surface_hit then shades by n) or within 1e-5 of n.
+bool flat_shaded(const TriangleShading& ts, vec3 n) {
+  if (!ts.has_normals) return true;
+  for (const vec3 v : {ts.n0, ts.n1, ts.n2})
+    if (glm::dot(v, v) != 0.0f && glm::abs(glm::dot(glm::normalize(v), n)) < 1.0f - 1e-5f)
+      return false;
+  return true;
+}
+
 // The planes of the scene's flat smooth reflectors (scene_view.h, ReflectorPlane): triangles of
 // smooth glass or of a smooth reflector, flat shaded, grouped by plane (normals within 1e-5 of
-// each other, offsets within 1e-5 of the scene's size: one plane is one entry, or a chain
+// each other, offsets within tol, 1e-5 of the scene's size: one plane is one entry, or a chain
 // through it would be found twice). None when there are more than kMaxReflectorPlanes.
 std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>& verts,
                                                 const std::vector<TriangleShading>& shading,
                                                 const std::vector<Material>& materials,
-                                                uint32_t tri_count, bool* too_many) {
+                                                uint32_t tri_count, float tol, bool* too_many) {
   *too_many = false;
   bool any = false;  // (no pass over the triangles where no material reflects)
   for (const Material& m : materials) any = any || mnee_flat_reflector(m);
   if (!any) return {};
-  Aabb scene;
-  for (uint32_t i = 0; i < tri_count; ++i) {
-    scene.grow(verts[i].v0);
-    scene.grow(verts[i].v1);
-    scene.grow(verts[i].v2);
-  }
-  const float tol = 1e-5f * glm::length(scene.hi - scene.lo);
   std::vector<ReflectorPlane> planes;
   for (uint32_t i = 0; i < tri_count; ++i) {
     const Material& m = materials[shading[i].material];
@@ -69,13 +72,7 @@ std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>
     const float len = glm::length(c);
     if (!(len > 0.0f)) continue;
     const vec3 n = c / len;
-    const TriangleShading& ts = shading[i];
-    if (ts.has_normals) {  // interpolated normals: flat only where they are the face's
-      bool flat = true;
-      for (const vec3 v : {ts.n0, ts.n1, ts.n2})
-        flat = flat && glm::abs(glm::dot(glm::normalize(v), n)) >= 1.0f - 1e-5f;
-      if (!flat) continue;
-    }
+    if (!flat_shaded(shading[i], n)) continue;
     auto same = [&](const ReflectorPlane& p) {
       return glm::dot(p.n, n) > 1.0f - 1e-5f && glm::abs(glm::dot(t.v0 - p.a, p.n)) <= tol &&
              glm::abs(glm::dot(t.v1 - p.a, p.n)) <= tol && glm::abs(glm::dot(t.v2 - p.a, p.n)) <= tol;
@@ -127,12 +124,7 @@ std::vector<WindowPlane> window_planes_of(const SceneView& s, uint32_t tri_count
     const float len = glm::length(c);
     if (!(len > 0.0f)) continue;
     const vec3 n = c / len;
-    bool flat = true;  // no normals, or its own
-    if (ts.has_normals)
-      for (const vec3 v : {ts.n0, ts.n1, ts.n2})
-        flat = flat && (glm::dot(v, v) == 0.0f ||
-                        glm::abs(glm::dot(glm::normalize(v), n)) >= 1.0f - 1e-5f);
-    if (!flat) continue;
+    if (!flat_shaded(ts, n)) continue;
     uint64_t key = ts.material;
     for (const float q : {n.x * 1e3f, n.y * 1e3f, n.z * 1e3f, glm::dot(n, t.v0) / step})
       key = key * 1000003u + uint64_t(int64_t(glm::floor(q)));
@@ -207,6 +199,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
   std::vector<Aabb> bounds;
   bounds.reserve(tri_count + scene.spheres.size());
   uint32_t features = 0;
+  Aabb tri_bounds;  // (its size gives the tolerance of the planes of reflectors and windows)
   for (uint32_t i = 0; i < tri_count; ++i) {
     const uvec3 idx = mesh.indices[i];
     TriangleVerts& tv = tri_verts_[i];
@@ -230,7 +223,9 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
     b.grow(tv.v1);
     b.grow(tv.v2);
     bounds.push_back(b);
+    tri_bounds.grow(b);
   }
+  const float plane_tol = tri_count ? 1e-5f * glm::length(tri_bounds.hi - tri_bounds.lo) : 0.0f;
   spheres_.reserve(scene.spheres.size());
   for (const auto& sd : scene.spheres) {
     Sphere s{};
@@ -550,7 +545,8 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
   view_.point_lights = point_lights_.empty() ? nullptr : point_lights_.data();
   view_.point_light_count = uint32_t(point_lights_.size());
   reflector_planes_ =
-      reflector_planes_of(tri_verts_, tri_shading_, materials_, tri_count, &too_many_reflectors_);
+      reflector_planes_of(tri_verts_, tri_shading_, materials_, tri_count, plane_tol,
+                          &too_many_reflectors_);
   view_.reflector_planes = reflector_planes_.empty() ? nullptr : reflector_planes_.data();
   view_.reflector_plane_count = uint32_t(reflector_planes_.size());
   view_.texture_count = uint32_t(textures_.size());
@@ -596,15 +592,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
     view_.flat_solid_count = uint32_t(flat_.solids.size());
   }
   // Light tracing's windows, once rays can be traced.
-  {
-    Aabb all;
-    for (uint32_t i = 0; i < tri_count; ++i) {
-      all.grow(tri_verts_[i].v0);
-      all.grow(tri_verts_[i].v1);
-      all.grow(tri_verts_[i].v2);
-    }
-    view_.window_tol = tri_count ? 1e-5f * glm::length(all.hi - all.lo) : 0.0f;
-  }
+  view_.window_tol = plane_tol;
   window_planes_ = window_planes_of(view_, tri_count);
   view_.window_planes = window_planes_.empty() ? nullptr : window_planes_.data();
   view_.window_plane_count = uint32_t(window_planes_.size());
