@@ -252,13 +252,14 @@ TEST(LightPath, GlassAndMirrorBallsKeepTheirMeanWithLessNoise) {
 
 // A thin lens and a wide tent filter: the connections land on the lens and are splatted over
 // four pixels, as the camera's samples are drawn.
+void thin_lens_and_tent(Scene& scene, RenderSettings& rs) {
+  scene.camera.aperture_radius = 20.0f;
+  rs.filter = PixelFilter::kTent;
+  rs.filter_radius = 1.5f;
+}
 TEST(LightPath, ThinLensAndTentFilterKeepTheMean) {
-  expect_light_tracing_keeps_the_mean(
-      "cornell_spheres.json", 24, 1024, 512, 1.0, [](Scene& scene, RenderSettings& rs) {
-        scene.camera.aperture_radius = 20.0f;
-        rs.filter = PixelFilter::kTent;
-        rs.filter_radius = 1.5f;
-      });
+  expect_light_tracing_keeps_the_mean("cornell_spheres.json", 24, 1024, 512, 1.0,
+                                      thin_lens_and_tent);
 }
 
 // smallpt: a sphere light (points by area over the whole sphere, light leaving outwards), a
@@ -314,11 +315,6 @@ TEST(LightPath, FrostedGlassKeepsItsMean) {
       });
 }
 
-// Which scenes light tracing finds paths worth tracing in (light_path_yield's pilot): the lamp
-// behind glass (66% of its light paths reach the camera), the glass and mirror balls (7%), glass
-// balls placed as instances (0.44%); none at all in the diffuse box or among rough metals and
-// frosted glass; too few in smallpt (its lamp mostly outside the room: none), where it would
-// lose. There the CPU traces no light paths and the image is the one without them, byte for
 // A water tank (tank.json: a box of water filling the room's lower part, its faces other than
 // the front and the top hidden behind the walls) seen through its flat front: the floor, the
 // walls and the short block in the water are lit through the water's top (light -> water ->
@@ -337,13 +333,16 @@ TEST(LightPath, TankSeenThroughItsFrontKeepsItsMean) {
 TEST(LightPath, TankThroughALensKeepsItsMean) {
   expect_light_tracing_keeps_the_mean(
       "tank.json", 24, 1024, 256, 0.6, [](Scene& scene, RenderSettings& rs) {
-        scene.camera.aperture_radius = 20.0f;
+        thin_lens_and_tent(scene, rs);
         scene.camera.focus_distance = 1000.0f;
-        rs.filter = PixelFilter::kTent;
-        rs.filter_radius = 1.5f;
       });
 }
 
+// Which scenes light tracing finds paths worth tracing in (light_path_yield's pilot): the lamp
+// behind glass (66% of its light paths reach the camera), the glass and mirror balls (7%), glass
+// balls placed as instances (0.44%); none at all in the diffuse box or among rough metals and
+// frosted glass; too few in smallpt (its lamp mostly outside the room: none), where it would
+// lose. There the CPU traces no light paths and the image is the one without them, byte for
 // byte.
 TEST(LightPath, ScenesWithAndWithoutLightPaths) {
   auto yield = [](const std::string& name) {
