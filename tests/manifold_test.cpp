@@ -783,6 +783,20 @@ TEST(Manifold, ScenesWithAndWithoutCasters) {
   EXPECT_FALSE(casters("rough_materials.json"));
 }
 
+// The one-refraction chain runs (and on the GPU is compiled in) only where a scene's glass sees
+// out: water over a floor, a tank's walls; not the lamp's closed slab, nor glass spheres.
+TEST(Manifold, OpenGlassOnlyWhereTheGlassSeesOut) {
+  const std::string dir = std::string(TRACER_SOURCE_DIR) + "/assets/scenes/";
+  auto open = [&](const std::string& name) {
+    return CompiledScene(load_scene(dir + name), 16, 16).view().open_glass != 0;
+  };
+  EXPECT_TRUE(open("pool.json"));
+  EXPECT_TRUE(open("tank.json"));
+  EXPECT_FALSE(open("glass_lamp.json"));
+  EXPECT_FALSE(open("cornell_spheres.json"));
+  EXPECT_FALSE(open("cornell_box.json"));
+}
+
 // With nothing to connect through (rough metals, frosted glass) the image with manifold NEE on is
 // the image without it, sample for sample, as info and the Render panel then say (the CPU skips
 // the requests, the GPU runs its usual kernels).

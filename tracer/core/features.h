@@ -42,6 +42,10 @@ enum SceneFeature : uint32_t {
   // window_planes, integrator/light_path.h), compiled into the CPU's code and the light
   // kernel's variants for scenes that list windows only (their code slows the others' kernel).
   kFeatureWindows = 1u << 16,
+  // Not a scene feature: manifold NEE's one-refraction chain (integrator/path.h), compiled into
+  // the CPU's code and the mnee kernel's variant for scenes with open glass only
+  // (SceneView::open_glass; its code slows the others' stage by 15-40%).
+  kFeatureSingleRefraction = 1u << 17,
 };
 
 constexpr uint32_t kAllFeatures = 0xffffffffu;

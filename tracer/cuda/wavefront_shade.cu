@@ -241,7 +241,7 @@ __global__ void __launch_bounds__(kBlock) shade_kernel(SceneView s, IntegratorSe
 // request's solver and traces the rays it asks for at one place (path.h, mnee_resolve). One
 // block per multiprocessor with up to 255 registers runs it faster than two with 128, where the
 // solver's state, which lives across the rays, would spill (PERFORMANCE.md rows 115, 122).
-template <uint32_t Spec>
+template <uint32_t Spec, bool Single>
 __global__ void __launch_bounds__(kBlock, 1)
     mnee_kernel(SceneView view, const __grid_constant__ FlatParams flat, IntegratorSettings cfg,
                 uint32_t sample, uint32_t bounce, WavefrontState w) {
@@ -250,7 +250,8 @@ __global__ void __launch_bounds__(kBlock, 1)
   const SceneView s = with_flat_params(view, flat);
   const uint32_t id = w.mnee_queue[k];
   const MneeRequest q = load_mnee_request(w, id);
-  const vec3 c = mnee_resolve<features_of<Spec>() | kFeatureFlatList>(s, cfg, q);
+  const vec3 c = mnee_resolve<features_of<Spec>() | kFeatureFlatList |
+                              (Single ? kFeatureSingleRefraction : 0u)>(s, cfg, q);
   if (is_black(c)) return;
   float4 r = w.radiance[id];  // (one request per path and bounce)
   r.x += c.x;
@@ -423,8 +424,18 @@ void launch_mnee(uint32_t spec, const SceneView& s, const FlatParams& flat,
                  const IntegratorSettings& cfg, uint32_t sample, uint32_t bounce,
                  const WavefrontState& w, cudaStream_t stream) {
 #define CALL(S) \
-  mnee_kernel<S><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, cfg, sample, bounce, w)
-  TRACER_CAUSTIC_SWITCH(spec, CALL)  // the caustic shade kernels' variants
+  mnee_kernel<S, false><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, cfg, sample, bounce, w)
+  // Scenes with open glass: the one-refraction chain's variants (triangles and specular
+  // materials alone, as the pool or a tank; else the general one); other scenes the caustic
+  // shade kernels' variants without it.
+  constexpr uint32_t kPlain = kSpecCaustics | kSpecGuiding | kSpecSpecular;
+  if (s.open_glass && spec == kPlain)
+    mnee_kernel<kPlain, true><<<blocks(w.n), kBlock, 0, stream>>>(s, flat, cfg, sample, bounce, w);
+  else if (s.open_glass)
+    mnee_kernel<kGuidedSpec | kSpecCaustics, true>
+        <<<blocks(w.n), kBlock, 0, stream>>>(s, flat, cfg, sample, bounce, w);
+  else
+    TRACER_CAUSTIC_SWITCH(spec, CALL)  // the caustic shade kernels' variants
 #undef CALL
   TRACER_CUDA_CHECK_LAUNCH("mnee_kernel");
 }

@@ -208,11 +208,8 @@ TRACER_HD inline bool window_path(const SceneView& s, const WindowPlane& w, vec3
   if (!(g > 0.0f)) return false;
   // The camera's ray through the window as shade_path weighs it (smooth dielectric: the
   // transmission's Fresnel, tint and 1 / eta^2 on the side it arrives from).
-  const Material& m = s.materials[w.material];
   const vec3 dc = -glm::normalize(dl);  // from the lens towards p
-  const float c = glm::dot(-dc, w.n);
-  const float eta = c > 0.0f ? w.eta : 1.0f / w.eta;
-  out->transmission = m.albedo * ((1.0f - material_fresnel(m, glm::abs(c), eta)) / (eta * eta));
+  out->transmission = smooth_transmission(s.materials[w.material], glm::dot(-dc, w.n));
   out->geometry = g;
   out->cos_cam = glm::dot(dc, cam.forward);
   return out->cos_cam > 0.0f;

@@ -404,13 +404,16 @@ struct MneeSolver {
 
   // The chain being checked (the one-refraction chain's or ch): its length, vertex i and the
   // normals there.
-  TRACER_HD uint32_t chain_k() const { return single ? 1u : ch.k; }
-  TRACER_HD vec3 vertex(uint32_t i) const { return single ? sch.p[0] : ch.p[i]; }
+  // (Without kFeatureSingleRefraction the one-refraction chain's code is not compiled.)
+  static constexpr bool kSingleChain = (F & kFeatureSingleRefraction) != 0;
+  TRACER_HD bool on_single() const { return kSingleChain && single; }
+  TRACER_HD uint32_t chain_k() const { return on_single() ? 1u : ch.k; }
+  TRACER_HD vec3 vertex(uint32_t i) const { return on_single() ? sch.p[0] : ch.p[i]; }
   TRACER_HD vec3 vertex_normal(uint32_t i) const {
-    return single ? sch.surface[0].normal(sch.p[0]) : ch.surface[i].normal(ch.p[i]);
+    return on_single() ? sch.surface[0].normal(sch.p[0]) : ch.surface[i].normal(ch.p[i]);
   }
   TRACER_HD vec3 vertex_move_normal(uint32_t i) const {
-    return single ? sch.surface[0].n : ch.surface[i].move_normal(ch.p[i]);
+    return on_single() ? sch.surface[0].n : ch.surface[i].move_normal(ch.p[i]);
   }
   // The check: the segment asked for, its origin, the throughput so far; a reflection's caster.
   uint32_t segment = 0, caster = kMneeNoCaster;
@@ -507,8 +510,8 @@ struct MneeSolver {
     const vec3 w1 = glm::normalize(vertex(0) - o);
     if (!(glm::dot(w1, q.ng_viewer) > 0.0f)) return;
     const vec3 wi = frame.to_local(w1);
-    const float g = single ? manifold_geometry(sch, o, q.ls.p, q.ls.n)
-                           : manifold_geometry(ch, o, q.ls.p, q.ls.n);
+    const float g = on_single() ? manifold_geometry(sch, o, q.ls.p, q.ls.n)
+                                : manifold_geometry(ch, o, q.ls.p, q.ls.n);
     if (g > 0.0f)
       sum += bsdf_eval<F>(q.m, q.wo, wi) * glm::abs(wi.z) * throughput * (g / area_pdf);
   }
@@ -643,7 +646,7 @@ struct MneeSolver {
                  h.material == material[segment] &&
                  !(glm::abs(glm::dot(h.ns, n)) < 1.0f - 1e-5f);
             // One refraction: o and y on the two sides of the triangle's plane.
-            if (single)
+            if (on_single())
               ok = ok && glm::dot(o - sch.p[0], sch.surface[0].n) *
                                  glm::dot(y - sch.p[0], sch.surface[0].n) < 0.0f;
             if (ok) {
@@ -651,12 +654,9 @@ struct MneeSolver {
               // the path arrives from o; after Beer-Lambert's attenuation where the segment ran
               // inside (the second vertex; o under water).
               const Material& mi = s.materials[material[segment]];
-              const float c = glm::dot(-ray.d, n);
-              const float eta = c > 0.0f ? mi.ior : 1.0f / mi.ior;
               if ((segment > 0 || glm::dot(ray.d, h.ng) > 0.0f) && !is_black(mi.absorption))
                 throughput *= glm::exp(-mi.absorption * glm::length(vertex(segment) - from));
-              throughput *=
-                  mi.albedo * ((1.0f - material_fresnel(mi, glm::abs(c), eta)) / (eta * eta));
+              throughput *= smooth_transmission(mi, glm::dot(-ray.d, n));
               from = spawn_ray(h.p, h.ng, ray.d).o;
             }
           }
@@ -686,7 +686,7 @@ struct MneeSolver {
           continue;
         case kSingle: {  // the one-refraction chain from its seed
           phase = kCasters;
-          if (single_prim == kInvalid || segments < 2 ||
+          if (!kSingleChain || !s.open_glass || single_prim == kInvalid || segments < 2 ||
               (only != kMneeEveryCaster && only != kMneeOneRefraction))
             continue;
           material[0] = s.tri_shading[single_prim].material;
@@ -704,6 +704,7 @@ struct MneeSolver {
         }
         case kSingleStep: {  // a Newton step on the current triangle, or the end of the walk
           phase = kCasters;
+          if (!kSingleChain) continue;
           if (single_norm <= kManifoldTolerance || single_it >= kManifoldIterations) {
             if (single_norm <= kManifoldAccept && start_check(out)) return true;
             continue;
@@ -718,6 +719,10 @@ struct MneeSolver {
           return true;
         }
         case kSingleProject: {  // the step's point put back on the mesh by the ray from o
+          if (!kSingleChain) {
+            phase = kCasters;
+            continue;
+          }
           bool improved = false;
           if (h.valid && h.material == material[0] && h.prim < s.tri_count) {
             SmoothChain next = sch;

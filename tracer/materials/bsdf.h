@@ -69,6 +69,15 @@ TRACER_HD TRACER_INLINE float material_fresnel(const Material& m, float cos_i, f
                                              : fresnel_dielectric(cos_i, eta);
 }
 
+// What a smooth dielectric's refraction carries, as its BSDF samples it (the tint, 1 - F and
+// 1 / eta^2 on the side the ray arrives from), for a ray whose cosine with the outward normal is
+// c_out (positive: from outside). Manifold NEE's checks and light tracing's windows weigh the
+// refractions they find by it, so that they and the path tracer split paths on equal terms.
+TRACER_HD TRACER_INLINE vec3 smooth_transmission(const Material& m, float c_out) {
+  const float eta = c_out > 0.0f ? m.ior : 1.0f / m.ior;
+  return m.albedo * ((1.0f - material_fresnel(m, glm::abs(c_out), eta)) / (eta * eta));
+}
+
 // Schlick's approximation with an RGB reflectance at normal incidence, F0 + (1 - F0)(1 - cos)^5:
 // the glTF metallic model's Fresnel term for conductors (Schlick 1994).
 TRACER_HD TRACER_INLINE vec3 fresnel_schlick_f0(vec3 f0, float cos_i) {

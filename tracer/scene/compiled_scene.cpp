@@ -97,6 +97,48 @@ std::vector<ReflectorPlane> reflector_planes_of(const std::vector<TriangleVerts>
 }
 
 
+// Whether glass triangle i sees something other than its own glass: from its centre into the
+// glass, five rays (along the normal and tilted 45 degrees four ways).
+bool glass_sees_out(const SceneView& s, uint32_t i) {
+  const TriangleVerts& t = s.tri_verts[i];
+  const vec3 c = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
+  const float len = glm::length(c);
+  if (!(len > 0.0f)) return false;
+  const vec3 n = c / len, centre = (t.v0 + t.v1 + t.v2) / 3.0f;
+  const uint32_t material = s.tri_shading[i].material;
+  const Frame f = Frame::from_normal(-n);
+  for (int d = 0; d < 5; ++d) {
+    const vec3 dir =
+        d == 0 ? -n : glm::normalize(f.n + ((d & 1) ? 1.0f : -1.0f) * (d < 3 ? f.t : f.b));
+    Ray r;
+    r.o = offset_ray_origin(centre, -n);
+    r.d = dir;
+    r.tmax = kInfinity;
+    r.pad = 0.0f;
+    const Hit h = intersect_closest(static_cast<const TraceView&>(s), r, i);
+    if (!h.valid()) continue;
+    const uint32_t hm = h.prim < s.tri_count
+                            ? s.tri_shading[h.prim].material
+                            : (h.prim - s.tri_count < s.sphere_count
+                                   ? s.spheres[h.prim - s.tri_count].material
+                                   : kInvalid);
+    if (hm != material) return true;
+  }
+  return false;
+}
+
+// Whether any of 256 triangles of smooth glass, spread evenly over them, sees out
+// (glass_sees_out).
+bool open_glass_of(const SceneView& s, uint32_t tri_count) {
+  std::vector<uint32_t> glass;
+  for (uint32_t i = 0; i < tri_count; ++i)
+    if (mnee_glass(s.materials[s.tri_shading[i].material])) glass.push_back(i);
+  const size_t tries = std::min<size_t>(glass.size(), 256);
+  for (size_t j = 0; j < tries; ++j)
+    if (glass_sees_out(s, glass[j * glass.size() / tries])) return true;
+  return false;
+}
+
 // The window planes (scene_view.h, WindowPlane): triangles of smooth glass, flat shaded, grouped
 // by plane and material (normals within 1e-5, offsets within tol), through which something
 // other than that glass is seen (a ray into the glass from one of the plane's first triangles
@@ -134,30 +176,8 @@ std::vector<WindowPlane> window_planes_of(const SceneView& s, uint32_t tri_count
       candidates.push_back({{t.v0, m.ior, n, ts.material, t.v0, t.v0}, 0.0f, false});
     }
     Candidate& cd = candidates[it->second];
-    // Open: from the triangle's centre into the glass, five rays (along the normal and tilted
-    // 45 degrees four ways; the first triangles of the plane, until one sees out).
-    if (!cd.open && cd.area < 64.0f * 0.5f * len) {
-      const vec3 centre = (t.v0 + t.v1 + t.v2) / 3.0f;
-      const Frame f = Frame::from_normal(-n);
-      for (int d = 0; d < 5 && !cd.open; ++d) {
-        const vec3 dir = d == 0 ? -n
-                                : glm::normalize(f.n + ((d & 1) ? 1.0f : -1.0f) *
-                                                           (d < 3 ? f.t : f.b));
-        Ray r;
-        r.o = offset_ray_origin(centre, -n);
-        r.d = dir;
-        r.tmax = kInfinity;
-        r.pad = 0.0f;
-        const Hit h = intersect_closest(static_cast<const TraceView&>(s), r, i);
-        if (!h.valid()) continue;
-        const uint32_t hm = h.prim < s.tri_count
-                                ? s.tri_shading[h.prim].material
-                                : (h.prim - s.tri_count < s.sphere_count
-                                       ? s.spheres[h.prim - s.tri_count].material
-                                       : kInvalid);
-        cd.open = hm != ts.material;
-      }
-    }
+    // Open: the first triangles of the plane, until one sees out.
+    if (!cd.open && cd.area < 64.0f * 0.5f * len) cd.open = glass_sees_out(s, i);
     cd.area += 0.5f * len;
     for (const vec3 v : {t.v0, t.v1, t.v2}) {
       cd.plane.lo = glm::min(cd.plane.lo, v);
@@ -594,6 +614,7 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
   // Light tracing's windows, once rays can be traced.
   view_.window_tol = plane_tol;
   window_planes_ = window_planes_of(view_, tri_count);
+  view_.open_glass = open_glass_of(view_, tri_count) ? 1u : 0u;
   view_.window_planes = window_planes_.empty() ? nullptr : window_planes_.data();
   view_.window_plane_count = uint32_t(window_planes_.size());
 }

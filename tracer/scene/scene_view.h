@@ -129,6 +129,10 @@ struct SceneView : TraceView {
   const WindowPlane* window_planes = nullptr;
   uint32_t window_plane_count = 0;
   float window_tol = 0.0f;
+  // Whether a ray into the scene's glass from one of its triangles meets something other than
+  // that glass (a floor under water, a tank's walls): manifold NEE's one-refraction chain can
+  // connect there (path.h); not through a closed glass slab or spheres.
+  uint32_t open_glass = 0;
   uint32_t texture_count = 0;
   uint32_t material_count = 0, light_count = 0, finite_light_count = 0;
   uint32_t features = 0;
