@@ -85,6 +85,8 @@ int run_info(const InfoOptions& o) {
   j["too_many_reflector_planes"] = cs.too_many_reflector_planes();
   // The planes of flat glass faces light tracing joins the camera through (a tank's front).
   j["window_planes"] = v.window_plane_count;
+  // The bounding spheres light tracing aims its paths' first directions at (its casters).
+  j["light_targets"] = v.light_target_count;
   // Whether manifold NEE has anything to connect through or off (smooth glass or reflectors).
   const bool casters = tracer::mnee_has_casters(cs);
   j["mnee_casters"] = casters;
@@ -227,6 +229,12 @@ int run_info(const InfoOptions& o) {
                           " planes of flat glass faces (light tracing joins the camera through "
                           "each)\n"
                     : std::string())
+            << (v.light_target_count > 0
+                    ? "targets     " + std::to_string(v.light_target_count) +
+                          (v.light_target_count == 1 ? " sphere" : " spheres") +
+                          " around the mirrors, glass and glossy metals (light tracing aims its "
+                          "paths at them)\n"
+                    : std::string())
             << (scene.settings.mnee && !casters
                     ? "mnee        on, but nothing here to connect through or reflect off (no "
                       "smooth glass, flat mirrors or mirror spheres): the image is as without "
@@ -234,10 +242,10 @@ int run_info(const InfoOptions& o) {
                     : std::string())
             << (scene.settings.light_tracing && light_yield < 0.0f
                     ? "light       tracing on, but no light path to find here (no area light, or "
-                      "no mirror, smooth metal or smooth glass): the image is as without it\n"
+                      "no mirror, glass or glossy metal): the image is as without it\n"
                     : scene.settings.light_tracing && !light_paths
                     ? "light       tracing on, but only " + percent(light_yield) +
-                          " of its light paths reach the camera through a mirror or glass "
+                          " of its light paths reach the camera through a mirror, glass or metal "
                           "(below " + percent(tracer::kLightTracingMinYield) +
                           "): the path tracer renders alone\n"
                     : scene.settings.light_tracing && !scene.settings.jitter

@@ -161,9 +161,9 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
   ASSERT_EQ(test::run_command(exe() + " info " + test::source_dir() +
                                   "/assets/scenes/rough_materials.json --mnee on", &log), 0) << log;
   EXPECT_NE(log.find("nothing here to connect through"), std::string::npos) << log;
-  // ... nor light tracing any light path to find.
+  // The diffuse box: light tracing has no light path to find, and says so.
   ASSERT_EQ(test::run_command(exe() + " info " + test::source_dir() +
-                                  "/assets/scenes/rough_materials.json --light-tracing on", &log),
+                                  "/assets/scenes/cornell_box.json --light-tracing on", &log),
             0) << log;
   EXPECT_NE(log.find("no light path to find here"), std::string::npos) << log;
   // smallpt: its light paths almost never reach the camera (its lamp mostly outside the room).
@@ -174,7 +174,9 @@ TEST(Cli, InfoReportsCountsBvhAndFeatures) {
   ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
                                   "/assets/scenes/rough_materials.json", &log), 0) << log;
   EXPECT_FALSE(nlohmann::json::parse(log.substr(log.find('{')))["mnee_casters"].get<bool>());
-  EXPECT_FALSE(nlohmann::json::parse(log.substr(log.find('{')))["light_paths"].get<bool>());
+  // Its narrow gold balls and frosted ball are light tracing's glossy casters, aimed at.
+  EXPECT_TRUE(nlohmann::json::parse(log.substr(log.find('{')))["light_paths"].get<bool>());
+  EXPECT_EQ(nlohmann::json::parse(log.substr(log.find('{')))["light_targets"].get<int>(), 3);
   // The lamp's glass box: six planes of flat reflectors (its faces) for manifold NEE.
   ASSERT_EQ(test::run_command(exe() + " info --json " + test::source_dir() +
                                   "/assets/scenes/glass_lamp.json", &log), 0) << log;

@@ -1241,6 +1241,13 @@ TEST(Gpu, LightTracingOfTheBallsAgreesWithTheCpu) {
   expect_gpu_light_tracing("cornell_spheres.json", 0.8);
 }
 
+// The rough materials (gold balls of roughness 0.05 and 0.25, a frosted glass ball): light paths
+// from their glossy casters, aimed at the balls (SceneView::light_targets), a quarter as many
+// as pixels.
+TEST(Gpu, LightTracingOfGlossyCastersAgreesWithTheCpu) {
+  expect_gpu_light_tracing("rough_materials.json", 0.6);
+}
+
 // The water tank seen through its front (tank.json): light paths joined to the camera through
 // the window's refraction (window_path, rays traced in the light kernel).
 TEST(Gpu, LightTracingThroughAWindowAgreesWithTheCpu) {

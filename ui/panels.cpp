@@ -464,10 +464,10 @@ void render_panel(Workbench& wb, PanelState& ps) {
       ImGui::TextWrapped("  off while pixel jitter is off (splats need jittered pixels)");
     else if (yield < 0.0f)
       ImGui::TextWrapped("  no light path to find in this scene (no area light, or no mirror, "
-                         "smooth metal or smooth glass): renders as without it");
+                         "glass or glossy metal): renders as without it");
     else
-      ImGui::TextWrapped("  only %.2f%% of its light paths reach the camera through a mirror or "
-                         "glass (below %.1f%%): the path tracer renders alone",
+      ImGui::TextWrapped("  only %.2f%% of its light paths reach the camera through a mirror, "
+                         "glass or metal (below %.1f%%): the path tracer renders alone",
                          100.0f * yield, 100.0f * tracer::kLightTracingMinYield);
     ImGui::PopStyleColor();
   }

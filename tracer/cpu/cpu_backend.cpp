@@ -174,7 +174,7 @@ inline void atomic_add(double* p, double v) {
 TRACER_CPU_MULTIVERSION void trace_light_paths(const Pass& p, std::atomic<uint32_t>* next_chunk,
                                                ThreadTotals& out) {
   const IntegratorSettings& cfg = *p.cfg;
-  const uint32_t n = cfg.width * cfg.height;
+  const uint32_t n = light_paths_per_sample(*p.view, cfg.width * cfg.height);
   const uint64_t total = uint64_t(n) * p.spp;
   constexpr uint32_t kChunk = 1024;
   const float norm = filter_profile_integral(cfg.filter, cfg.filter_radius);

@@ -67,6 +67,7 @@ struct CudaRenderer::Impl {
   DeviceBuffer<Sphere> spheres;
   DeviceBuffer<ReflectorPlane> reflector_planes;
   DeviceBuffer<WindowPlane> window_planes;
+  DeviceBuffer<LightTarget> light_targets;
   DeviceBuffer<Material> materials;
   DeviceBuffer<Light> lights;
   DeviceBuffer<float> light_cdf;
@@ -628,6 +629,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.spheres.upload(scene.spheres());
   m.reflector_planes.upload(scene.reflector_planes());
   m.window_planes.upload(scene.window_planes());
+  m.light_targets.upload(scene.light_targets());
   m.materials.upload(scene.materials());
   m.lights.upload(scene.lights());
   m.light_cdf.upload(scene.light_cdf());
@@ -666,6 +668,7 @@ void CudaRenderer::set_scene(const CompiledScene& scene, const IntegratorSetting
   m.view.spheres = m.spheres.get();
   m.view.reflector_planes = scene.reflector_planes().empty() ? nullptr : m.reflector_planes.get();
   m.view.window_planes = scene.window_planes().empty() ? nullptr : m.window_planes.get();
+  m.view.light_targets = scene.light_targets().empty() ? nullptr : m.light_targets.get();
   m.view.materials = m.materials.get();
   m.view.lights = m.lights.get();
   m.view.light_cdf = m.light_cdf.get();

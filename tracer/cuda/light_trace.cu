@@ -14,7 +14,7 @@ __global__ void __launch_bounds__(kBlock) light_kernel(SceneView view,
                                                        IntegratorSettings cfg, uint32_t sample,
                                                        FilmView film, float norm,
                                                        unsigned long long* counters,
-                                                       uint32_t* next_path) {
+                                                       uint32_t* next_path, uint32_t paths) {
   constexpr uint32_t F = features_of<Spec>() | (Flat ? kFeatureFlatList : 0u) |
                          (Windows ? kFeatureWindows : 0u);
   const SceneView s = Flat ? with_flat_params(view, flat) : view;
@@ -31,7 +31,7 @@ __global__ void __launch_bounds__(kBlock) light_kernel(SceneView view,
     const unsigned need = __ballot_sync(active, want);
     if (want) {
       const uint32_t k = take_pixel(need, next_path);
-      if (k < film.n) alive = start_light_path<F>(s, cfg, k, sample, st);
+      if (k < paths) alive = start_light_path<F>(s, cfg, k, sample, st);
       else exhausted = true;
     }
     if (!alive) {
@@ -41,7 +41,7 @@ __global__ void __launch_bounds__(kBlock) light_kernel(SceneView view,
     const Hit hit = intersect_closest<F>(s, st.ray, kInvalid);
     ++segments;
     LightConnection c;
-    alive = light_path_vertex<F>(s, cfg, film.n, norm, st, hit, &c, splat);
+    alive = light_path_vertex<F>(s, cfg, paths, norm, st, hit, &c, splat);
     connections += c.window_rays;
     if (c.connect) {
       ++connections;
@@ -57,9 +57,10 @@ template <uint32_t Spec, bool Flat, bool Windows = false>
 void launch(const SceneView& s, const FlatParams& flat, const IntegratorSettings& cfg,
             uint32_t sample, const FilmView& film, float norm, unsigned long long* counters,
             uint32_t* next_path, cudaStream_t stream) {
+  const uint32_t paths = light_paths_per_sample(s, film.n);
   light_kernel<Spec, Flat, Windows>
-      <<<persistent_blocks(light_kernel<Spec, Flat, Windows>, film.n), kBlock, 0, stream>>>(
-          s, flat, cfg, sample, film, norm, counters, next_path);
+      <<<persistent_blocks(light_kernel<Spec, Flat, Windows>, paths), kBlock, 0, stream>>>(
+          s, flat, cfg, sample, film, norm, counters, next_path, paths);
 }
 
 }  // namespace

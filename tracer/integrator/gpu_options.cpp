@@ -125,13 +125,8 @@ bool light_tracing_can_find(const CompiledScene& scene) {
   for (uint32_t i = 0; i < scene.view().light_count; ++i)
     area_light = area_light || scene.view().lights[i].kind == kLightPrimitive;
   if (!area_light) return false;
-  // A delta event: a delta BSDF (but a subsurface material's boundary, which stops light paths)
-  // or a smooth coat's lobe. Textures may make a material smooth metal per texel.
   for (const Material& m : scene.materials())
-    if (m.has_textures() ||
-        (bsdf_is_delta(m, m.type) && m.type != MaterialType::kSubsurface) ||
-        (m.type == MaterialType::kCoatedDiffuse && m.roughness <= 0.0f))
-      return true;
+    if (light_path_may_start_at(m)) return true;
   return false;
 }
 }  // namespace

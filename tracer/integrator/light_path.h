@@ -1,5 +1,6 @@
 // Light tracing of caustics (render.light_tracing): paths that start on a light, meet a mirror or
-// smooth glass first (a delta event), and are connected to the camera at every vertex after that
+// smooth glass first (a delta event) or frosted glass (a glossy caster, path.h's
+// light_trace_glossy_caster, which both sides treat as a delta event), and are connected to the camera at every vertex after that
 // whose BSDF has a wide lobe (light_trace_connects: diffuse, or rough from kGuideMinRoughness up;
 // a narrow glossy lobe would turn connections into fireflies); each connection is splatted into the pixels whose filter
 // covers the point it lands on (Veach 1997 sec. 10.2's t = 1 strategy; pbrt-v4 sec. 13.7's light
@@ -75,6 +76,85 @@ TRACER_HD inline void splat_film_point(const IntegratorSettings& cfg, vec2 fp, v
   }
 }
 
+// The cone of directions from p that meets target t (its axis, the cosine of its half-angle, its
+// solid angle); false where p lies inside the target's sphere.
+struct TargetCone {
+  vec3 axis;
+  float cos_max, solid_angle;
+};
+TRACER_HD TRACER_INLINE bool light_target_cone(const LightTarget& t, vec3 p, TargetCone* c) {
+  const vec3 to = t.center - p;
+  const float d2 = glm::dot(to, to), r2 = t.radius * t.radius;
+  if (!(d2 > r2)) return false;
+  const float sin2 = r2 / d2;
+  c->cos_max = glm::sqrt(1.0f - sin2);
+  c->solid_angle = 2.0f * kPi * sin2 / (1.0f + c->cos_max);  // 2 pi (1 - cos_max), exactly
+  c->axis = to * fast_rsqrt(d2);
+  return true;
+}
+// A target's share of the choice from a light point of normal n: its solid angle times the
+// cosine of its nearest direction (0 where the cone lies wholly behind the light).
+TRACER_HD TRACER_INLINE float light_target_weight(const TargetCone& c, vec3 n) {
+  const float sin_max = glm::sqrt(glm::max(0.0f, 1.0f - c.cos_max * c.cos_max));
+  return c.solid_angle * glm::clamp(glm::dot(c.axis, n) + sin_max, 0.0f, 1.0f);
+}
+
+// A light path's first direction from light point p (side normal n) aimed at the scene's
+// targets (SceneView::light_targets): a target chosen by light_target_weight, a direction
+// uniform in its cone (u); *pdf the mixture's density in solid angle (every cone that holds the
+// direction). Directions outside every cone meet no surface where a light path may start (the
+// targets bound them all), so the light tracer loses nothing by never sampling them. false where
+// there are no targets or p lies inside one (the caller samples the cosine), with *pdf = -1
+// where no cone lies in front of the light (no path from p is the light tracer's). u_choice:
+// a uniform number for the choice.
+TRACER_HD inline bool light_target_choice(const SceneView& s, vec3 p, vec3 n, float u_choice,
+                                          vec2 u, vec3* d, float* pdf) {
+  *pdf = 0.0f;
+  if (s.light_target_count == 0) return false;
+  float total = 0.0f;
+  for (uint32_t j = 0; j < s.light_target_count; ++j) {
+    TargetCone c;
+    if (!light_target_cone(s.light_targets[j], p, &c)) return false;
+    total += light_target_weight(c, n);
+  }
+  if (!(total > 0.0f)) {
+    *pdf = -1.0f;
+    return false;
+  }
+  // The choice, then the direction in the chosen cone.
+  float acc = 0.0f;
+  uint32_t chosen = s.light_target_count - 1;
+  TargetCone cc;
+  for (uint32_t j = 0; j < s.light_target_count; ++j) {
+    light_target_cone(s.light_targets[j], p, &cc);
+    acc += light_target_weight(cc, n);
+    if (u_choice * total < acc) {
+      chosen = j;
+      break;
+    }
+  }
+  light_target_cone(s.light_targets[chosen], p, &cc);
+  *d = Frame::from_normal(cc.axis).to_world(sample_uniform_cone(u, cc.cos_max));
+  // The mixture's density: the chosen cone's term always (its own test could round the other
+  // way at the rim), the others' where they hold d.
+  float density = 0.0f;
+  for (uint32_t j = 0; j < s.light_target_count; ++j) {
+    TargetCone c;
+    light_target_cone(s.light_targets[j], p, &c);
+    if (j == chosen || glm::dot(*d, c.axis) >= c.cos_max)
+      density += light_target_weight(c, n) / c.solid_angle;
+  }
+  *pdf = density / total;
+  return true;
+}
+
+// Light paths per sample: one per pixel, or one per kTargetedLightPathPixels pixels where they are
+// aimed at targets (most of them then carry a caustic where without targets a few in ten do).
+constexpr uint32_t kTargetedLightPathPixels = 4;
+TRACER_HD inline uint32_t light_paths_per_sample(const SceneView& s, uint32_t pixels) {
+  return s.light_target_count > 0 ? glm::max(1u, pixels / kTargetedLightPathPixels) : pixels;
+}
+
 // A light path between its segments: the ray to trace next and what it carries.
 struct LightPathState {
   Ray ray;
@@ -127,10 +207,22 @@ TRACER_HD inline bool start_light_path(const SceneView& s, const IntegratorSetti
   const bool two_sided = (lm.flags & kMaterialTwoSidedEmission) != 0;
   const vec3 side_n = two_sided && u_side < 0.5f ? -n : n;
   if (!material_emits(lm, glm::dot(side_n, n) > 0.0f) || is_black(le)) return false;
-  st.beta = le * (kPi * light.area / select * (two_sided ? 2.0f : 1.0f));
+  const float area_weight = light.area / select * (two_sided ? 2.0f : 1.0f);
+  vec3 d;
+  float target_pdf = 0.0f;
+  const float u_choice = 2.0f * u_side - (u_side < 0.5f ? 0.0f : 1.0f);  // (the side's used)
+  if (light_target_choice(s, p, side_n, u_choice, u_dir, &d, &target_pdf)) {
+    // Towards a target: Le cos / (select / area * pdf * side's chance).
+    const float c = glm::dot(d, side_n);
+    if (!(c > 0.0f) || !(target_pdf > 0.0f)) return false;
+    st.beta = le * (c / target_pdf * area_weight);
+  } else {
+    if (target_pdf < 0.0f) return false;  // no target above this side: nothing to cast
+    d = Frame::from_normal(side_n).to_world(sample_cosine_hemisphere(u_dir));
+    st.beta = le * (kPi * area_weight);
+  }
   st.beta0 = st.beta;
-  st.ray = spawn_ray(p, n, Frame::from_normal(side_n).to_world(sample_cosine_hemisphere(u_dir)));
-  st.ray.d = fast_normalize(st.ray.d);
+  st.ray = spawn_ray(p, n, fast_normalize(d));
   st.segments = 1;
   st.chain = false;
   return true;
@@ -301,7 +393,9 @@ TRACER_HD inline bool light_path_vertex(const SceneView& s, const IntegratorSett
   const float u_lobe = st.rng.next_float();
   const BsdfSample bs = bsdf_sample<F>(m, wl, u_bsdf, u_lobe);
   if (!bs.valid) return false;
-  if (!st.chain && !bs.specular) return false;  // light -> diffuse: next-event estimation's
+  // Light -> a wide lobe: next-event estimation's; the chain starts at a delta event or a glossy
+  // caster (light_trace_glossy_caster).
+  if (!st.chain && !bs.specular && !light_trace_glossy_caster(m, type)) return false;
   st.chain = true;
   const vec3 wg_world = fast_normalize(frame.to_world(bs.wi));
   const float side = glm::dot(wg_world, sh.ng);

@@ -94,7 +94,7 @@ TRACER_HD TRACER_INLINE bool guide_wide_bsdf(const Material& m, MaterialType typ
     case MaterialType::kCoatedDiffuse:
     case MaterialType::kDiffuseTransmission: return true;
     case MaterialType::kConductor:
-      return glm::min(m.roughness, m.roughness_v) >= kGuideMinRoughness;
+      return glm::min(m.roughness, m.roughness_bitangent()) >= kGuideMinRoughness;
     case MaterialType::kDielectric: return m.roughness >= kGuideMinRoughness;
     default: return false;
   }
@@ -102,10 +102,13 @@ TRACER_HD TRACER_INLINE bool guide_wide_bsdf(const Material& m, MaterialType typ
 
 // Where light tracing (render.light_tracing; integrator/light_path.h) joins its paths to the
 // camera, and so which camera vertices' paths it may take: wide lobes (guide_wide_bsdf: diffuse
-// ones, rough ones from kGuideMinRoughness up). Through a narrow glossy lobe a connection's BSDF
-// value is large and rare, a firefly that the camera's own BSDF samples avoid.
+// ones, rough ones from kGuideMinRoughness up), glossy casters excepted (above). Through a narrow
+// glossy lobe a connection's BSDF value is large and rare, a firefly that the camera's own BSDF
+// samples avoid.
+static_assert(kLightTraceMetalRoughness == kGuideMinRoughness,
+              "a metal is a glossy caster exactly where its lobe is not wide");
 TRACER_HD TRACER_INLINE bool light_trace_connects(const Material& m, MaterialType type) {
-  return guide_wide_bsdf(m, type);
+  return guide_wide_bsdf(m, type) && !light_trace_glossy_caster(m, type);
 }
 
 // The optional radiance clamp: a sample brighter than `clamp` in any channel is scaled down to
@@ -1096,11 +1099,22 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   const float mix = learned ? guide_mix(gv, gcell) : 0.0f;
   const bool guided = mix > 0.0f;
 
+  // A glossy caster past the light tracer's camera vertex (light_trace_glossy_caster) is, on the
+  // light tracer's paths, a delta event to the path tracer: its BSDF sample marks the path as
+  // after a delta event (the area light it reaches is the light tracer's, the sky it reaches
+  // counts in full), so light sampling there keeps only the lights no direction reaches (point,
+  // spot and distant lights).
+  const bool lt_caster = (F & kFeatureSpecular) && cfg.light_tracing &&
+                         (st.flags & kPathLightTraced) && st.depth > 1 &&
+                         !path_behind_window(st) && light_trace_glossy_caster(m, type);
+
   if (cfg.nee && !bsdf_is_delta(m, type) && s.light_count > 0) {
     const LightContext ctx = light_tree ? vertex_light_context(sh.p, ng_viewer, normal_code)
                                         : LightContext{sh.p, ng_viewer};
     const LightSample ls = sample_light_2d<F>(s, cfg.light_sampler, ctx, sh.p, sh.ng, u.light());
-    if (ls.valid && !is_black(ls.le)) {  // (manifold NEE's below also where ls.le is 0)
+    const bool ls_delta = (F & (kFeatureInfiniteLights | kFeaturePointLights)) && ls.delta;
+    if (ls.valid && !is_black(ls.le) && (ls_delta || !lt_caster)) {
+      // (manifold NEE's below also where ls.le is 0)
       // A light at infinity gives a direction; the others a point (point and spot lights: their
       // position, whose shadow ray ends just short of it, as an area light's).
       const bool at_infinity = (F & kFeatureInfiniteLights) && ls.infinite;
@@ -1114,16 +1128,15 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       if (usable) {
         const vec3 f = bsdf_eval<F>(m, wo, wi);
         if (!is_black(f)) {
-          const bool delta = (F & (kFeatureInfiniteLights | kFeaturePointLights)) && ls.delta;
           // MIS weighs light sampling against the density that samples directions here: the
           // BSDF's, or with a guide the mixture's.
           float scatter_pdf = 0.0f;
-          if (cfg.mis && !delta) {
+          if (cfg.mis && !ls_delta) {
             scatter_pdf = bsdf_pdf<F>(m, wo, wi);
             if (guided)
               scatter_pdf = mix * guide_pdf(gv, gcell, wi_world) + (1.0f - mix) * scatter_pdf;
           }
-          const float w = cfg.mis && !delta ? power_heuristic(ls.pdf, scatter_pdf) : 1.0f;
+          const float w = cfg.mis && !ls_delta ? power_heuristic(ls.pdf, scatter_pdf) : 1.0f;
           shadow.contribution = st.throughput * f * glm::abs(wi.z) * ls.le * fast_div(w, ls.pdf);
           shadow.ray = at_infinity ? spawn_ray(sh.p, sh.ng, wi_world)
                                    : spawn_ray_to(sh.p, geo > 0.0f ? sh.ng : -sh.ng, ls.p, ls.n);
@@ -1266,7 +1279,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   st.throughput *= bs.weight;
   st.prev_pdf = bs.pdf;
   st.prev_normal = normal_code;
-  st.flags = bs.specular ? (st.flags | kPathPrevSpecular) : (st.flags & ~kPathPrevSpecular);
+  st.flags = bs.specular || lt_caster ? (st.flags | kPathPrevSpecular)
+                                      : (st.flags & ~kPathPrevSpecular);
   st.ray = spawn_ray(sh.p, sh.ng, wi_world);
   // Only random walks need the origin triangle skipped (see traverse); elsewhere the offset
   // suffices and the skip would cost a compare per primitive test.

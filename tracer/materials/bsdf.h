@@ -64,6 +64,34 @@ TRACER_HD TRACER_INLINE Frame bsdf_frame(const Material& m, MaterialType type, v
   return Frame::from_normal(n);
 }
 
+// Light tracing's glossy casters: narrow glossy metals (roughness below
+// kLightTraceMetalRoughness, where the path tracer's wide lobes begin) and rough glass below
+// kLightTraceGlassRoughness. A gold ball's highlight and a frosted ball's blurred focus light the
+// walls through a small spot that a wall's BSDF samples find only by chance; light paths find it
+// from the light. A light path may start its chain there as at a delta event, and on the camera's
+// side such a vertex past the camera's counts as one (integrator/path.h, shade_path: no area-light
+// sampling there; the emission its sample reaches is the light tracer's). Neither kind joins the
+// camera (light_trace_connects): a connection through a narrow lobe is a firefly.
+constexpr float kLightTraceMetalRoughness = 0.3f;  // = kGuideMinRoughness (integrator/guide.h)
+constexpr float kLightTraceGlassRoughness = 0.5f;
+TRACER_HD TRACER_INLINE bool light_trace_glossy_caster(const Material& m, MaterialType type) {
+  if (type == MaterialType::kConductor)
+    return glm::max(m.roughness, m.roughness_bitangent()) > 0.0f &&
+           glm::min(m.roughness, m.roughness_bitangent()) < kLightTraceMetalRoughness;
+  return type == MaterialType::kDielectric && m.roughness > 0.0f &&
+         m.roughness < kLightTraceGlassRoughness;
+}
+
+// Whether a light path's chain may start at a surface of material m (its first event, which must
+// be a delta event or a glossy caster): a delta BSDF but a subsurface material's boundary (which
+// stops light paths), a smooth coat's lobe, a glossy caster, or any textured material (textures
+// may make it smooth metal per texel).
+TRACER_HD TRACER_INLINE bool light_path_may_start_at(const Material& m) {
+  return m.has_textures() || (bsdf_is_delta(m, m.type) && m.type != MaterialType::kSubsurface) ||
+         (m.type == MaterialType::kCoatedDiffuse && m.roughness <= 0.0f) ||
+         light_trace_glossy_caster(m, m.type);
+}
+
 TRACER_HD TRACER_INLINE float material_fresnel(const Material& m, float cos_i, float eta) {
   return (m.flags & kMaterialSchlickFresnel) ? fresnel_schlick(cos_i, eta)
                                              : fresnel_dielectric(cos_i, eta);
@@ -121,8 +149,7 @@ TRACER_HD TRACER_INLINE bool mnee_flat_reflector(const Material& m) {
 }
 
 TRACER_HD TRACER_INLINE vec2 conductor_alpha(const Material& mat) {
-  const float v = mat.roughness_v >= 0.0f ? mat.roughness_v : mat.roughness;
-  return vec2(ggx_alpha(mat.roughness), ggx_alpha(v));
+  return vec2(ggx_alpha(mat.roughness), ggx_alpha(mat.roughness_bitangent()));
 }
 
 TRACER_HD TRACER_INLINE vec3 rough_conductor_eval(const Material& mat, vec3 wo, vec3 wi) {

@@ -71,6 +71,10 @@ struct alignas(16) Material {
   TRACER_HD bool is_specular() const { return type != MaterialType::kDiffuse; }
   // Anisotropic roughness: the lobe depends on the azimuth, so the shading frame's tangent
   // matters (bsdf_frame in bsdf.h). Only conductors read roughness_v.
+  // A conductor's roughness along the bitangent (roughness_v, or roughness where it is < 0).
+  TRACER_HD float roughness_bitangent() const {
+    return roughness_v >= 0.0f ? roughness_v : roughness;
+  }
   TRACER_HD bool is_anisotropic() const {
     return type == MaterialType::kConductor && roughness_v >= 0.0f && roughness_v != roughness;
   }

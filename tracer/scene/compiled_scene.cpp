@@ -139,6 +139,65 @@ bool open_glass_of(const SceneView& s, uint32_t tri_count) {
   return false;
 }
 
+// Light tracing's targets (scene_view.h, LightTarget): each sphere of a material where a light
+// path may start (light_path_may_start_at), and a sphere around the triangles of each such
+// material; more than kMaxLightTargets become one around them all. None with instances (whose
+// materials this does not look into).
+std::vector<LightTarget> light_targets_of(const SceneView& s, uint32_t tri_count) {
+  std::vector<LightTarget> targets;
+  if (s.instance_count > 0) return targets;
+  std::vector<char> starts(s.material_count);
+  for (uint32_t m = 0; m < s.material_count; ++m)
+    starts[m] = light_path_may_start_at(s.materials[m]) ? 1 : 0;
+  std::vector<Aabb> boxes;  // per material: the triangles', then the spheres' one by one
+  std::vector<uint32_t> slot(s.material_count, kInvalid);
+  for (uint32_t i = 0; i < tri_count; ++i) {
+    const uint32_t m = s.tri_shading[i].material;
+    if (!starts[m]) continue;
+    if (slot[m] == kInvalid) {
+      slot[m] = uint32_t(boxes.size());
+      boxes.emplace_back();
+    }
+    const TriangleVerts& t = s.tri_verts[i];
+    for (const vec3 v : {t.v0, t.v1, t.v2}) boxes[slot[m]].grow(v);
+  }
+  for (const Aabb& b : boxes)
+    targets.push_back({0.5f * (b.lo + b.hi), 0.5f * glm::length(b.hi - b.lo)});
+  Aabb all;
+  for (const Aabb& b : boxes) all.grow(b);
+  for (uint32_t i = 0; i < s.sphere_count; ++i) {
+    const Sphere& sp = s.spheres[i];
+    if (!starts[sp.material]) continue;
+    targets.push_back({sp.center, sp.radius});
+    all.grow(sp.center - vec3(sp.radius));
+    all.grow(sp.center + vec3(sp.radius));
+  }
+  if (targets.size() > kMaxLightTargets)
+    targets.assign(1, {0.5f * (all.lo + all.hi), 0.5f * glm::length(all.hi - all.lo)});
+  // A light reaching into a target (a lamp inside its glass) leaves by the cosine, and the scene
+  // keeps one light path per pixel: none then.
+  for (uint32_t l = 0; l < s.light_count; ++l) {
+    const Light& light = s.lights[l];
+    if (light.kind != kLightPrimitive) continue;
+    Aabb box;
+    if (light.prim < tri_count) {
+      const TriangleVerts& t = s.tri_verts[light.prim];
+      for (const vec3 v : {t.v0, t.v1, t.v2}) box.grow(v);
+    } else if (light.prim - s.tri_count < s.sphere_count) {
+      const Sphere& sp = s.spheres[light.prim - s.tri_count];
+      box.grow(sp.center - vec3(sp.radius));
+      box.grow(sp.center + vec3(sp.radius));
+    }
+    for (const LightTarget& t : targets) {
+      const vec3 q = glm::clamp(t.center, box.lo, box.hi);  // the box's point nearest the centre
+      if (glm::dot(q - t.center, q - t.center) <= t.radius * t.radius) return {};
+    }
+  }
+  // A little wider, against the rounding of the cone's test.
+  for (LightTarget& t : targets) t.radius *= 1.0f + 1e-4f;
+  return targets;
+}
+
 // The window planes (scene_view.h, WindowPlane): triangles of smooth glass, flat shaded, grouped
 // by plane and material (normals within 1e-5, offsets within tol), through which something
 // other than that glass is seen (a ray into the glass from one of the plane's first triangles
@@ -617,6 +676,9 @@ CompiledScene::CompiledScene(const Scene& scene, int width, int height,
   view_.open_glass = open_glass_of(view_, tri_count) ? 1u : 0u;
   view_.window_planes = window_planes_.empty() ? nullptr : window_planes_.data();
   view_.window_plane_count = uint32_t(window_planes_.size());
+  light_targets_ = light_targets_of(view_, tri_count);
+  view_.light_targets = light_targets_.empty() ? nullptr : light_targets_.data();
+  view_.light_target_count = uint32_t(light_targets_.size());
 }
 
 }  // namespace tracer

@@ -72,6 +72,8 @@ class CompiledScene {
   // The window planes of smooth glass (view().window_planes points at them; none where there
   // are more than kMaxWindowPlanes).
   const std::vector<WindowPlane>& window_planes() const { return window_planes_; }
+  // Light tracing's targets (view().light_targets points at them when there are any).
+  const std::vector<LightTarget>& light_targets() const { return light_targets_; }
 
  private:
   // Shared with the compiled scenes of later edits that keep the geometry.
@@ -101,6 +103,7 @@ class CompiledScene {
   std::vector<ReflectorPlane> reflector_planes_;
   bool too_many_reflectors_ = false;
   std::vector<WindowPlane> window_planes_;
+  std::vector<LightTarget> light_targets_;
   SceneView view_;
 };
 

@@ -97,6 +97,16 @@ struct WindowPlane {
 // refraction through each at every vertex that connects).
 constexpr uint32_t kMaxWindowPlanes = 8;
 
+// A bounding sphere of the surfaces where a light path's chain may start (a glass ball, the
+// triangles of one caster material): light tracing aims its paths' first directions at the
+// cones these subtend (integrator/light_path.h, start_light_path), since a path whose first
+// event is elsewhere is not the light tracer's.
+struct LightTarget {
+  vec3 center;
+  float radius;
+};
+constexpr uint32_t kMaxLightTargets = 16;
+
 // The whole scene as the integrator reads it: the geometry that ray queries read (TraceView) and
 // the shading data, materials, lights, textures and camera.
 struct SceneView : TraceView {
@@ -129,6 +139,10 @@ struct SceneView : TraceView {
   const WindowPlane* window_planes = nullptr;
   uint32_t window_plane_count = 0;
   float window_tol = 0.0f;
+  // Light tracing's targets (light_target_count <= kMaxLightTargets; none where the scene has
+  // instances, or where no light path can start: light paths then leave by the cosine).
+  const LightTarget* light_targets = nullptr;
+  uint32_t light_target_count = 0;
   // Whether a ray into the scene's glass from one of its triangles meets something other than
   // that glass (a floor under water, a tank's walls): manifold NEE's one-refraction chain can
   // connect there (path.h); not through a closed glass slab or spheres.
