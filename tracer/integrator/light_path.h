@@ -1,22 +1,30 @@
-// Light tracing of caustics (render.light_tracing): paths that start on a light, meet a mirror or
-// smooth glass first (a delta event) or frosted glass (a glossy caster, path.h's
-// light_trace_glossy_caster, which both sides treat as a delta event), and are connected to the camera at every vertex after that
-// whose BSDF has a wide lobe (light_trace_connects: diffuse, or rough from kGuideMinRoughness up;
-// a narrow glossy lobe would turn connections into fireflies); each connection is splatted into the pixels whose filter
-// covers the point it lands on (Veach 1997 sec. 10.2's t = 1 strategy; pbrt-v4 sec. 13.7's light
-// paths). The path tracer leaves exactly these paths to it: a path whose camera vertex scatters by
-// a non-delta lobe of such a BSDF (kPathLightTraced, shade_path) and that reaches an area light after one or more
-// delta events from its last non-delta vertex no longer adds that emission. The two estimators so
-// split the paths between them without weights, and the image keeps its mean. Caustics seen
-// directly (a glass ball's on the floor, a lamp behind glass lighting a room) and the light they
-// bounce on converge without the fireflies of BSDF-sampled paths.
+// Light tracing of caustics (render.light_tracing): paths that start on a light and meet a caster
+// first (a mirror or smooth glass: a delta event; or a narrow glossy metal or frosted glass: a
+// glossy caster, materials/bsdf.h's light_trace_glossy_caster, which both estimators treat as a
+// delta event), and are connected to the camera at every vertex after that whose BSDF has a wide
+// lobe (light_trace_connects: diffuse, or rough from kGuideMinRoughness up; through a narrow
+// glossy lobe a connection is a firefly); each connection is splatted into the pixels whose
+// filter covers the point it lands on (Veach 1997 sec. 10.2's t = 1 strategy; pbrt-v4 sec.
+// 13.7's light paths). The path tracer leaves exactly these paths to it: a path whose camera
+// vertex scatters by a non-delta lobe of such a BSDF (kPathLightTraced, shade_path) and that
+// reaches an area light after one or more delta events or glossy casters from its last other
+// vertex no longer adds that emission. The two estimators so split the paths between them
+// without weights, and the image keeps its mean. Caustics seen directly (a glass ball's on the
+// floor, a lamp behind glass lighting a room, a gold ball's highlight on a wall) and the light
+// they bounce on converge without the fireflies of BSDF-sampled paths.
+//
+// A light path's first direction is aimed at the casters (SceneView::light_targets: bounding
+// spheres, light_target_choice) where the scene lists them, since a path whose first event is
+// elsewhere is not the light tracer's; then a quarter as many light paths as pixels are traced
+// per sample (light_paths_per_sample), else one per pixel, leaving by the cosine.
 //
 // Not light-traced (the path tracer keeps them): paths whose camera vertex is a delta event (a
-// caustic seen in a mirror) or a narrow glossy one, light from lights at infinity and point lights, and paths through a
-// subsurface material (the light tracer stops there; shade_path clears the flag there).
+// caustic seen in a mirror) or a narrow glossy one, light from lights at infinity and point
+// lights, and paths through a subsurface material (the light tracer stops there; shade_path
+// clears the flag there).
 //
-// Each sample traces width x height light paths. Light path k of sample s draws from its own
-// PCG32 stream, so a sample's splats depend on (s, seed) alone, as its camera paths do.
+// Light path k of sample s draws from its own PCG32 stream, so a sample's splats depend on
+// (s, seed) alone, as its camera paths do.
 #pragma once
 
 #include "integrator/path.h"
