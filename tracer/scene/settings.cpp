@@ -218,11 +218,12 @@ std::vector<Setting> make_table() {
                     "caustics of lights behind glass or in mirrors converge without fireflies.",
                     E::kImage, [](Scene& s) -> bool& { return s.settings.mnee; }));
   t.push_back(field("render.light_tracing", "--light-tracing", T::kBool, 0, 0, "",
-                    "Light tracing of caustics: paths from the lights through mirrors and smooth "
-                    "glass, joined to the camera at each diffuse or rough vertex and splatted into "
-                    "the image; the path tracer leaves those paths to them (an exact split: "
-                    "unbiased). Caustics seen directly, and the light they bounce on, converge "
-                    "without fireflies; about one more path per pixel and sample. Needs jitter.",
+                    "Light tracing of caustics: paths from the lights through mirrors, glass and "
+                    "glossy metals, joined to the camera at each diffuse or rough vertex and "
+                    "splatted into the image; the path tracer leaves those paths to them (an "
+                    "exact split: unbiased). Caustics seen directly, and the light they bounce "
+                    "on, converge without fireflies; up to one more path per pixel and sample (a "
+                    "quarter where they are aimed at the casters). Needs jitter.",
                     E::kImage, [](Scene& s) -> bool& { return s.settings.light_tracing; }));
   t.push_back(choice<PixelFilter>(
       "render.filter", "--filter", {"box", "tent", "gaussian", "blackman-harris"},
