@@ -1,7 +1,7 @@
 // Light tracing of caustics (render.light_tracing): paths that start on a light and meet a caster
 // first (a mirror or smooth glass: a delta event; or a narrow glossy metal or frosted glass: a
-// glossy caster, materials/bsdf.h's light_trace_glossy_caster, which both estimators treat as a
-// delta event), and are connected to the camera at every vertex after that whose BSDF has a wide
+// glossy caster, materials/bsdf.h's light_trace_glossy_caster, where as at a delta event the
+// path tracer leaves the area lights to it), and are connected to the camera at every vertex after that whose BSDF has a wide
 // lobe (light_trace_connects: diffuse, or rough from kGuideMinRoughness up; through a narrow
 // glossy lobe a connection is a firefly); each connection is splatted into the pixels whose
 // filter covers the point it lands on (Veach 1997 sec. 10.2's t = 1 strategy; pbrt-v4 sec.

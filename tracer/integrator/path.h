@@ -154,7 +154,10 @@ struct PathState {
   uint32_t pixel;
   vec3 radiance;
   uint32_t sample;
-  float prev_pdf;  // solid-angle pdf of the BSDF sample that produced `ray`
+  // Solid-angle pdf of the BSDF sample that produced `ray`; negative where that vertex was a
+  // glossy caster on a light-traced path (lt_caster in shade_path: the area light `ray` reaches is
+  // the light tracer's; MIS reads the magnitude).
+  float prev_pdf;
   uint32_t depth;  // segments traced so far, counting `ray`
   uint32_t flags;
   uint32_t medium;       // material of the medium the path is in, when kPathInMedium
@@ -989,7 +992,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   if (!hit.valid()) {  // escaped: the lights at infinity, if any
     if ((F & kFeatureInfiniteLights) && s.infinite)
       st.radiance +=
-          st.throughput * escaped_radiance<F>(s, cfg.nee != 0, cfg.mis != 0, st.ray.d, st.prev_pdf,
+          st.throughput * escaped_radiance<F>(s, cfg.nee != 0, cfg.mis != 0, st.ray.d,
+                                              glm::abs(st.prev_pdf),
                                               st.depth, (st.flags & kPathPrevSpecular) != 0,
                                               cfg.light_sampler);
     return false;
@@ -1036,7 +1040,7 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
           const LightContext prev{st.ray.o,
                                   tree ? unpack_light_normal(st.prev_normal) : vec3(0.0f)};
           const float select = light_choice_pmf<F>(s, cfg.light_sampler, prev, sh.light);
-          w = power_heuristic(st.prev_pdf,
+          w = power_heuristic(glm::abs(st.prev_pdf),
                               light_pdf<F>(s, sh.light, select, st.ray.o, sh.p, sh.ng));
         } else {
           w = 0.0f;
@@ -1049,10 +1053,11 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
       const uint32_t mnee_bits = st.flags & (kPathMneeFrom | kPathMneeRefract1 |
                                              kPathMneeRefract2 | kPathMneeOther | kPathMneeMirror);
       if ((F & kFeatureSpecular) && cfg.light_tracing && sh.light != kInvalid &&
-          (st.flags & (kPathLightTraced | kPathPrevSpecular)) ==
-              (kPathLightTraced | kPathPrevSpecular) &&
-          !path_behind_window(st) && light_select_pdf(s, sh.light) > 0.0f) {
-        w = 0.0f;  // the light tracer's: an area light it emits from, after delta events
+          (st.flags & kPathLightTraced) &&
+          ((st.flags & kPathPrevSpecular) || st.prev_pdf < 0.0f) && !path_behind_window(st) &&
+          light_select_pdf(s, sh.light) > 0.0f) {
+        // The light tracer's: an area light it emits from, after delta events or glossy casters.
+        w = 0.0f;
       } else if ((F & kFeatureCaustics) && cfg.mnee && mnee && sh.light != kInvalid &&
           (mnee_bits == (kPathMneeFrom | kPathMneeRefract2) ||
            mnee_bits == (kPathMneeFrom | kPathMneeRefract1) ||
@@ -1099,11 +1104,10 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
   const float mix = learned ? guide_mix(gv, gcell) : 0.0f;
   const bool guided = mix > 0.0f;
 
-  // A glossy caster past the light tracer's camera vertex (light_trace_glossy_caster) is, on the
-  // light tracer's paths, a delta event to the path tracer: its BSDF sample marks the path as
-  // after a delta event (the area light it reaches is the light tracer's, the sky it reaches
-  // counts in full), so light sampling there keeps only the lights no direction reaches (point,
-  // spot and distant lights).
+  // A glossy caster past the light tracer's camera vertex (light_trace_glossy_caster): on the
+  // light tracer's paths its area lights are the light tracer's, so light sampling there skips
+  // them and the area light its BSDF sample reaches is not added (prev_pdf < 0); the other lights
+  // (point, spot, distant, the environment) it samples as any vertex, with MIS.
   const bool lt_caster = (F & kFeatureSpecular) && cfg.light_tracing &&
                          (st.flags & kPathLightTraced) && st.depth > 1 &&
                          !path_behind_window(st) && light_trace_glossy_caster(m, type);
@@ -1113,7 +1117,8 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
                                         : LightContext{sh.p, ng_viewer};
     const LightSample ls = sample_light_2d<F>(s, cfg.light_sampler, ctx, sh.p, sh.ng, u.light());
     const bool ls_delta = (F & (kFeatureInfiniteLights | kFeaturePointLights)) && ls.delta;
-    if (ls.valid && !is_black(ls.le) && (ls_delta || !lt_caster)) {
+    const bool ls_area = !((F & kFeatureInfiniteLights) && ls.infinite) && !ls_delta;
+    if (ls.valid && !is_black(ls.le) && !(lt_caster && ls_area)) {
       // (manifold NEE's below also where ls.le is 0)
       // A light at infinity gives a direction; the others a point (point and spot lights: their
       // position, whose shadow ray ends just short of it, as an area light's).
@@ -1277,10 +1282,9 @@ TRACER_HD TRACER_INLINE bool shade_path(const SceneView& s, const IntegratorSett
     }
   }
   st.throughput *= bs.weight;
-  st.prev_pdf = bs.pdf;
+  st.prev_pdf = lt_caster ? -bs.pdf : bs.pdf;
   st.prev_normal = normal_code;
-  st.flags = bs.specular || lt_caster ? (st.flags | kPathPrevSpecular)
-                                      : (st.flags & ~kPathPrevSpecular);
+  st.flags = bs.specular ? (st.flags | kPathPrevSpecular) : (st.flags & ~kPathPrevSpecular);
   st.ray = spawn_ray(sh.p, sh.ng, wi_world);
   // Only random walks need the origin triangle skipped (see traverse); elsewhere the offset
   // suffices and the skip would cost a compare per primitive test.

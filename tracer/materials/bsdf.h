@@ -69,9 +69,10 @@ TRACER_HD TRACER_INLINE Frame bsdf_frame(const Material& m, MaterialType type, v
 // kLightTraceGlassRoughness. A gold ball's highlight and a frosted ball's blurred focus light the
 // walls through a small spot that a wall's BSDF samples find only by chance; light paths find it
 // from the light. A light path may start its chain there as at a delta event, and on the camera's
-// side such a vertex past the camera's counts as one (integrator/path.h, shade_path: no area-light
-// sampling there; the emission its sample reaches is the light tracer's). Neither kind joins the
-// camera (light_trace_connects): a connection through a narrow lobe is a firefly.
+// side such a vertex past the camera's leaves the area lights to the light tracer
+// (integrator/path.h, shade_path: no area-light sampling there, and the area light its sample
+// reaches is not added; the other lights as anywhere). Neither kind joins the camera
+// (light_trace_connects): a connection through a narrow lobe is a firefly.
 constexpr float kLightTraceMetalRoughness = 0.3f;  // = kGuideMinRoughness (integrator/guide.h)
 constexpr float kLightTraceGlassRoughness = 0.5f;
 TRACER_HD TRACER_INLINE bool light_trace_glossy_caster(const Material& m, MaterialType type) {
