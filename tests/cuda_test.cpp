@@ -1248,6 +1248,15 @@ TEST(Gpu, LightTracingOfGlossyCastersAgreesWithTheCpu) {
   expect_gpu_light_tracing("rough_materials.json", 0.6);
 }
 
+// The same beside a point light, a spot, a sun and a sky (test::add_other_lights): at a glossy
+// caster the path tracer samples those with MIS and leaves the area light to the light tracer
+// (the wavefront keeps that mark as a negative prev_pdf between bounces). The mean; the variance
+// bounded only from above (the lamp's share of the light choices is small here).
+TEST(Gpu, LightTracingOfGlossyCastersBesideOtherLightsAgreesWithTheCpu) {
+  expect_gpu_light_tracing("rough_materials.json", 2.0,
+                           [](Scene& s) { test::add_other_lights(s); });
+}
+
 // The water tank seen through its front (tank.json): light paths joined to the camera through
 // the window's refraction (window_path, rays traced in the light kernel).
 TEST(Gpu, LightTracingThroughAWindowAgreesWithTheCpu) {

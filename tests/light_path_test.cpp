@@ -337,29 +337,8 @@ TEST(LightPath, GlossyCastersKeepTheirMeanWithLessNoise) {
 // sun and the sky take most of them here.)
 TEST(LightPath, GlossyCastersBesideOtherLightsKeepTheirMean) {
   expect_light_tracing_keeps_the_mean(
-      "rough_materials.json", 24, 1024, 512, 2.0, [](Scene& scene, RenderSettings&) {
-        PointLightDesc point;
-        point.name = "point";
-        point.position = vec3(150.0f, 420.0f, 250.0f);
-        point.intensity = vec3(15000.0f);
-        PointLightDesc spot = point;
-        spot.name = "spot";
-        spot.spot = true;
-        spot.position = vec3(420.0f, 450.0f, 150.0f);
-        spot.direction = vec3(-0.3f, -1.0f, 0.2f);
-        DistantLightDesc sun;
-        sun.name = "sun";
-        sun.direction = vec3(0.2f, 0.6f, -1.0f);
-        sun.irradiance = vec3(1.5f);
-        // (A wide sun: the highlight of a delta sun or of the real one, 0.53 degrees, on the
-        // gold ball of roughness 0.05, seen by the camera, is a sub-pixel spike that 1,024
-        // samples of either estimator do not bound, whichever way the other paths are split.)
-        sun.angular_diameter_deg = 5.0f;
-        scene.point_lights = {point, spot};
-        scene.distant_lights = {sun};
-        scene.environment.color = vec3(0.3f, 0.4f, 0.5f);
-        refresh_environment(scene);
-      });
+      "rough_materials.json", 24, 1024, 512, 2.0,
+      [](Scene& scene, RenderSettings&) { test::add_other_lights(scene); });
 }
 
 // A thin lens and a wide tent filter: the connections land on the lens and are splatted over

@@ -153,6 +153,31 @@ constexpr float kSlabHalf = 200.0f;
 // The random walk leaves through the smooth boundary or the diffuse exit (integrator/medium.h):
 // index-matched under a uniform sky the two reflect the same total (only the exit's direction
 // differs, and every direction sees the same sky), so the analytic albedos hold for both.
+// Every other kind of light beside a Cornell-sized box's area light (coordinates 0-555, open
+// at -z): a point light, a spot, a sun of 5 degrees through the open front (wide: a narrower
+// one's highlight on a near-mirror is a sub-pixel spike that a test's samples do not bound) and
+// a constant sky.
+inline void add_other_lights(Scene& scene) {
+  PointLightDesc point;
+  point.name = "point";
+  point.position = vec3(150.0f, 420.0f, 250.0f);
+  point.intensity = vec3(15000.0f);
+  PointLightDesc spot = point;
+  spot.name = "spot";
+  spot.spot = true;
+  spot.position = vec3(420.0f, 450.0f, 150.0f);
+  spot.direction = vec3(-0.3f, -1.0f, 0.2f);
+  DistantLightDesc sun;
+  sun.name = "sun";
+  sun.direction = vec3(0.2f, 0.6f, -1.0f);
+  sun.irradiance = vec3(1.5f);
+  sun.angular_diameter_deg = 5.0f;
+  scene.point_lights = {point, spot};
+  scene.distant_lights = {sun};
+  scene.environment.color = vec3(0.3f, 0.4f, 0.5f);
+  refresh_environment(scene);
+}
+
 inline Scene slab_scene(float albedo, int grid, bool smooth_exit = true) {
   Scene s;
   Material slab;
