@@ -161,8 +161,10 @@ std::vector<LightTarget> light_targets_of(const SceneView& s, uint32_t tri_count
     const TriangleVerts& t = s.tri_verts[i];
     for (const vec3 v : {t.v0, t.v1, t.v2}) boxes[slot[m]].grow(v);
   }
-  for (const Aabb& b : boxes)
-    targets.push_back({0.5f * (b.lo + b.hi), 0.5f * glm::length(b.hi - b.lo)});
+  auto around = [](const Aabb& b) -> LightTarget {
+    return {0.5f * (b.lo + b.hi), 0.5f * glm::length(b.hi - b.lo)};
+  };
+  for (const Aabb& b : boxes) targets.push_back(around(b));
   Aabb all;
   for (const Aabb& b : boxes) all.grow(b);
   for (uint32_t i = 0; i < s.sphere_count; ++i) {
@@ -172,22 +174,13 @@ std::vector<LightTarget> light_targets_of(const SceneView& s, uint32_t tri_count
     all.grow(sp.center - vec3(sp.radius));
     all.grow(sp.center + vec3(sp.radius));
   }
-  if (targets.size() > kMaxLightTargets)
-    targets.assign(1, {0.5f * (all.lo + all.hi), 0.5f * glm::length(all.hi - all.lo)});
+  if (targets.size() > kMaxLightTargets) targets.assign(1, around(all));
   // A light reaching into a target (a lamp inside its glass) leaves by the cosine, and the scene
-  // keeps one light path per pixel: none then.
+  // keeps one light path per pixel: none then. (A light without power starts no light path.)
   for (uint32_t l = 0; l < s.light_count; ++l) {
-    const Light& light = s.lights[l];
-    if (light.kind != kLightPrimitive) continue;
-    Aabb box;
-    if (light.prim < tri_count) {
-      const TriangleVerts& t = s.tri_verts[light.prim];
-      for (const vec3 v : {t.v0, t.v1, t.v2}) box.grow(v);
-    } else if (light.prim - s.tri_count < s.sphere_count) {
-      const Sphere& sp = s.spheres[light.prim - s.tri_count];
-      box.grow(sp.center - vec3(sp.radius));
-      box.grow(sp.center + vec3(sp.radius));
-    }
+    if (s.lights[l].kind != kLightPrimitive) continue;
+    const Aabb box = light_bounds(s, s.lights[l]).box;
+    if (box.lo.x > box.hi.x) continue;
     for (const LightTarget& t : targets) {
       const vec3 q = glm::clamp(t.center, box.lo, box.hi);  // the box's point nearest the centre
       if (glm::dot(q - t.center, q - t.center) <= t.radius * t.radius) return {};
